@@ -1,0 +1,30 @@
+// One irradiance-cache record (Ward 1988): the indirect irradiance E at point x with normal n,
+// computed from a stratified cosine-weighted hemisphere of rays, and R, the harmonic mean of
+// those rays' hit distances (1/R = (1/N) sum 1/d_j), clamped by the integrator so that no record
+// is infinitely large or small. Units: scene units for x and R; E in W/m^2 per RGB channel.
+#pragma once
+
+#include <cstdint>
+
+#include "cache/math.h"
+
+namespace irfarm {
+
+struct IrradianceRecord {
+  Vec3 position;        // x_i, world space
+  Vec3 normal;          // n_i, unit, facing the side of the surface the record belongs to
+  Vec3 irradiance;      // E_i (RGB), indirect only
+  float radius = 0;     // R_i (harmonic mean distance, clamped), > 0
+  uint32_t origin = 0;  // who computed it (0 = this process; worker ids in the service)
+};
+
+// True when every field is finite, the normal has unit length (within 1e-3), R > 0 and E >= 0.
+// Records read back from disk or the wire are checked with this before use.
+inline bool IsValidRecord(const IrradianceRecord& r) {
+  if (!IsFinite(r.position) || !IsFinite(r.normal) || !IsFinite(r.irradiance)) return false;
+  if (!(r.radius > 0) || !std::isfinite(r.radius)) return false;
+  if (std::abs(Length(r.normal) - 1.0f) > 1e-3f) return false;
+  return r.irradiance.x >= 0 && r.irradiance.y >= 0 && r.irradiance.z >= 0;
+}
+
+}  // namespace irfarm

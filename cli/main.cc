@@ -1,0 +1,214 @@
+// The `irfarm` command. `render` renders a scene locally in one process (no network);
+// `compare` prints the error metrics of one EXR against another (relMSE as the project defines
+// it); `downsample` box-filters an EXR (for low-resolution reference images). The distributed
+// subcommands (submit, status, ...) come with the service.
+#include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <map>
+#include <string>
+
+#include "render/image.h"
+#include "render/renderer.h"
+#include "render/scene.h"
+#include "render/scene_loader.h"
+
+namespace irfarm {
+namespace {
+
+std::string StripExtension(const std::string& path) {
+  const size_t dot = path.find_last_of('.');
+  const size_t slash = path.find_last_of('/');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return path;
+  return path.substr(0, dot);
+}
+
+struct RenderArgs {
+  std::string scene, output = "out.exr", stats, record_map;
+  std::string integrator;
+  int spp = 0, record_rays = 0, threads = 0, light_samples = 0;
+  float accuracy = 0, min_spacing = 0, max_spacing = 0;
+  uint64_t seed = 0;
+  bool no_overture = false, quiet = false;
+  std::vector<std::string> defines;
+};
+
+int RunRender(const RenderArgs& args) {
+  PhaseTimer load_timer("load");
+  LoadOptions options;
+  for (const std::string& d : args.defines) {
+    const size_t eq = d.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      std::fprintf(stderr, "error: -D expects name=value, got '%s'\n", d.c_str());
+      return 2;
+    }
+    options.defines[d.substr(0, eq)] = d.substr(eq + 1);
+  }
+  absl::StatusOr<SceneDesc> desc = LoadSceneFile(args.scene, options);
+  if (!desc.ok()) {
+    std::fprintf(stderr, "%s\n", std::string(desc.status().message()).c_str());
+    return 1;
+  }
+  for (const std::string& w : desc->warnings) spdlog::warn("{}", w);
+  const PhaseTime load_time = load_timer.Stop();
+
+  PhaseTimer build_timer("build");
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
+  if (!scene.ok()) {
+    std::fprintf(stderr, "%s\n", std::string(scene.status().message()).c_str());
+    return 1;
+  }
+  const PhaseTime build_time = build_timer.Stop();
+
+  absl::StatusOr<RenderSettings> defaults =
+      SettingsForScene(*desc, !args.integrator.empty() ? args.integrator : "irrcache");
+  if (!defaults.ok()) {
+    std::fprintf(stderr, "%s\n", std::string(defaults.status().message()).c_str());
+    return 1;
+  }
+  RenderSettings s = *defaults;
+  IrrcacheSettings& ic = s.irrcache;
+  if (args.spp > 0) s.spp = args.spp;
+  if (args.accuracy > 0) ic.accuracy = args.accuracy;
+  if (args.record_rays > 0) ic.record_rays = args.record_rays;
+  if (args.light_samples > 0) ic.light_samples = args.light_samples;
+  if (args.min_spacing > 0) ic.min_spacing_px = args.min_spacing;
+  if (args.max_spacing > 0) ic.max_spacing_px = args.max_spacing;
+  if (!(ic.accuracy > 0 && ic.accuracy <= 1)) {
+    std::fprintf(stderr, "error: --accuracy must be in (0, 1], got %g\n", ic.accuracy);
+    return 2;
+  }
+  s.threads = args.threads;
+  s.seed = args.seed;
+  s.overture = !args.no_overture;
+  s.record_map = !args.record_map.empty();
+  s.progress = !args.quiet;
+
+  RenderOutput out = Render(**scene, s);
+  RenderStats& st = out.stats;
+  st.scene = args.scene;
+  st.phases.insert(st.phases.begin(), build_time);
+  st.phases.insert(st.phases.begin(), load_time);
+  st.triangles = (*scene)->counts().triangles;
+  st.degenerate_dropped = (*scene)->counts().degenerate_dropped;
+  st.warnings = desc->warnings;
+
+  PhaseTimer write_timer("write");
+  absl::Status status = WriteExr(out.image, args.output);
+  if (status.ok()) status = WritePng(out.image, StripExtension(args.output) + ".png");
+  if (status.ok() && s.record_map) {
+    status = StripExtension(args.record_map) + ".exr" == args.record_map
+                 ? WriteExr(out.record_map, args.record_map)
+                 : WritePng(out.record_map, args.record_map);
+  }
+  if (!status.ok()) {
+    std::fprintf(stderr, "%s\n", std::string(status.message()).c_str());
+    return 1;
+  }
+  st.phases.push_back(write_timer.Stop());
+  if (!args.stats.empty()) {
+    status = WriteTextFile(args.stats, st.ToJson());
+    if (!status.ok()) {
+      std::fprintf(stderr, "%s\n", std::string(status.message()).c_str());
+      return 1;
+    }
+  }
+  if (!args.quiet)
+    std::fprintf(stderr, "%s: %dx%d %s spp=%d in %.2fs (render %.2fs), records %llu\n",
+                 args.output.c_str(), st.width, st.height, st.integrator.c_str(), st.spp,
+                 st.PhaseWall("overture") + st.PhaseWall("render"), st.PhaseWall("render"),
+                 static_cast<unsigned long long>(st.counters.records_computed));
+  return 0;
+}
+
+int RunCompare(const std::string& test_path, const std::string& ref_path) {
+  absl::StatusOr<Image> test = ReadExr(test_path);
+  absl::StatusOr<Image> ref = ReadExr(ref_path);
+  if (!test.ok() || !ref.ok()) {
+    std::fprintf(stderr, "%s\n",
+                 std::string((test.ok() ? ref.status() : test.status()).message()).c_str());
+    return 1;
+  }
+  if (test->width != ref->width || test->height != ref->height) {
+    std::fprintf(stderr, "error: sizes differ: %dx%d vs %dx%d\n", test->width, test->height,
+                 ref->width, ref->height);
+    return 1;
+  }
+  const ImageError e = CompareImages(*test, *ref);
+  std::printf(
+      "{\"relmse\": %.6g, \"rmse\": %.6g, \"mean_test\": [%.6g, %.6g, %.6g], "
+      "\"mean_ref\": [%.6g, %.6g, %.6g], \"nonfinite_pixels\": %ld}\n",
+      e.relmse, e.rmse, e.mean_test.x, e.mean_test.y, e.mean_test.z, e.mean_ref.x, e.mean_ref.y,
+      e.mean_ref.z, e.nonfinite);
+  return 0;
+}
+
+int RunDownsample(const std::string& in, const std::string& out, int factor) {
+  absl::StatusOr<Image> image = ReadExr(in);
+  if (!image.ok()) {
+    std::fprintf(stderr, "%s\n", std::string(image.status().message()).c_str());
+    return 1;
+  }
+  if (factor < 1 || image->width % factor || image->height % factor) {
+    std::fprintf(stderr, "error: factor %d does not divide %dx%d\n", factor, image->width,
+                 image->height);
+    return 2;
+  }
+  const absl::Status st = WriteExr(Downsample(*image, factor), out);
+  if (!st.ok()) {
+    std::fprintf(stderr, "%s\n", std::string(st.message()).c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace irfarm
+
+int main(int argc, char** argv) {
+  using irfarm::RenderArgs;
+  CLI::App app{"irfarm: irradiance-caching renderer"};
+  app.require_subcommand(1);
+
+  RenderArgs ra;
+  CLI::App* render = app.add_subcommand("render", "render a Mitsuba 3 XML scene locally");
+  render->add_option("scene", ra.scene, "scene.xml")->required()->check(CLI::ExistingFile);
+  render->add_option("-o,--output", ra.output, "output EXR (a PNG preview is written beside it)");
+  render->add_option("--integrator", ra.integrator, "path or irrcache (default irrcache)")
+      ->check(CLI::IsMember({"path", "irrcache"}));
+  render->add_option("--spp", ra.spp, "samples per pixel")->check(CLI::PositiveNumber);
+  render->add_option("--accuracy", ra.accuracy, "irrcache: Ward's a (default 0.15)");
+  render->add_option("--record-rays", ra.record_rays, "irrcache: hemisphere rays per record")
+      ->check(CLI::PositiveNumber);
+  render->add_option("--light-samples", ra.light_samples, "irrcache: direct samples per hit")
+      ->check(CLI::PositiveNumber);
+  render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
+  render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
+  render->add_flag("--no-overture", ra.no_overture, "irrcache: skip the cache-filling prepass");
+  render->add_option("--threads", ra.threads, "threads (default: all cores)");
+  render->add_option("--seed", ra.seed, "random seed");
+  render->add_option("--stats", ra.stats, "write the stats JSON here");
+  render->add_option("--record-map", ra.record_map, "write an image marking computed records");
+  render->add_option("-D", ra.defines, "name=value for the scene's <default>s");
+  render->add_flag("-q,--quiet", ra.quiet, "no progress or summary on stderr");
+
+  std::string cmp_test, cmp_ref;
+  CLI::App* compare = app.add_subcommand("compare", "error metrics of an EXR against a reference");
+  compare->add_option("test", cmp_test)->required();
+  compare->add_option("reference", cmp_ref)->required();
+
+  std::string ds_in, ds_out;
+  int ds_factor = 4;
+  CLI::App* downsample =
+      app.add_subcommand("downsample", "box-filter an EXR down by an integer factor");
+  downsample->add_option("input", ds_in)->required();
+  downsample->add_option("output", ds_out)->required();
+  downsample->add_option("--factor", ds_factor, "pixels per output pixel along each axis");
+
+  CLI11_PARSE(app, argc, argv);
+  if (render->parsed()) return irfarm::RunRender(ra);
+  if (compare->parsed()) return irfarm::RunCompare(cmp_test, cmp_ref);
+  if (downsample->parsed()) return irfarm::RunDownsample(ds_in, ds_out, ds_factor);
+  return 2;
+}

@@ -1,0 +1,40 @@
+// The perspective camera of Mitsuba 3: camera space looks along +z with +y up and +x to the
+// image's left; the ray through film point (x, y) (pixels, row 0 at the top) has direction
+// f + (2x/w - 1) tan(fov_x/2) r + (1 - 2y/h) tan(fov_y/2) u with r = -column0 (image right).
+#pragma once
+
+#include <cmath>
+
+#include "render/scene_desc.h"
+
+namespace irfarm {
+
+class Camera {
+ public:
+  Camera() = default;
+  explicit Camera(const CameraDesc& d) : width_(d.width), height_(d.height) {
+    origin_ = d.to_world.ApplyPoint(Vec3(0, 0, 0));
+    forward_ = Normalize(d.to_world.ApplyVector(Vec3(0, 0, 1)));
+    right_ = Normalize(d.to_world.ApplyVector(Vec3(-1, 0, 0)));
+    up_ = Normalize(d.to_world.ApplyVector(Vec3(0, 1, 0)));
+    tan_x_ = std::tan(d.fov_x_deg * kPi / 360.0f);
+    tan_y_ = tan_x_ * float(height_) / float(width_);
+  }
+  // Unit direction of the ray through film point (x, y) in pixels.
+  Vec3 Direction(float x, float y) const {
+    return Normalize(forward_ + right_ * ((2 * x / width_ - 1) * tan_x_) +
+                     up_ * ((1 - 2 * y / height_) * tan_y_));
+  }
+  const Vec3& origin() const { return origin_; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  // Width of one pixel's footprint on a surface at distance d straight ahead (scene units).
+  float PixelSpread(float distance) const { return distance * 2 * tan_x_ / width_; }
+
+ private:
+  int width_ = 1, height_ = 1;
+  Vec3 origin_, forward_{0, 0, 1}, right_{-1, 0, 0}, up_{0, 1, 0};
+  float tan_x_ = 1, tan_y_ = 1;
+};
+
+}  // namespace irfarm

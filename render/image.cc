@@ -1,0 +1,153 @@
+// EXR through OpenEXR's RGBA-free channel API (three FLOAT channels R, G, B), PNG through
+// stb_image_write, LDR reading through stb_image.
+#include "render/image.h"
+
+#include <stb_image.h>
+#include <stb_image_write.h>
+
+#include <ImathBox.h>
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <exception>
+
+namespace irfarm {
+
+absl::Status WriteExr(const Image& image, const std::string& path) {
+  const std::string tmp = path + ".tmp";
+  try {
+    Imf::Header header(image.width, image.height);
+    header.compression() = Imf::ZIP_COMPRESSION;
+    for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(Imf::FLOAT));
+    Imf::OutputFile file(tmp.c_str(), header);
+    Imf::FrameBuffer fb;
+    char* base = const_cast<char*>(reinterpret_cast<const char*>(image.pixels.data()));
+    const size_t xs = sizeof(Vec3), ys = sizeof(Vec3) * image.width;
+    fb.insert("R", Imf::Slice(Imf::FLOAT, base + 0, xs, ys));
+    fb.insert("G", Imf::Slice(Imf::FLOAT, base + 4, xs, ys));
+    fb.insert("B", Imf::Slice(Imf::FLOAT, base + 8, xs, ys));
+    file.setFrameBuffer(fb);
+    file.writePixels(image.height);
+  } catch (const std::exception& e) {
+    std::remove(tmp.c_str());
+    return absl::InternalError(path + ": cannot write EXR: " + e.what());
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    return absl::InternalError(path + ": cannot rename " + tmp + " into place");
+  return absl::OkStatus();
+}
+
+absl::StatusOr<Image> ReadExr(const std::string& path) {
+  try {
+    Imf::InputFile file(path.c_str());
+    const Imath::Box2i dw = file.header().dataWindow();
+    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+    Image image(w, h);
+    Imf::FrameBuffer fb;
+    char* base = reinterpret_cast<char*>(image.pixels.data()) -
+                 (size_t(dw.min.x) + size_t(dw.min.y) * w) * sizeof(Vec3);
+    const size_t xs = sizeof(Vec3), ys = sizeof(Vec3) * w;
+    const bool has_rgb = file.header().channels().findChannel("R") != nullptr;
+    const char* names[3] = {"R", "G", "B"};
+    for (int c = 0; c < 3; ++c)
+      fb.insert(has_rgb ? names[c] : "Y", Imf::Slice(Imf::FLOAT, base + 4 * c, xs, ys, 1, 1, 0.0));
+    file.setFrameBuffer(fb);
+    file.readPixels(dw.min.y, dw.max.y);
+    return image;
+  } catch (const std::exception& e) {
+    return absl::InvalidArgumentError(path + ": cannot read EXR: " + e.what());
+  }
+}
+
+float SrgbToLinear(float v) {
+  return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+}
+float LinearToSrgb(float v) {
+  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+}
+
+absl::Status WritePng(const Image& image, const std::string& path, float exposure) {
+  if (exposure <= 0) {
+    std::vector<float> lum;
+    lum.reserve(image.pixels.size());
+    for (const Vec3& p : image.pixels)
+      if (IsFinite(p)) lum.push_back(Luminance(p));
+    float p98 = 0;
+    if (!lum.empty()) {
+      const size_t k = std::min(lum.size() - 1, size_t(0.98 * lum.size()));
+      std::nth_element(lum.begin(), lum.begin() + k, lum.end());
+      p98 = lum[k];
+    }
+    exposure = p98 > 0 ? std::exp2(std::floor(std::log2(0.5f / p98))) : 1.0f;
+  }
+  std::vector<unsigned char> rgb(image.pixels.size() * 3);
+  for (size_t i = 0; i < image.pixels.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      float v = image.pixels[i][c] * exposure;
+      v = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
+      rgb[3 * i + c] = static_cast<unsigned char>(std::lround(LinearToSrgb(v) * 255.0f));
+    }
+  const std::string tmp = path + ".tmp";
+  if (!stbi_write_png(tmp.c_str(), image.width, image.height, 3, rgb.data(), image.width * 3))
+    return absl::InternalError(path + ": cannot write PNG");
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    return absl::InternalError(path + ": cannot rename " + tmp + " into place");
+  return absl::OkStatus();
+}
+
+absl::StatusOr<Image> ReadImageFile(const std::string& path) {
+  const std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
+  if (ext == ".exr" || ext == ".EXR") return ReadExr(path);
+  int w = 0, h = 0, n = 0;
+  unsigned char* data = stbi_load(path.c_str(), &w, &h, &n, 3);
+  if (!data)
+    return absl::InvalidArgumentError(path + ": cannot read image: " + stbi_failure_reason());
+  Image image(w, h);
+  for (size_t i = 0; i < image.pixels.size(); ++i)
+    image.pixels[i] =
+        Vec3(data[3 * i] / 255.0f, data[3 * i + 1] / 255.0f, data[3 * i + 2] / 255.0f);
+  stbi_image_free(data);
+  return image;
+}
+
+ImageError CompareImages(const Image& test, const Image& ref) {
+  ImageError e;
+  double rel = 0, sq = 0;
+  double mt[3] = {0, 0, 0}, mr[3] = {0, 0, 0};
+  for (size_t i = 0; i < test.pixels.size(); ++i) {
+    if (!IsFinite(test.pixels[i])) ++e.nonfinite;
+    for (int c = 0; c < 3; ++c) {
+      const double x = test.pixels[i][c], r = ref.pixels[i][c];
+      rel += (x - r) * (x - r) / (r * r + 0.01);
+      sq += (x - r) * (x - r);
+      mt[c] += x;
+      mr[c] += r;
+    }
+  }
+  const double n = double(test.pixels.size());
+  e.relmse = rel / (3 * n);
+  e.rmse = std::sqrt(sq / (3 * n));
+  e.mean_test = Vec3(float(mt[0] / n), float(mt[1] / n), float(mt[2] / n));
+  e.mean_ref = Vec3(float(mr[0] / n), float(mr[1] / n), float(mr[2] / n));
+  return e;
+}
+
+Image Downsample(const Image& image, int factor) {
+  Image out(image.width / factor, image.height / factor);
+  const float inv = 1.0f / float(factor * factor);
+  for (int y = 0; y < out.height; ++y)
+    for (int x = 0; x < out.width; ++x) {
+      Vec3 s;
+      for (int j = 0; j < factor; ++j)
+        for (int i = 0; i < factor; ++i) s += image.at(x * factor + i, y * factor + j);
+      out.at(x, y) = s * inv;
+    }
+  return out;
+}
+
+}  // namespace irfarm

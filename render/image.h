@@ -1,0 +1,46 @@
+// Float RGB images and their files: linear EXR (OpenEXR) in and out, sRGB PNG previews out,
+// 8-bit images in (stb_image) for textures, and the error metrics we compare images with.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "cache/math.h"
+
+namespace irfarm {
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<Vec3> pixels;  // row 0 = top row
+  Image() = default;
+  Image(int w, int h) : width(w), height(h), pixels(size_t(w) * h) {}
+  Vec3& at(int x, int y) { return pixels[size_t(y) * width + x]; }
+  const Vec3& at(int x, int y) const { return pixels[size_t(y) * width + x]; }
+};
+
+// Writes linear float RGB to `path` through a temporary file renamed into place.
+absl::Status WriteExr(const Image& image, const std::string& path);
+absl::StatusOr<Image> ReadExr(const std::string& path);
+// 8-bit sRGB preview of clip(exposure * linear, 0, 1); exposure <= 0 picks the reference
+// images' rule: 2^floor(log2(0.5 / p98 luminance)).
+absl::Status WritePng(const Image& image, const std::string& path, float exposure = 0);
+// Reads PNG/JPEG (8-bit, returned as values in [0,1], not decoded) or EXR (linear).
+absl::StatusOr<Image> ReadImageFile(const std::string& path);
+
+float SrgbToLinear(float v);
+float LinearToSrgb(float v);
+
+struct ImageError {
+  double relmse = 0;  // mean over pixels and channels of (x-r)^2 / (r^2 + 0.01)
+  double rmse = 0;
+  Vec3 mean_test, mean_ref;
+  long nonfinite = 0;  // non-finite pixels in the test image
+};
+// The images must have equal size (checked by the caller).
+ImageError CompareImages(const Image& test, const Image& ref);
+// Averages blocks of `factor` x `factor` pixels (sizes must divide).
+Image Downsample(const Image& image, int factor);
+
+}  // namespace irfarm

@@ -1,0 +1,81 @@
+// The irradiance-cache integrator (Ward 1988, as in the lecture). Camera paths are traced through
+// specular (delta) surfaces to the first diffuse surface x. There:
+//   - emission seen directly or through specular chains is counted as is;
+//   - direct light from local lights (area, point, spot, directional) is always computed
+//     explicitly by next-event estimation;
+//   - everything else arriving at x (light from other surfaces, from the environment, and caustics
+//     through specular surfaces) is the indirect irradiance E, interpolated from cached records
+//     with Ward's weights, or, when no record counts, computed as a new record and inserted.
+// A new record samples the hemisphere around x's facing normal with T x P stratified
+// cosine-weighted rays (E = pi/(TP) sum L); the radiance along each ray is estimated by the
+// unbiased path tracer from the ray's first hit on (our choice for bounces beyond the first:
+// unbiased, no second-level cache). Environment light is integrated by the records, as RADIANCE
+// does with sky glow: it is smooth over a surface, so caching it removes most of its noise.
+// R_i is the harmonic mean of the ray hit distances (escaped rays add 1/d = 0), clamped so that
+// the validity radius a * R_i covers between min_spacing_px and max_spacing_px pixels at x: the
+// clamps adapt to the image resolution and the scene's scale.
+// Two sides of a surface have separate records: a record's normal faces the side it was made on.
+#pragma once
+
+#include <cstdint>
+
+#include "cache/irradiance_cache.h"
+#include "render/path_tracer.h"
+#include "render/pixel_sampler.h"
+#include "render/scene.h"
+
+namespace irfarm {
+
+struct IrrcacheSettings {
+  float accuracy = 0.15f;        // Ward's a: records count when eps_i < a
+  int record_rays = 512;         // hemisphere rays per record (T x P with P ~ pi T)
+  int light_samples = 1;         // direct-light samples per shading point and camera sample
+  float min_spacing_px = 1.5f;   // validity radius a*R_i >= this many pixel footprints at x
+  float max_spacing_px = 48.0f;  // ... and <= this many
+  PathSettings path;
+};
+
+struct IrrcacheShade {
+  bool made_record = false;
+};
+
+// Where this camera sample's direct-light samples come from: points k = first .. first + count-1
+// of the pixel's stratified set (see PixelSampler), so the pixel's light samples are stratified
+// over the light's area.
+struct LightStrata {
+  const PixelSampler* sampler = nullptr;
+  int first = 0;
+};
+
+class IrrcacheIntegrator {
+ public:
+  IrrcacheIntegrator(const Scene& scene, IrradianceCache* cache, const IrrcacheSettings& settings);
+
+  // Radiance arriving at the camera along camera ray `ray`.
+  Vec3 Li(const Ray& ray, const LightStrata& strata, Rng& rng, RenderCounters& counters,
+          IrrcacheShade* shade) const;
+  // Overture: makes sure the cache covers the first diffuse surface seen along `ray`, computing
+  // a record there if none counts, and nothing else. Returns true when it computed one.
+  bool Prime(const Ray& ray, Rng& rng, RenderCounters& counters) const;
+
+  // Computes a new record at x (facing normal nf, geometric normal ng) and inserts it.
+  IrradianceRecord ComputeRecord(const SurfaceHit& hit, const Vec3& nf, int depth,
+                                 float pixel_spread, Rng& rng, RenderCounters& counters) const;
+  int strata_theta() const { return strata_t_; }
+  int strata_phi() const { return strata_p_; }
+
+ private:
+  // Follows `ray` through delta surfaces to the first diffuse hit; adds emission seen on the way
+  // to *L (if L is given) weighted by *beta. Returns false when the path ends before that.
+  bool FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* L, Vec3* beta,
+                   SurfaceHit* hit, Vec3* nf, int* depth, float* distance) const;
+  Vec3 Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth, float distance, Rng& rng,
+                  RenderCounters& counters, bool* made) const;
+
+  const Scene& scene_;
+  IrradianceCache* cache_;
+  IrrcacheSettings settings_;
+  int strata_t_ = 1, strata_p_ = 1;
+};
+
+}  // namespace irfarm

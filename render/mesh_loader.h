@@ -1,0 +1,60 @@
+// Triangle meshes for the scene loader: reads Wavefront OBJ and PLY files, generates the built-in
+// shapes (rectangle, cube, disk) and cleans meshes up (world transform, degenerate triangles,
+// smooth normals). Meshes come out in object space; TransformMesh moves them to world space.
+// Errors are statuses whose message is "FILE:LINE: what is wrong" (OBJ, PLY header) or
+// "FILE: what is wrong" (PLY data, which has no lines); NOT_FOUND when the file cannot be read.
+#pragma once
+
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "cache/math.h"
+#include "render/scene_desc.h"
+
+namespace irfarm {
+
+// Parses OBJ text: `v`, `vt`, `vn` and `f` with `a`, `a/b`, `a//c` or `a/b/c` corners (1-based, or
+// negative = relative to the end of the list so far); polygons become triangle fans; other
+// statements are ignored. Corners with the same (v, vt, vn) share one output vertex, as in
+// Mitsuba. uvs (normals) are kept only if every corner has a vt (vn). flip_v stores each vt as
+// (u, 1 - v) (Mitsuba's flip_tex_coords, on by default). Every index is checked: one out of range
+// is an error naming the line of its face. `path` is only used in error messages.
+absl::StatusOr<TriangleMesh> ParseObjMesh(const std::string& text, const std::string& path,
+                                          bool flip_v = true);
+absl::StatusOr<TriangleMesh> LoadObjMesh(const std::string& path, bool flip_v = true);
+
+// Reads a PLY file: format ascii, binary_little_endian or binary_big_endian 1.0; vertex properties
+// x y z (any scalar type), optional nx ny nz and u v (or s t, texture_u texture_v); faces as a
+// list property `vertex_indices` (or `vertex_index`) of any integer types, polygons as fans.
+// Other properties and elements are skipped. An index >= the vertex count is an error.
+absl::StatusOr<TriangleMesh> LoadPlyMesh(const std::string& path);
+
+// Built-in shapes, object space, counter-clockwise seen from the front, with per-vertex normals
+// and uvs. Rectangle: [-1,1]^2 in z = 0, normal +z, uv = (x + 1) / 2, (y + 1) / 2.
+// Cube: [-1,1]^3, 24 vertices and 12 triangles, outward face normals.
+// Disk: unit disk in z = 0, normal +z, `segments` triangles, uv = (r, angle / 2pi) as in Mitsuba.
+TriangleMesh MakeRectangleMesh();
+TriangleMesh MakeCubeMesh();
+TriangleMesh MakeDiskMesh(int segments = 128);
+
+// Positions by to_world, normals by its inverse transpose (normalized). The index order is kept,
+// as Mitsuba does: a mirroring transform (negative determinant) turns the geometric normal
+// cross(p1 - p0, p2 - p0) around.
+void TransformMesh(const Mat4& to_world, TriangleMesh* mesh);
+
+// Reverses the winding of every triangle (normals untouched).
+void ReverseWinding(TriangleMesh* mesh);
+
+// flip_normals: reverses the winding and negates the vertex normals.
+void FlipNormals(TriangleMesh* mesh);
+
+// Removes triangles with a repeated index, a non-finite vertex or (near) zero area: the sine of
+// the angle at the first vertex below 1e-6. Returns how many were removed. Vertices are kept.
+int DropDegenerateTriangles(TriangleMesh* mesh);
+
+// Smooth per-vertex normals as Mitsuba 3 computes them for a mesh that has none: the unit face
+// normals of the incident triangles weighted by the triangle's angle at the vertex (Thuermer and
+// Wuethrich 1998). Call on world-space positions; unreferenced vertices get (1, 0, 0).
+void ComputeSmoothNormals(TriangleMesh* mesh);
+
+}  // namespace irfarm

@@ -1,0 +1,92 @@
+#include "render/path_tracer.h"
+
+namespace irfarm {
+
+Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emission,
+               const PathSettings& settings, Rng& rng, RenderCounters& counters,
+               float* first_distance) {
+  Vec3 L, beta(1, 1, 1);
+  float prev_pdf = 0;  // solid-angle pdf of the BSDF sample that made `ray`; 0 = delta/camera
+  Vec3 prev_p;
+  float eta_scale = 1;
+  bool first = true;
+  for (;; ++depth) {
+    SurfaceHit hit;
+    if (!scene.Intersect(ray, &hit)) {
+      if (first && first_distance) *first_distance = INFINITY;
+      if (scene.has_environment()) {
+        const bool skip_mis = prev_pdf == 0 || (first && skip_first_local_emission);
+        const float w = skip_mis ? 1.0f : PowerHeuristic(prev_pdf, scene.PdfEnvironment());
+        L += beta * scene.EvalEnvironment(ray.dir) * w;
+      }
+      break;
+    }
+    if (first && first_distance) *first_distance = hit.t;
+    const Vec3 wo = -ray.dir;
+    if (hit.light >= 0 && !(first && skip_first_local_emission)) {
+      const Vec3 le = scene.Emitted(hit, wo);
+      if (!IsBlack(le)) {
+        const float w = prev_pdf == 0
+                            ? 1.0f
+                            : PowerHeuristic(prev_pdf, scene.PdfAreaLight(prev_p, hit, ray.dir));
+        L += beta * le * w;
+      }
+    }
+    first = false;
+    if (settings.max_depth >= 0 && depth >= settings.max_depth) break;
+    const Material& mat = scene.material(hit.material);
+    Vec3 nf;
+    if (!FacingNormal(mat, hit.ns, wo, &nf)) break;  // one-sided surface seen from the back
+
+    Vec3 wi;
+    const bool can_extend = settings.max_depth < 0 || depth + 1 <= settings.max_depth;
+    if (mat.IsDelta()) {
+      const BsdfSample bs = SampleDelta(mat, hit.ns, wo, rng.Next());
+      beta *= bs.weight;
+      eta_scale *= bs.eta * bs.eta;
+      wi = bs.wi;
+      prev_pdf = 0;
+    } else {
+      const Vec3 albedo = mat.Albedo(hit.u, hit.v);
+      if (can_extend) {  // next-event estimation
+        LightSample ls;
+        const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+        if (scene.SampleLight(hit.p, u1, u2, u3, true, &ls)) {
+          const float cos_i = Dot(ls.wi, nf);
+          if (cos_i > 0 && Dot(ls.wi, hit.ng) * Dot(wo, hit.ng) > 0) {
+            ++counters.shadow_rays;
+            if (!scene.Occluded(Scene::SpawnShadowRay(hit, ls))) {
+              const float bsdf_pdf = cos_i * kInvPi;
+              const float w = ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf_pdf);
+              L += beta * albedo * ls.value * (cos_i * kInvPi * w);
+            }
+          }
+        }
+      }
+      Vec3 s, t;
+      MakeFrame(nf, &s, &t);
+      const Vec3 local = CosineHemisphere(rng.Next(), rng.Next());
+      wi = s * local.x + t * local.y + nf * local.z;
+      prev_pdf = local.z * kInvPi;
+      beta *= albedo;
+    }
+    if (!can_extend) break;
+    // A direction on the other side of the geometric surface than the shading normal promised
+    // would pass through the surface: stop (reflection) unless the material transmits.
+    const bool transmits = Dot(wi, hit.ng) * Dot(wo, hit.ng) < 0;
+    if (transmits && mat.type != BsdfType::kDielectric && mat.type != BsdfType::kThinDielectric)
+      break;
+    if (IsBlack(beta)) break;
+    if (depth >= settings.rr_depth) {
+      const float q = std::min(MaxComponent(beta) * eta_scale, 0.95f);
+      if (rng.Next() >= q) break;
+      beta /= q;
+    }
+    prev_p = hit.p;
+    ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
+    ++counters.bounce_rays;
+  }
+  return L;
+}
+
+}  // namespace irfarm

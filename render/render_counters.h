@@ -1,0 +1,33 @@
+// Per-thread work counters of a render; summed into the stats JSON at the end. Each thread owns
+// one (tbb::enumerable_thread_specific), so counting costs no atomics on the hot path.
+#pragma once
+
+#include <cstdint>
+
+namespace irfarm {
+
+struct RenderCounters {
+  uint64_t camera_rays = 0;  // primary rays
+  uint64_t bounce_rays = 0;  // BSDF-sampled continuation rays (incl. specular)
+  uint64_t shadow_rays = 0;  // next-event-estimation visibility rays
+  uint64_t record_rays = 0;  // first rays of irradiance-record hemispheres
+  uint64_t records_computed = 0;
+  uint64_t lookups = 0;       // irradiance-cache queries
+  uint64_t lookup_hits = 0;   // queries answered by interpolation
+  uint64_t records_used = 0;  // records summed over successful queries
+  double record_seconds = 0;  // thread time spent computing records
+
+  void Add(const RenderCounters& o) {
+    camera_rays += o.camera_rays;
+    bounce_rays += o.bounce_rays;
+    shadow_rays += o.shadow_rays;
+    record_rays += o.record_rays;
+    records_computed += o.records_computed;
+    lookups += o.lookups;
+    lookup_hits += o.lookup_hits;
+    records_used += o.records_used;
+    record_seconds += o.record_seconds;
+  }
+};
+
+}  // namespace irfarm

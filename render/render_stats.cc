@@ -1,0 +1,129 @@
+#include "render/render_stats.h"
+
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+namespace irfarm {
+namespace {
+
+double WallNow() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::string Quote(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", c);
+      out += buf;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+std::string Num(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+}  // namespace
+
+double ProcessCpuSeconds() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+         1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
+double PeakRssMiB() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return double(ru.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
+}
+
+PhaseTimer::PhaseTimer(std::string name)
+    : name_(std::move(name)), wall0_(WallNow()), cpu0_(ProcessCpuSeconds()) {}
+
+PhaseTime PhaseTimer::Stop() const {
+  return PhaseTime{name_, WallNow() - wall0_, ProcessCpuSeconds() - cpu0_};
+}
+
+double RenderStats::PhaseWall(const std::string& name) const {
+  for (const PhaseTime& p : phases)
+    if (p.name == name) return p.wall_seconds;
+  return 0;
+}
+
+std::string RenderStats::ToJson() const {
+  const RenderCounters& c = counters;
+  std::ostringstream o;
+  double wall = 0, cpu = 0;
+  o << "{\n  \"scene\": " << Quote(scene) << ",\n  \"integrator\": " << Quote(integrator)
+    << ",\n  \"width\": " << width << ", \"height\": " << height << ", \"spp\": " << spp
+    << ", \"threads\": " << threads << ", \"seed\": " << seed << ",\n";
+  o << "  \"settings\": {\"accuracy\": " << Num(accuracy) << ", \"record_rays\": " << record_rays
+    << ", \"strata\": [" << strata_theta << ", " << strata_phi
+    << "], \"light_samples\": " << light_samples << ", \"min_spacing_px\": " << Num(min_spacing_px)
+    << ", \"max_spacing_px\": " << Num(max_spacing_px) << "},\n";
+  o << "  \"seconds\": {";
+  for (size_t i = 0; i < phases.size(); ++i) {
+    o << (i ? ", " : "") << Quote(phases[i].name) << ": " << Num(phases[i].wall_seconds);
+    wall += phases[i].wall_seconds;
+  }
+  o << (phases.empty() ? "" : ", ") << "\"total\": " << Num(wall) << "},\n";
+  o << "  \"cpu_seconds\": {";
+  for (size_t i = 0; i < phases.size(); ++i) {
+    o << (i ? ", " : "") << Quote(phases[i].name) << ": " << Num(phases[i].cpu_seconds);
+    cpu += phases[i].cpu_seconds;
+  }
+  o << (phases.empty() ? "" : ", ") << "\"total\": " << Num(cpu) << "},\n";
+  const uint64_t total_rays = c.camera_rays + c.bounce_rays + c.shadow_rays + c.record_rays;
+  o << "  \"rays\": {\"camera\": " << c.camera_rays << ", \"bounce\": " << c.bounce_rays
+    << ", \"shadow\": " << c.shadow_rays << ", \"record\": " << c.record_rays
+    << ", \"total\": " << total_rays << "},\n";
+  o << "  \"records\": {\"computed\": " << c.records_computed
+    << ", \"received\": " << records_received << ", \"in_cache\": " << records_in_cache
+    << ", \"used\": " << c.records_used << ", \"compute_thread_seconds\": " << Num(c.record_seconds)
+    << "},\n";
+  o << "  \"cache\": {\"lookups\": " << c.lookups << ", \"hits\": " << c.lookup_hits
+    << ", \"hit_rate\": " << Num(c.lookups ? double(c.lookup_hits) / double(c.lookups) : 0)
+    << ", \"records_per_hit\": "
+    << Num(c.lookup_hits ? double(c.records_used) / double(c.lookup_hits) : 0) << "},\n";
+  o << "  \"tiles\": {\"count\": " << tiles << ", \"size\": " << tile_size << "},\n";
+  o << "  \"geometry\": {\"triangles\": " << triangles
+    << ", \"degenerate_dropped\": " << degenerate_dropped << "},\n";
+  o << "  \"image\": {\"mean_rgb\": [" << Num(mean_rgb.x) << ", " << Num(mean_rgb.y) << ", "
+    << Num(mean_rgb.z) << "], \"nonfinite_pixels\": " << nonfinite_pixels << "},\n";
+  o << "  \"peak_rss_mib\": " << Num(PeakRssMiB()) << ",\n";
+  o << "  \"warnings\": [";
+  for (size_t i = 0; i < warnings.size(); ++i) o << (i ? ", " : "") << Quote(warnings[i]);
+  o << "]\n}\n";
+  return o.str();
+}
+
+absl::Status WriteTextFile(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary);
+    if (!f) return absl::InternalError(path + ": cannot open for writing");
+    f << text;
+    if (!f) return absl::InternalError(path + ": write failed");
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    return absl::InternalError(path + ": cannot rename into place");
+  return absl::OkStatus();
+}
+
+}  // namespace irfarm

@@ -1,0 +1,60 @@
+// The figures every render reports (design.md "What every run reports"): wall and CPU seconds by
+// phase, rays by kind, records computed / received / used, cache lookups and hit rate, tiles and
+// peak memory; written as a JSON object next to the image.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "cache/math.h"
+#include "render/render_counters.h"
+
+namespace irfarm {
+
+struct PhaseTime {
+  std::string name;
+  double wall_seconds = 0, cpu_seconds = 0;
+};
+
+struct RenderStats {
+  std::string scene, integrator;
+  int width = 0, height = 0, spp = 0, threads = 0;
+  uint64_t seed = 0;
+  // irrcache settings actually used (zero for path)
+  float accuracy = 0;
+  int record_rays = 0, strata_theta = 0, strata_phi = 0, light_samples = 0;
+  float min_spacing_px = 0, max_spacing_px = 0;
+  std::vector<PhaseTime> phases;
+  RenderCounters counters;
+  uint64_t records_received = 0;  // from other processes (the service), 0 for a local render
+  uint64_t records_in_cache = 0;
+  int tiles = 0, tile_size = 0;
+  Vec3 mean_rgb;
+  long nonfinite_pixels = 0;
+  long triangles = 0, degenerate_dropped = 0;
+  std::vector<std::string> warnings;
+
+  double PhaseWall(const std::string& name) const;
+  std::string ToJson() const;
+};
+
+// CPU seconds of this process so far (user + system) and peak resident set size in MiB.
+double ProcessCpuSeconds();
+double PeakRssMiB();
+
+// Measures one phase: wall and process CPU seconds from construction to Stop().
+class PhaseTimer {
+ public:
+  explicit PhaseTimer(std::string name);
+  PhaseTime Stop() const;
+
+ private:
+  std::string name_;
+  double wall0_, cpu0_;
+};
+
+absl::Status WriteTextFile(const std::string& path, const std::string& text);
+
+}  // namespace irfarm

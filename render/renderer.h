@@ -1,0 +1,55 @@
+// Renders a built scene into an image: the image is cut into square tiles rendered in parallel
+// by TBB on `threads` cores. Each pixel has its own random stream (seed, pixel index), so `path`
+// gives the same image for the same seed whatever the thread count. `irrcache` first runs an
+// overture (coarse-to-fine passes that fill the cache at pixel centres, as RADIANCE's rad and
+// Mitsuba do) and then the final pass, which interpolates and computes any record still missing.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "cache/irradiance_cache.h"
+#include "render/image.h"
+#include "render/irrcache_integrator.h"
+#include "render/render_stats.h"
+#include "render/scene.h"
+
+namespace irfarm {
+
+struct RenderSettings {
+  std::string integrator = "irrcache";  // "path" or "irrcache"
+  int spp = 16;
+  int threads = 0;  // 0 = all cores
+  uint64_t seed = 0;
+  int tile_size = 16;
+  bool overture = true;       // irrcache: fill the cache before the final pass
+  bool record_map = false;    // also produce an image marking where records were computed
+  bool progress = false;      // progress line on stderr
+  IrrcacheSettings irrcache;  // its `path` member is used by both integrators
+};
+
+// The default settings for rendering `desc` with `integrator` ("path" or "irrcache"): max_depth
+// and rr_depth from the scene's <integrator>; irrcache parameters given in the scene
+// (<integrator type="irrcache"> children accuracy, record_rays, light_samples, min_spacing_px,
+// max_spacing_px, spp); samples per pixel: for path the scene's sampler, for irrcache its own
+// default of 16 (the scene's sample_count is meant for a path tracer). Bad values: file:line.
+absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
+                                                const std::string& integrator);
+
+// Settings for a cache covering this scene; the accuracy lookups will use is settings' a.
+CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& settings);
+
+struct RenderOutput {
+  Image image;
+  Image record_map;  // when requested: the image darkened, record positions in red
+  RenderStats stats;
+};
+
+// Renders with `cache` (irrcache; may already hold records, e.g. from a snapshot or other
+// workers). A null cache with irrcache makes a fresh one for this render.
+RenderOutput Render(const Scene& scene, const RenderSettings& settings,
+                    IrradianceCache* cache = nullptr);
+
+}  // namespace irfarm

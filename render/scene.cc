@@ -1,0 +1,445 @@
+#include "render/scene.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include "render/sampling.h"
+
+namespace irfarm {
+namespace {
+
+void EmbreeError(void* user, RTCError code, const char* str) {
+  auto* msg = static_cast<std::string*>(user);
+  if (msg->empty()) *msg = "embree error " + std::to_string(int(code)) + ": " + (str ? str : "");
+}
+
+float TriangleArea(const Vec3& a, const Vec3& b, const Vec3& c) {
+  return 0.5f * Length(Cross(b - a, c - a));
+}
+
+}  // namespace
+
+Scene::~Scene() {
+  if (rtc_scene_) rtcReleaseScene(rtc_scene_);
+  if (device_) rtcReleaseDevice(device_);
+}
+
+absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc) {
+  std::unique_ptr<Scene> s(new Scene());
+  s->camera_ = Camera(desc.camera);
+  std::string embree_error;
+  s->device_ = rtcNewDevice("verbose=0");
+  if (!s->device_) return absl::InternalError("cannot create the Embree device");
+  rtcSetDeviceErrorFunction(s->device_, EmbreeError, &embree_error);
+
+  for (const TextureDesc& t : desc.textures) {
+    absl::StatusOr<Texture> tex = Texture::Load(t);
+    if (!tex.ok()) return tex.status();
+    s->textures_.push_back(std::make_unique<Texture>(std::move(*tex)));
+  }
+  for (const BsdfDesc& b : desc.bsdfs) {
+    Material m;
+    m.type = b.type;
+    m.twosided = b.twosided;
+    m.reflectance = b.reflectance.value;
+    if (b.reflectance.texture >= 0) m.texture = s->textures_[b.reflectance.texture].get();
+    m.specular_reflectance = b.specular_reflectance;
+    m.specular_transmittance = b.specular_transmittance;
+    m.eta = b.int_ior / b.ext_ior;
+    s->materials_.push_back(m);
+  }
+  if (s->materials_.empty()) s->materials_.push_back(Material());
+
+  s->rtc_scene_ = rtcNewScene(s->device_);
+  rtcSetSceneFlags(s->rtc_scene_, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(s->rtc_scene_, RTC_BUILD_QUALITY_HIGH);
+
+  std::vector<Light> area_lights;
+  for (const ShapeDesc& sh : desc.shapes) {
+    Mesh mesh;
+    mesh.material = sh.bsdf >= 0 ? sh.bsdf : 0;
+    RTCGeometry g;
+    if (sh.type == ShapeType::kSphere) {
+      mesh.sphere = true;
+      mesh.center = sh.center;
+      mesh.radius = sh.radius;
+      mesh.flip = sh.flip_normals;
+      g = rtcNewGeometry(s->device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+      float* v = static_cast<float*>(
+          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 16, 1));
+      v[0] = sh.center.x;
+      v[1] = sh.center.y;
+      v[2] = sh.center.z;
+      v[3] = sh.radius;
+      s->bounds_.Extend(sh.center - Vec3(sh.radius));
+      s->bounds_.Extend(sh.center + Vec3(sh.radius));
+      ++s->counts_.spheres;
+    } else {
+      const TriangleMesh& tm = sh.mesh;
+      if (tm.indices.empty()) continue;
+      mesh.positions = tm.positions;
+      mesh.normals = tm.normals;
+      mesh.uvs = tm.uvs;
+      mesh.indices = tm.indices;
+      const size_t nv = tm.positions.size(), nt = tm.indices.size() / 3;
+      g = rtcNewGeometry(s->device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+      auto* v = static_cast<Vec3*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                           RTC_FORMAT_FLOAT3, sizeof(Vec3), nv));
+      std::memcpy(static_cast<void*>(v), tm.positions.data(), nv * sizeof(Vec3));
+      auto* idx = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(
+          g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), nt));
+      std::memcpy(idx, tm.indices.data(), nt * 3 * sizeof(uint32_t));
+      for (const Vec3& p : tm.positions) s->bounds_.Extend(p);
+      s->counts_.triangles += long(nt);
+    }
+    s->counts_.degenerate_dropped += sh.degenerate_dropped;
+    rtcCommitGeometry(g);
+    const unsigned id = rtcAttachGeometry(s->rtc_scene_, g);
+    rtcReleaseGeometry(g);
+    if (id != s->meshes_.size()) return absl::InternalError("unexpected Embree geometry id");
+
+    if (sh.area_radiance && !IsBlack(*sh.area_radiance)) {
+      Light l;
+      l.type = LightType::kArea;
+      l.radiance = *sh.area_radiance;
+      l.geom = id;
+      if (mesh.sphere) {
+        l.sphere = true;
+        l.center = mesh.center;
+        l.radius = mesh.radius;
+        l.area = 4 * kPi * mesh.radius * mesh.radius;
+      } else {
+        float acc = 0;
+        for (size_t t = 0; t < mesh.indices.size(); t += 3) {
+          acc += TriangleArea(mesh.positions[mesh.indices[t]], mesh.positions[mesh.indices[t + 1]],
+                              mesh.positions[mesh.indices[t + 2]]);
+          l.cdf.push_back(acc);
+        }
+        l.area = acc;
+      }
+      if (l.area > 0) {
+        mesh.light = int(area_lights.size());
+        area_lights.push_back(std::move(l));
+      }
+    }
+    s->meshes_.push_back(std::move(mesh));
+  }
+  rtcCommitScene(s->rtc_scene_);
+  if (!embree_error.empty()) return absl::InternalError(embree_error);
+  rtcSetDeviceErrorFunction(s->device_, nullptr, nullptr);  // embree_error goes out of scope
+
+  // Lights: local ones first, environment ones last.
+  s->lights_ = std::move(area_lights);
+  std::vector<Light> env;
+  for (const EmitterDesc& e : desc.emitters) {
+    Light l;
+    switch (e.type) {
+      case EmitterType::kPoint:
+        l.type = LightType::kPoint;
+        l.position = e.position;
+        l.intensity = e.intensity;
+        break;
+      case EmitterType::kSpot: {
+        l.type = LightType::kSpot;
+        l.position = e.position;
+        l.direction = Normalize(e.direction);
+        l.intensity = e.intensity;
+        const float cutoff = e.cutoff_angle_deg * kPi / 180, beam = e.beam_width_deg * kPi / 180;
+        l.cutoff = cutoff;
+        l.cos_cutoff = std::cos(cutoff);
+        l.cos_beam = std::cos(beam);
+        l.inv_transition = cutoff > beam ? 1 / (cutoff - beam) : 0;
+        break;
+      }
+      case EmitterType::kDirectional:
+        l.type = LightType::kDirectional;
+        l.direction = Normalize(e.direction);
+        l.intensity = e.irradiance;
+        break;
+      case EmitterType::kConstant:
+        l.type = LightType::kConstant;
+        l.radiance = e.radiance;
+        break;
+      case EmitterType::kEnvmap: {
+        l.type = LightType::kEnvmap;
+        TextureDesc td;
+        td.filename = e.filename;
+        td.raw = true;
+        td.loc = e.loc;
+        absl::StatusOr<Texture> tex = Texture::Load(td);
+        if (!tex.ok()) return tex.status();
+        s->textures_.push_back(std::make_unique<Texture>(std::move(*tex)));
+        l.envmap = s->textures_.back().get();
+        l.world_to_env = e.to_world.Inverse();
+        l.scale = e.scale;
+        break;
+      }
+    }
+    if (l.IsEnvironment())
+      env.push_back(l);
+    else
+      s->lights_.push_back(l);
+  }
+  s->num_local_ = int(s->lights_.size());
+  for (Light& l : env) s->lights_.push_back(l);
+  s->has_env_ = !env.empty();
+  return s;
+}
+
+bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh;
+  rh.ray.org_x = ray.origin.x;
+  rh.ray.org_y = ray.origin.y;
+  rh.ray.org_z = ray.origin.z;
+  rh.ray.dir_x = ray.dir.x;
+  rh.ray.dir_y = ray.dir.y;
+  rh.ray.dir_z = ray.dir.z;
+  rh.ray.tnear = 0;
+  rh.ray.tfar = ray.tmax;
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.flags = 0;
+  rh.ray.time = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(rtc_scene_, &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+  const Mesh& m = meshes_[rh.hit.geomID];
+  hit->t = rh.ray.tfar;
+  hit->geom = rh.hit.geomID;
+  hit->prim = rh.hit.primID;
+  hit->material = m.material;
+  hit->light = m.light;
+  if (m.sphere) {
+    const Vec3 d = ray.origin + ray.dir * rh.ray.tfar - m.center;
+    const Vec3 n = Normalize(d);
+    hit->p = m.center + n * m.radius;
+    hit->ng = m.flip ? -n : n;
+    hit->ns = hit->ng;
+    hit->u = (std::atan2(n.y, n.x) + kPi) * (0.5f * kInvPi);
+    hit->v = std::acos(std::clamp(n.z, -1.0f, 1.0f)) * kInvPi;
+    hit->error_scale = MaxAbsComponent(m.center) + m.radius;
+    return true;
+  }
+  const uint32_t* tri = &m.indices[3 * size_t(rh.hit.primID)];
+  const Vec3& p0 = m.positions[tri[0]];
+  const Vec3& p1 = m.positions[tri[1]];
+  const Vec3& p2 = m.positions[tri[2]];
+  float b1 = rh.hit.u, b2 = rh.hit.v, b0 = 1 - b1 - b2;
+  const Vec3 cross = Cross(p1 - p0, p2 - p0);
+  hit->error_scale =
+      std::max(MaxAbsComponent(p0), std::max(MaxAbsComponent(p1), MaxAbsComponent(p2)));
+  // A hit on (or rounded onto) an edge lies on every surface meeting there, e.g. the line where a
+  // ceiling meets a wall; a ray leaving it, offset only along this triangle's normal, would start
+  // on the wall's plane and could pass behind it. So the point is moved into the triangle's
+  // interior by a few ray offsets (relative to the triangle's height, so scale-free).
+  {
+    const float len = Length(cross);
+    const float longest = std::sqrt(
+        std::max(LengthSquared(p1 - p0), std::max(LengthSquared(p2 - p1), LengthSquared(p0 - p2))));
+    const float height = len / std::max(longest, 1e-30f);
+    const float inset =
+        std::min(0.1f, 4 * kOriginOffset * hit->error_scale / std::max(height, 1e-30f));
+    if (b0 < inset || b1 < inset || b2 < inset) {
+      b0 = std::max(b0, inset);
+      b1 = std::max(b1, inset);
+      b2 = std::max(b2, inset);
+      const float sum = b0 + b1 + b2;
+      b0 /= sum;
+      b1 /= sum;
+      b2 /= sum;
+    }
+  }
+  hit->p = p0 * b0 + p1 * b1 + p2 * b2;
+  hit->ng = cross / Length(cross);
+  if (!m.normals.empty()) {
+    const Vec3 n = m.normals[tri[0]] * b0 + m.normals[tri[1]] * b1 + m.normals[tri[2]] * b2;
+    const float len = Length(n);
+    hit->ns = len > 0 ? n / len : hit->ng;
+  } else {
+    hit->ns = hit->ng;
+  }
+  if (!m.uvs.empty()) {
+    hit->u = m.uvs[2 * tri[0]] * b0 + m.uvs[2 * tri[1]] * b1 + m.uvs[2 * tri[2]] * b2;
+    hit->v = m.uvs[2 * tri[0] + 1] * b0 + m.uvs[2 * tri[1] + 1] * b1 + m.uvs[2 * tri[2] + 1] * b2;
+  } else {
+    hit->u = b1;
+    hit->v = b2;
+  }
+  return true;
+}
+
+bool Scene::Occluded(const Ray& ray) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRay r;
+  r.org_x = ray.origin.x;
+  r.org_y = ray.origin.y;
+  r.org_z = ray.origin.z;
+  r.dir_x = ray.dir.x;
+  r.dir_y = ray.dir.y;
+  r.dir_z = ray.dir.z;
+  r.tnear = 0;
+  r.tfar = ray.tmax;
+  r.mask = 0xFFFFFFFFu;
+  r.flags = 0;
+  r.time = 0;
+  rtcOccluded1(rtc_scene_, &ctx, &r);
+  return r.tfar < 0;
+}
+
+Ray Scene::SpawnRay(const Vec3& p, const Vec3& ng, float s, const Vec3& dir) {
+  const float side = Dot(dir, ng) >= 0 ? 1.0f : -1.0f;
+  const float off = kOriginOffset * std::max(s, MaxAbsComponent(p));
+  return Ray{p + ng * (side * off), dir, INFINITY};
+}
+
+Ray Scene::SpawnShadowRay(const SurfaceHit& hit, const LightSample& ls) {
+  Ray r = SpawnRay(hit.p, hit.ng, hit.error_scale, ls.wi);
+  if (std::isfinite(ls.distance)) {
+    const float side = Dot(ls.wi, ls.light_normal) <= 0 ? 1.0f : -1.0f;
+    const float off =
+        kOriginOffset * std::max(ls.light_error_scale, MaxAbsComponent(ls.light_point));
+    const Vec3 q = ls.light_point + ls.light_normal * (side * off);
+    r.tmax = Length(q - r.origin) * (1 - 1e-5f);
+  }
+  return r;
+}
+
+void Scene::SampleAreaLight(const Light& l, float u1, float u2, float u3, Vec3* q, Vec3* n,
+                            float* scale) const {
+  const Mesh& m = meshes_[l.geom];
+  if (l.sphere) {
+    const Vec3 d = UniformSphere(u2, u3);
+    *q = l.center + d * l.radius;
+    *n = m.flip ? -d : d;
+    *scale = MaxAbsComponent(l.center) + l.radius;
+    return;
+  }
+  const float target = u1 * l.area;
+  size_t t = size_t(std::upper_bound(l.cdf.begin(), l.cdf.end(), target) - l.cdf.begin());
+  t = std::min(t, l.cdf.size() - 1);
+  const uint32_t* tri = &m.indices[3 * t];
+  const Vec3& p0 = m.positions[tri[0]];
+  const Vec3& p1 = m.positions[tri[1]];
+  const Vec3& p2 = m.positions[tri[2]];
+  float b0, b1;
+  UniformTriangle(u2, u3, &b0, &b1);
+  *q = p0 * b0 + p1 * b1 + p2 * (1 - b0 - b1);
+  const Vec3 ng = Normalize(Cross(p1 - p0, p2 - p0));
+  if (!m.normals.empty()) {
+    const Vec3 ns =
+        m.normals[tri[0]] * b0 + m.normals[tri[1]] * b1 + m.normals[tri[2]] * (1 - b0 - b1);
+    *n = Length(ns) > 0 ? Normalize(ns) : ng;
+  } else {
+    *n = ng;
+  }
+  *scale = std::max(MaxAbsComponent(p0), std::max(MaxAbsComponent(p1), MaxAbsComponent(p2)));
+}
+
+bool Scene::SampleLight(const Vec3& p, float u1, float u2, float u3, bool include_env,
+                        LightSample* s) const {
+  const int n = include_env ? int(lights_.size()) : num_local_;
+  if (n == 0) return false;
+  const int i = std::min(n - 1, int(u1 * n));
+  const float u1r = u1 * n - i;  // reuse the remainder of u1 within the chosen light
+  const Light& l = lights_[i];
+  const float pselect = 1.0f / n;
+  switch (l.type) {
+    case LightType::kArea: {
+      Vec3 q, nl;
+      float scale;
+      SampleAreaLight(l, u1r, u2, u3, &q, &nl, &scale);
+      const Vec3 d = q - p;
+      const float dist2 = LengthSquared(d);
+      if (!(dist2 > 0)) return false;
+      const float dist = std::sqrt(dist2);
+      s->wi = d / dist;
+      const float cos_l = -Dot(s->wi, nl);
+      if (cos_l <= 0) return false;  // back side emits nothing
+      s->distance = dist;
+      s->pdf = pselect * dist2 / (cos_l * l.area);
+      s->value = l.radiance / s->pdf;
+      s->light_point = q;
+      s->light_normal = nl;
+      s->light_error_scale = scale;
+      return true;
+    }
+    case LightType::kPoint:
+    case LightType::kSpot: {
+      const Vec3 d = l.position - p;
+      const float dist2 = LengthSquared(d);
+      if (!(dist2 > 0)) return false;
+      const float dist = std::sqrt(dist2);
+      s->wi = d / dist;
+      s->distance = dist;
+      s->pdf = 0;
+      float falloff = 1;
+      if (l.type == LightType::kSpot) {
+        const float c = Dot(l.direction, -s->wi);
+        if (c <= l.cos_cutoff) return false;
+        if (c < l.cos_beam) falloff = (l.cutoff - std::acos(std::min(c, 1.0f))) * l.inv_transition;
+      }
+      s->value = l.intensity * (falloff / (dist2 * pselect));
+      s->light_point = l.position;
+      s->light_normal = -s->wi;
+      s->light_error_scale = 0;
+      return true;
+    }
+    case LightType::kDirectional:
+      s->wi = -l.direction;
+      s->distance = INFINITY;
+      s->pdf = 0;
+      s->value = l.intensity / pselect;
+      return true;
+    case LightType::kConstant:
+    case LightType::kEnvmap: {
+      s->wi = UniformSphere(u2, u3);
+      s->distance = INFINITY;
+      // All environment lights act as one: any of them picks a direction uniformly over the
+      // sphere and the sample carries their summed radiance.
+      s->pdf = PdfEnvironment();
+      s->value = EvalEnvironment(s->wi) / s->pdf;
+      return !IsBlack(s->value);
+    }
+  }
+  return false;
+}
+
+float Scene::PdfAreaLight(const Vec3& p, const SurfaceHit& hit, const Vec3& wi) const {
+  if (hit.light < 0) return 0;
+  const Light& l = lights_[hit.light];
+  const float cos_l = -Dot(wi, hit.ns);
+  if (cos_l <= 0) return 0;
+  const float dist2 = LengthSquared(hit.p - p);
+  return dist2 / (cos_l * l.area * float(lights_.size()));
+}
+
+float Scene::PdfEnvironment() const {
+  if (!has_env_) return 0;
+  return float(lights_.size() - num_local_) / float(lights_.size()) / (4 * kPi);
+}
+
+Vec3 Scene::EvalEnvironment(const Vec3& d) const {
+  Vec3 L;
+  for (size_t i = size_t(num_local_); i < lights_.size(); ++i) {
+    const Light& l = lights_[i];
+    if (l.type == LightType::kConstant) {
+      L += l.radiance;
+    } else {
+      const Vec3 v = Normalize(l.world_to_env.ApplyVector(d));
+      const float u = std::atan2(v.x, -v.z) * (0.5f * kInvPi);
+      const float w = std::acos(std::clamp(v.y, -1.0f, 1.0f)) * kInvPi;
+      L += l.envmap->Eval(u - std::floor(u), w) * l.scale;
+    }
+  }
+  return L;
+}
+
+Vec3 Scene::Emitted(const SurfaceHit& hit, const Vec3& wo) const {
+  if (hit.light < 0) return Vec3();
+  return Dot(wo, hit.ns) > 0 ? lights_[hit.light].radiance : Vec3();
+}
+
+}  // namespace irfarm

@@ -1,0 +1,117 @@
+// The plain description of a scene that the XML loader produces and the scene builder consumes
+// (parse -> describe -> build). Everything is already in world space; meshes are loaded;
+// nothing here knows Embree. Every element keeps the line it came from for later errors.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cache/math.h"
+
+namespace irfarm {
+
+struct SourceLoc {
+  std::string file;  // path of the scene file as given to the loader
+  int line = 0;
+  std::string ToString() const { return file + ":" + std::to_string(line); }
+};
+
+struct CameraDesc {
+  Mat4 to_world;         // camera space: +z forward, +y up, +x image left (Mitsuba)
+  float fov_x_deg = 45;  // horizontal field of view over the whole image, after fov_axis
+  float near_clip = 0.01f, far_clip = 1e4f;  // accepted, not used for clipping
+  int width = 768, height = 576;
+  int spp = 4;  // sampler sample_count
+  SourceLoc loc;
+};
+
+struct IntegratorDesc {
+  std::string type = "path";  // "path" or "irrcache"
+  int max_depth = -1;         // Mitsuba's count of path vertices; -1 = unbounded
+  int rr_depth = 5;
+  // Other parameters given in the XML (irrcache settings), name -> value text.
+  std::map<std::string, std::string> params;
+  SourceLoc loc;
+};
+
+struct TextureDesc {
+  std::string filename;  // resolved absolute/relative path on disk (inside the scene folder)
+  bool raw = false;      // true: values are linear already (no sRGB decoding)
+  std::string filter_type = "bilinear";  // "bilinear" or "nearest"
+  std::string wrap_mode = "repeat";      // "repeat", "mirror", "clamp"
+  SourceLoc loc;
+};
+
+// A reflectance: constant rgb, or a bitmap texture (index into SceneDesc::textures).
+struct ColorParam {
+  Vec3 value{0.5f, 0.5f, 0.5f};
+  int texture = -1;  // >= 0: use textures[texture] instead of value
+};
+
+enum class BsdfType { kDiffuse, kConductor, kDielectric, kThinDielectric };
+
+struct BsdfDesc {
+  std::string id;
+  BsdfType type = BsdfType::kDiffuse;
+  bool twosided = false;                 // set by a `twosided` wrapper
+  ColorParam reflectance;                // diffuse
+  Vec3 specular_reflectance{1, 1, 1};    // conductor, dielectric, thindielectric
+  Vec3 specular_transmittance{1, 1, 1};  // dielectric, thindielectric
+  float int_ior = 1.5046f, ext_ior = 1.000277f;
+  SourceLoc loc;
+};
+
+struct TriangleMesh {
+  std::vector<Vec3> positions;    // world space
+  std::vector<Vec3> normals;      // world space, per vertex; empty = use face normals
+  std::vector<float> uvs;         // 2 per vertex (already v-flipped for OBJ); may be empty
+  std::vector<uint32_t> indices;  // 3 per triangle, counter-clockwise = front
+};
+
+enum class ShapeType { kMesh, kSphere };
+
+struct ShapeDesc {
+  std::string id;
+  ShapeType type = ShapeType::kMesh;
+  TriangleMesh mesh;                  // kMesh (obj, ply, rectangle, cube, disk)
+  Vec3 center;                        // kSphere, world space
+  float radius = 1;                   // kSphere, world space
+  bool flip_normals = false;          // already applied to mesh winding/normals; kept for spheres
+  int bsdf = -1;                      // index into SceneDesc::bsdfs
+  std::optional<Vec3> area_radiance;  // area emitter on this shape (front side only)
+  int degenerate_dropped = 0;         // triangles removed for zero area / repeated vertices
+  SourceLoc loc;
+};
+
+enum class EmitterType { kPoint, kSpot, kDirectional, kConstant, kEnvmap };
+
+struct EmitterDesc {
+  EmitterType type = EmitterType::kPoint;
+  Vec3 position;             // point, spot (world)
+  Vec3 direction{0, 0, 1};   // directional, spot: the direction light travels (unit, world)
+  Vec3 intensity{1, 1, 1};   // point, spot: W/sr
+  Vec3 irradiance{1, 1, 1};  // directional: W/m^2 on a perpendicular surface
+  Vec3 radiance{1, 1, 1};    // constant
+  float cutoff_angle_deg = 20, beam_width_deg = 15;  // spot (Mitsuba defaults 20 and 15)
+  std::string filename;                              // envmap (lat-long EXR/PNG), resolved path
+  Mat4 to_world;                                     // envmap
+  float scale = 1;                                   // envmap
+  SourceLoc loc;
+};
+
+struct SceneDesc {
+  std::string path;  // scene file
+  CameraDesc camera;
+  IntegratorDesc integrator;
+  std::vector<TextureDesc> textures;
+  std::vector<BsdfDesc> bsdfs;
+  std::vector<ShapeDesc> shapes;
+  std::vector<EmitterDesc> emitters;  // non-area emitters
+  std::vector<std::string>
+      warnings;  // e.g. "scene.xml:12: sampler 'stratified' treated as independent"
+};
+
+}  // namespace irfarm

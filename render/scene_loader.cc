@@ -1,0 +1,1130 @@
+// The Mitsuba-subset XML scene loader (see scene_loader.h). A Parser walks the document in order.
+// Each plugin element is first collected into Params (its property children and nested objects);
+// the plugin's code then reads the parameters it supports, and Finish() rejects anything that was
+// not read, listing the names the plugin asked for. Meshes are loaded by mesh_loader.
+
+#include "render/scene_loader.h"
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <optional>
+#include <sstream>
+#include <utility>
+#include <vector>
+#include "absl/strings/string_view.h"
+
+#include <pugixml.hpp>
+
+#include "absl/status/status.h"
+#include "absl/strings/ascii.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
+#include "render/mesh_loader.h"
+
+#define LOADER_RETURN_IF_ERROR(expr)   \
+  do {                                 \
+    absl::Status status_ = (expr);     \
+    if (!status_.ok()) return status_; \
+  } while (false)
+#define LOADER_CONCAT_INNER(a, b) a##b
+#define LOADER_CONCAT(a, b) LOADER_CONCAT_INNER(a, b)
+#define LOADER_ASSIGN_OR_RETURN(lhs, expr) \
+  LOADER_ASSIGN_OR_RETURN_IMPL(LOADER_CONCAT(statusor_, __LINE__), lhs, expr)
+#define LOADER_ASSIGN_OR_RETURN_IMPL(tmp, lhs, expr) \
+  auto tmp = (expr);                                 \
+  if (!tmp.ok()) return tmp.status();                \
+  lhs = std::move(*tmp)
+
+namespace irfarm {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+// Mitsuba's named indices of refraction (mitsuba/render/ior.h).
+constexpr std::pair<const char*, float> kNamedIors[] = {
+    {"vacuum", 1.0f},      {"helium", 1.000036f},        {"hydrogen", 1.000132f},
+    {"air", 1.000277f},    {"carbon dioxide", 1.00045f}, {"water", 1.3330f},
+    {"acetone", 1.36f},    {"ethanol", 1.361f},          {"carbon tetrachloride", 1.461f},
+    {"glycerol", 1.4729f}, {"benzene", 1.501f},          {"silicone oil", 1.52045f},
+    {"bromine", 1.661f},   {"water ice", 1.31f},         {"fused quartz", 1.458f},
+    {"pyrex", 1.470f},     {"acrylic glass", 1.49f},     {"polypropylene", 1.49f},
+    {"bk7", 1.5046f},      {"sodium chloride", 1.544f},  {"amber", 1.55f},
+    {"pet", 1.5750f},      {"diamond", 2.419f}};
+
+bool IsOneOf(absl::string_view s, std::initializer_list<absl::string_view> options) {
+  return std::find(options.begin(), options.end(), s) != options.end();
+}
+
+bool IsPropertyTag(absl::string_view tag) {
+  return IsOneOf(tag,
+                 {"float", "integer", "boolean", "string", "rgb", "point", "vector", "transform"});
+}
+
+bool IsObjectTag(absl::string_view tag) {
+  return IsOneOf(tag, {"bsdf", "texture", "emitter", "shape", "sensor", "film", "sampler",
+                       "rfilter", "integrator"});
+}
+
+// Parses one finite number; on failure returns why ("malformed number 'x'").
+std::string ParseFinite(absl::string_view token, double* out) {
+  absl::string_view s = token;
+  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
+  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), *out);
+  if (s.empty() || end != s.data() + s.size() ||
+      (ec != std::errc() && ec != std::errc::result_out_of_range)) {
+    return absl::StrCat("malformed number '", token, "'");
+  }
+  if (ec == std::errc::result_out_of_range) *out = std::strtod(std::string(s).c_str(), nullptr);
+  if (!std::isfinite(*out)) return absl::StrCat("non-finite number '", token, "'");
+  return "";
+}
+
+// Mitsuba's parse_fov: the horizontal fov for a fov measured along `axis`; aspect = width/height.
+std::optional<double> FovX(double fov, absl::string_view axis, double aspect) {
+  const auto y_to_x = [aspect](double f) {
+    return 2 * std::atan(std::tan(0.5 * f * kDegToRad) * aspect) / kDegToRad;
+  };
+  if (axis == "x") return fov;
+  if (axis == "y") return y_to_x(fov);
+  if (axis == "diagonal") {
+    const double diagonal = 2 * std::tan(0.5 * fov * kDegToRad);
+    const double width = diagonal / std::sqrt(1 + 1 / (aspect * aspect));
+    return 2 * std::atan(0.5 * width) / kDegToRad;
+  }
+  if (axis == "smaller") return aspect > 1 ? y_to_x(fov) : fov;
+  if (axis == "larger") return aspect < 1 ? y_to_x(fov) : fov;
+  return std::nullopt;
+}
+
+// One child of a plugin element: a property (<float name=...>) or a nested object or <ref>.
+struct Entry {
+  std::string tag;   // property tag, or the object kind ("bsdf", "texture", ...)
+  std::string name;  // the name attribute; "" for an unnamed nested object
+  pugi::xml_node node;
+  int ref = -1;  // a <ref>: index into the scene's bsdfs or textures
+  bool used = false;
+};
+
+struct Params {
+  pugi::xml_node node;                 // the plugin element
+  std::string what;                    // e.g. "bsdf 'diffuse'", for messages
+  std::vector<Entry> entries;          // in document order
+  std::vector<std::string> supported;  // the names the plugin asked for, in order
+};
+
+struct IdInfo {
+  std::string kind;
+  int index = -1;
+  int line = 0;
+};
+
+class Parser {
+ public:
+  Parser(const std::string& path, const LoadOptions& options)
+      : path_(path), base_dir_(fs::path(path).parent_path()), options_(options) {}
+
+  absl::StatusOr<SceneDesc> Parse(const std::string& xml);
+
+ private:
+  // Locations and messages.
+  int Line(pugi::xml_node n) const;
+  SourceLoc Loc(pugi::xml_node n) const { return {path_, Line(n)}; }
+  std::string Where(pugi::xml_node n) const { return absl::StrCat(path_, ":", Line(n), ": "); }
+  absl::Status Error(pugi::xml_node n, absl::string_view what) const {
+    return absl::InvalidArgumentError(absl::StrCat(Where(n), what));
+  }
+  void Warn(pugi::xml_node n, absl::string_view what) {
+    scene_.warnings.push_back(absl::StrCat(Where(n), what));
+  }
+  static std::string Describe(pugi::xml_node n);
+
+  // Attributes, with $name substitution.
+  absl::StatusOr<std::string> Attr(pugi::xml_node n, const char* name) const;
+  absl::StatusOr<std::string> RequiredAttr(pugi::xml_node n, const char* name) const;
+  absl::Status CheckAttributes(pugi::xml_node n,
+                               std::initializer_list<absl::string_view> allowed) const;
+  absl::StatusOr<std::vector<double>> Numbers(pugi::xml_node n, const char* attr) const;
+  absl::StatusOr<double> Number(pugi::xml_node n, const char* attr) const;
+  absl::StatusOr<std::array<double, 3>> Xyz(pugi::xml_node n, double def, bool scalar_ok) const;
+  absl::StatusOr<Mat4> ParseTransform(pugi::xml_node n) const;
+
+  // The parameters of one plugin element.
+  absl::StatusOr<Params> Collect(pugi::xml_node obj, absl::string_view kind);
+  absl::StatusOr<const Entry*> Find(Params& p, absl::string_view name,
+                                    std::initializer_list<absl::string_view> tags) const;
+  pugi::xml_node NodeOf(const Params& p, absl::string_view name) const;
+  std::vector<const Entry*> TakeObjects(Params& p, absl::string_view kind) const;
+  absl::Status Finish(const Params& p) const;
+  absl::StatusOr<float> GetFloat(Params& p, absl::string_view name, float def) const;
+  absl::StatusOr<int> GetInt(Params& p, absl::string_view name, int def) const;
+  absl::StatusOr<bool> GetBool(Params& p, absl::string_view name, bool def) const;
+  absl::StatusOr<std::string> GetString(Params& p, absl::string_view name,
+                                        absl::string_view def) const;
+  absl::StatusOr<Vec3> GetRgb(Params& p, absl::string_view name, Vec3 def) const;
+  absl::StatusOr<std::optional<Vec3>> GetVec3(Params& p, absl::string_view name) const;
+  absl::StatusOr<std::optional<Mat4>> GetTransform(Params& p, absl::string_view name) const;
+  absl::StatusOr<float> GetIor(Params& p, absl::string_view name, float def) const;
+  absl::StatusOr<ColorParam> GetColor(Params& p, absl::string_view name, Vec3 def);
+  absl::StatusOr<std::string> GetFile(Params& p, absl::string_view name) const;
+  absl::StatusOr<std::map<std::string, std::string>> TakeRestAsText(Params& p) const;
+
+  // Plugins.
+  absl::Status RegisterId(pugi::xml_node n, absl::string_view kind, int index);
+  absl::StatusOr<std::string> PluginType(pugi::xml_node n, absl::string_view kind,
+                                         std::initializer_list<absl::string_view> supported) const;
+  absl::Status ParseIntegrator(pugi::xml_node n);
+  absl::Status ParseSensor(pugi::xml_node n);
+  absl::Status ParseFilm(pugi::xml_node n);
+  absl::Status ParseSampler(pugi::xml_node n);
+  absl::StatusOr<BsdfDesc> ParseBsdf(pugi::xml_node n);
+  absl::StatusOr<int> AddBsdf(pugi::xml_node n, BsdfDesc bsdf);
+  absl::StatusOr<int> ParseTexture(pugi::xml_node n);
+  absl::Status ParseShape(pugi::xml_node n);
+  absl::StatusOr<Vec3> ParseAreaEmitter(pugi::xml_node n);
+  absl::Status ParseEmitter(pugi::xml_node n);
+
+  const std::string path_;
+  const fs::path base_dir_;
+  const LoadOptions& options_;
+  std::vector<size_t> newlines_;             // offsets of '\n' in the text, for line numbers
+  std::map<std::string, std::string> vars_;  // $name -> value: <default>s, then -D defines
+  std::map<std::string, IdInfo> ids_;
+  SceneDesc scene_;
+  pugi::xml_node sensor_, integrator_, environment_;  // to reject a second one
+  int default_bsdf_ = -1;
+};
+
+int Parser::Line(pugi::xml_node n) const {
+  const ptrdiff_t offset = n.offset_debug();
+  if (offset < 0) return 0;
+  return int(std::lower_bound(newlines_.begin(), newlines_.end(), size_t(offset)) -
+             newlines_.begin()) +
+         1;
+}
+
+std::string Parser::Describe(pugi::xml_node n) {
+  const pugi::xml_attribute name = n.attribute("name");
+  return name ? absl::StrCat("<", n.name(), " name=\"", name.value(), "\">")
+              : absl::StrCat("<", n.name(), ">");
+}
+
+absl::StatusOr<std::string> Parser::Attr(pugi::xml_node n, const char* name) const {
+  const absl::string_view raw = n.attribute(name).value();
+  std::string out;
+  for (size_t i = 0; i < raw.size();) {
+    size_t end = i + 1;
+    while (raw[i] == '$' && end < raw.size() &&
+           (absl::ascii_isalnum(raw[end]) || raw[end] == '_')) {
+      ++end;
+    }
+    if (raw[i] != '$' || end == i + 1) {  // plain text, or a lone '$'
+      out += raw[i++];
+      continue;
+    }
+    const std::string var(raw.substr(i + 1, end - i - 1));
+    const auto it = vars_.find(var);
+    if (it == vars_.end()) {
+      return Error(n, absl::StrCat("undefined parameter '$", var, "' in ", Describe(n),
+                                   " (declare <default name=\"", var,
+                                   "\" value=\"...\"/> or pass -D ", var, "=...)"));
+    }
+    out += it->second;
+    i = end;
+  }
+  return out;
+}
+
+absl::StatusOr<std::string> Parser::RequiredAttr(pugi::xml_node n, const char* name) const {
+  if (!n.attribute(name)) {
+    return Error(n, absl::StrCat("missing attribute '", name, "' on ", Describe(n)));
+  }
+  return Attr(n, name);
+}
+
+absl::Status Parser::CheckAttributes(pugi::xml_node n,
+                                     std::initializer_list<absl::string_view> allowed) const {
+  for (const pugi::xml_attribute a : n.attributes()) {
+    if (!IsOneOf(a.name(), allowed)) {
+      return Error(n, absl::StrCat("unexpected attribute '", a.name(), "' on ", Describe(n),
+                                   " (allowed: ", absl::StrJoin(allowed, ", "), ")"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<double>> Parser::Numbers(pugi::xml_node n, const char* attr) const {
+  LOADER_ASSIGN_OR_RETURN(const std::string text, RequiredAttr(n, attr));
+  std::vector<double> values;
+  for (absl::string_view token :
+       absl::StrSplit(text, absl::ByAnyChar(", \t\r\n"), absl::SkipEmpty())) {
+    double v = 0;
+    if (std::string why = ParseFinite(token, &v); !why.empty()) {
+      const std::string where = absl::string_view(attr) == "value"
+                                    ? Describe(n)
+                                    : absl::StrCat("attribute '", attr, "' of ", Describe(n));
+      return Error(n, absl::StrCat(why, " in ", where));
+    }
+    values.push_back(v);
+  }
+  return values;
+}
+
+absl::StatusOr<double> Parser::Number(pugi::xml_node n, const char* attr) const {
+  LOADER_ASSIGN_OR_RETURN(const std::vector<double> v, Numbers(n, attr));
+  if (v.size() != 1) {
+    return Error(n, absl::StrCat("expected one number in attribute '", attr, "' of ", Describe(n),
+                                 ", got ", v.size()));
+  }
+  return v[0];
+}
+
+// value="x, y, z" (or one number if scalar_ok), else attributes x, y, z defaulting to `def`.
+absl::StatusOr<std::array<double, 3>> Parser::Xyz(pugi::xml_node n, double def,
+                                                  bool scalar_ok) const {
+  std::array<double, 3> r = {def, def, def};
+  if (n.attribute("value")) {
+    LOADER_ASSIGN_OR_RETURN(const std::vector<double> v, Numbers(n, "value"));
+    if (v.size() == 1 && scalar_ok) return std::array<double, 3>{v[0], v[0], v[0]};
+    if (v.size() != 3) {
+      return Error(n, absl::StrCat("expected 3 numbers in ", Describe(n), ", got ", v.size()));
+    }
+    return std::array<double, 3>{v[0], v[1], v[2]};
+  }
+  const char* names[3] = {"x", "y", "z"};
+  for (int i = 0; i < 3; ++i) {
+    if (n.attribute(names[i])) {
+      LOADER_ASSIGN_OR_RETURN(r[i], Number(n, names[i]));
+    }
+  }
+  return r;
+}
+
+absl::StatusOr<Mat4> Parser::ParseTransform(pugi::xml_node t) const {
+  Mat4 m;
+  for (const pugi::xml_node c : t.children()) {
+    if (c.type() == pugi::node_pcdata) return Error(c, "unexpected text in <transform>");
+    if (c.type() != pugi::node_element) continue;
+    const absl::string_view tag = c.name();
+    Mat4 step;
+    if (tag == "translate" || tag == "scale") {
+      LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"x", "y", "z", "value"}));
+      const bool scale = tag == "scale";
+      LOADER_ASSIGN_OR_RETURN(const auto v, Xyz(c, scale ? 1 : 0, scale));
+      step = scale ? Mat4::Scale(v[0], v[1], v[2]) : Mat4::Translate(v[0], v[1], v[2]);
+    } else if (tag == "rotate") {
+      LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"x", "y", "z", "axis", "value", "angle"}));
+      std::array<double, 3> axis;
+      if (c.attribute("axis")) {
+        LOADER_ASSIGN_OR_RETURN(const std::vector<double> v, Numbers(c, "axis"));
+        if (v.size() != 3) return Error(c, "<rotate> axis needs 3 numbers");
+        axis = {v[0], v[1], v[2]};
+      } else {
+        LOADER_ASSIGN_OR_RETURN(axis, Xyz(c, 0, false));
+      }
+      double angle = 0;
+      if (c.attribute("angle")) {
+        LOADER_ASSIGN_OR_RETURN(angle, Number(c, "angle"));
+      }
+      if (axis[0] == 0 && axis[1] == 0 && axis[2] == 0) {
+        return Error(c, "<rotate> needs a non-zero axis");
+      }
+      step = Mat4::Rotate(axis[0], axis[1], axis[2], angle);
+    } else if (tag == "matrix") {
+      LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"value"}));
+      LOADER_ASSIGN_OR_RETURN(const std::vector<double> v, Numbers(c, "value"));
+      if (v.size() != 16 && v.size() != 9) {
+        return Error(c, absl::StrCat("<matrix> needs 16 numbers (a row-major 4x4) or 9 (3x3), got ",
+                                     v.size()));
+      }
+      const int dim = v.size() == 16 ? 4 : 3;
+      for (int i = 0; i < dim; ++i) {
+        for (int j = 0; j < dim; ++j) step.m[i][j] = v[i * dim + j];
+      }
+    } else if (tag == "lookat") {
+      LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"origin", "target", "up"}));
+      Vec3 p[3];
+      const char* names[3] = {"origin", "target", "up"};
+      for (int i = 0; i < 3; ++i) {
+        if (i == 2 && !c.attribute("up")) break;
+        LOADER_ASSIGN_OR_RETURN(const std::vector<double> v, Numbers(c, names[i]));
+        if (v.size() != 3) {
+          return Error(c, absl::StrCat("<lookat> ", names[i], " needs 3 numbers, got ", v.size()));
+        }
+        p[i] = Vec3(float(v[0]), float(v[1]), float(v[2]));
+      }
+      const Vec3 dir = p[1] - p[0];
+      if (LengthSquared(dir) == 0) return Error(c, "<lookat> origin and target coincide");
+      if (!c.attribute("up")) {
+        Vec3 s;
+        MakeFrame(Normalize(dir), &s, &p[2]);  // Mitsuba picks any perpendicular up as well
+      }
+      if (!(Length(Cross(Normalize(p[2]), Normalize(dir))) > 1e-6f)) {
+        return Error(c, "<lookat> up is zero or parallel to the view direction");
+      }
+      step = Mat4::LookAt(p[0], p[1], p[2]);
+    } else {
+      return Error(c, absl::StrCat("unknown transform <", tag,
+                                   "> (supported: translate, rotate, scale, matrix, lookat)"));
+    }
+    m = step * m;  // each new step acts after the previous ones: M = T_n ... T_1
+  }
+  return m;
+}
+
+absl::StatusOr<Params> Parser::Collect(pugi::xml_node obj, absl::string_view kind) {
+  LOADER_RETURN_IF_ERROR(CheckAttributes(obj, {"type", "id", "name"}));
+  Params p;
+  p.node = obj;
+  LOADER_ASSIGN_OR_RETURN(const std::string type, Attr(obj, "type"));
+  p.what = absl::StrCat(kind, " '", type, "'");
+  for (const pugi::xml_node c : obj.children()) {
+    if (c.type() == pugi::node_pcdata) return Error(c, absl::StrCat("unexpected text in ", p.what));
+    if (c.type() != pugi::node_element) continue;
+    const absl::string_view tag = c.name();
+    Entry e;
+    e.node = c;
+    if (tag == "spectrum") return Error(c, "spectra are not supported, use rgb");
+    if (IsPropertyTag(tag)) {
+      LOADER_RETURN_IF_ERROR(tag == "transform" ? CheckAttributes(c, {"name"})
+                             : IsOneOf(tag, {"point", "vector"})
+                                 ? CheckAttributes(c, {"name", "value", "x", "y", "z"})
+                                 : CheckAttributes(c, {"name", "value"}));
+      e.tag = std::string(tag);
+      LOADER_ASSIGN_OR_RETURN(e.name, RequiredAttr(c, "name"));
+    } else if (tag == "ref") {
+      LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"id", "name"}));
+      LOADER_ASSIGN_OR_RETURN(const std::string id, RequiredAttr(c, "id"));
+      const auto it = ids_.find(id);
+      if (it == ids_.end()) {
+        return Error(c, absl::StrCat("unknown id '", id,
+                                     "' (a <ref> names a bsdf or texture defined earlier in the "
+                                     "file)"));
+      }
+      if (it->second.index < 0) {
+        return Error(c, absl::StrCat("id '", id, "' names a ", it->second.kind,
+                                     "; only bsdfs and textures can be referenced"));
+      }
+      e.tag = it->second.kind;
+      e.ref = it->second.index;
+      LOADER_ASSIGN_OR_RETURN(e.name, Attr(c, "name"));
+    } else if (IsObjectTag(tag)) {
+      e.tag = std::string(tag);
+      LOADER_ASSIGN_OR_RETURN(e.name, Attr(c, "name"));
+    } else {
+      return Error(c, absl::StrCat("unknown element <", tag, "> in ", p.what));
+    }
+    for (const Entry& other : p.entries) {
+      if (!e.name.empty() && other.name == e.name) {
+        return Error(c, absl::StrCat("parameter '", e.name, "' given twice in ", p.what,
+                                     " (first at line ", Line(other.node), ")"));
+      }
+    }
+    p.entries.push_back(std::move(e));
+  }
+  return p;
+}
+
+absl::StatusOr<const Entry*> Parser::Find(Params& p, absl::string_view name,
+                                          std::initializer_list<absl::string_view> tags) const {
+  if (std::find(p.supported.begin(), p.supported.end(), name) == p.supported.end()) {
+    p.supported.emplace_back(name);
+  }
+  for (Entry& e : p.entries) {
+    if (e.name != name) continue;
+    if (!IsOneOf(e.tag, tags)) {
+      return Error(e.node, absl::StrCat("parameter '", name, "' of ", p.what, " must be <",
+                                        absl::StrJoin(tags, "> or <"), ">, not <", e.tag, ">"));
+    }
+    e.used = true;
+    return &e;
+  }
+  return nullptr;
+}
+
+pugi::xml_node Parser::NodeOf(const Params& p, absl::string_view name) const {
+  for (const Entry& e : p.entries) {
+    if (e.name == name) return e.node;
+  }
+  return p.node;
+}
+
+std::vector<const Entry*> Parser::TakeObjects(Params& p, absl::string_view kind) const {
+  std::vector<const Entry*> found;
+  for (Entry& e : p.entries) {
+    if (e.tag == kind && !e.used) {
+      e.used = true;
+      found.push_back(&e);
+    }
+  }
+  return found;
+}
+
+absl::Status Parser::Finish(const Params& p) const {
+  for (const Entry& e : p.entries) {
+    if (e.used) continue;
+    if (IsPropertyTag(e.node.name())) {
+      const std::string supported =
+          p.supported.empty() ? "it takes none" : absl::StrJoin(p.supported, ", ");
+      return Error(e.node, absl::StrCat("unknown parameter '", e.name, "' for ", p.what,
+                                        " (supported: ", supported, ")"));
+    }
+    return Error(e.node,
+                 absl::StrCat("unexpected <", e.node.name(), ">",
+                              e.ref >= 0 ? absl::StrCat(" to a ", e.tag) : "", " in ", p.what));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<float> Parser::GetFloat(Params& p, absl::string_view name, float def) const {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"float", "integer"}));
+  if (e == nullptr) return def;
+  LOADER_ASSIGN_OR_RETURN(const double v, Number(e->node, "value"));
+  return float(v);
+}
+
+absl::StatusOr<int> Parser::GetInt(Params& p, absl::string_view name, int def) const {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"integer"}));
+  if (e == nullptr) return def;
+  LOADER_ASSIGN_OR_RETURN(std::string text, RequiredAttr(e->node, "value"));
+  absl::string_view s = absl::StripAsciiWhitespace(text);
+  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
+  int v = 0;
+  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (s.empty() || ec != std::errc() || end != s.data() + s.size()) {
+    return Error(e->node, absl::StrCat("malformed integer '", text, "' in ", Describe(e->node)));
+  }
+  return v;
+}
+
+absl::StatusOr<bool> Parser::GetBool(Params& p, absl::string_view name, bool def) const {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"boolean"}));
+  if (e == nullptr) return def;
+  LOADER_ASSIGN_OR_RETURN(const std::string text, RequiredAttr(e->node, "value"));
+  const std::string lower = absl::AsciiStrToLower(absl::StripAsciiWhitespace(text));
+  if (lower != "true" && lower != "false") {
+    return Error(e->node, absl::StrCat("malformed boolean '", text, "' in ", Describe(e->node),
+                                       " (expected true or false)"));
+  }
+  return lower == "true";
+}
+
+absl::StatusOr<std::string> Parser::GetString(Params& p, absl::string_view name,
+                                              absl::string_view def) const {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"string"}));
+  if (e == nullptr) return std::string(def);
+  return RequiredAttr(e->node, "value");
+}
+
+absl::StatusOr<Vec3> Parser::GetRgb(Params& p, absl::string_view name, Vec3 def) const {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"rgb", "float", "integer"}));
+  if (e == nullptr) return def;
+  LOADER_ASSIGN_OR_RETURN(const std::vector<double> v, Numbers(e->node, "value"));
+  if (v.size() == 1) return Vec3(float(v[0]));
+  if (v.size() != 3) {
+    return Error(e->node, absl::StrCat("expected 1 or 3 numbers in ", Describe(e->node), ", got ",
+                                       v.size()));
+  }
+  return Vec3(float(v[0]), float(v[1]), float(v[2]));
+}
+
+absl::StatusOr<std::optional<Vec3>> Parser::GetVec3(Params& p, absl::string_view name) const {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"point", "vector"}));
+  if (e == nullptr) return std::optional<Vec3>();
+  LOADER_ASSIGN_OR_RETURN(const auto v, Xyz(e->node, 0, false));
+  return std::optional<Vec3>(Vec3(float(v[0]), float(v[1]), float(v[2])));
+}
+
+absl::StatusOr<std::optional<Mat4>> Parser::GetTransform(Params& p, absl::string_view name) const {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"transform"}));
+  if (e == nullptr) return std::optional<Mat4>();
+  LOADER_ASSIGN_OR_RETURN(const Mat4 m, ParseTransform(e->node));
+  return std::optional<Mat4>(m);
+}
+
+absl::StatusOr<float> Parser::GetIor(Params& p, absl::string_view name, float def) const {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"float", "integer", "string"}));
+  if (e == nullptr) return def;
+  float ior = 0;
+  if (e->tag == "string") {
+    LOADER_ASSIGN_OR_RETURN(const std::string text, RequiredAttr(e->node, "value"));
+    const std::string key = absl::AsciiStrToLower(text);
+    std::vector<std::string> names;
+    for (const auto& [n, value] : kNamedIors) {
+      if (key == n) ior = value;
+      names.push_back(n);
+    }
+    if (ior == 0) {
+      return Error(e->node,
+                   absl::StrCat("unknown index of refraction '", text,
+                                "' (give a number or one of: ", absl::StrJoin(names, ", "), ")"));
+    }
+  } else {
+    LOADER_ASSIGN_OR_RETURN(const double v, Number(e->node, "value"));
+    ior = float(v);
+  }
+  if (!(ior > 0)) return Error(e->node, absl::StrCat(name, " must be positive"));
+  return ior;
+}
+
+absl::StatusOr<ColorParam> Parser::GetColor(Params& p, absl::string_view name, Vec3 def) {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"rgb", "float", "integer", "texture"}));
+  ColorParam color;
+  color.value = def;
+  if (e != nullptr && e->tag == "texture") {
+    if (e->ref >= 0) {
+      color.texture = e->ref;
+    } else {
+      LOADER_ASSIGN_OR_RETURN(color.texture, ParseTexture(e->node));
+    }
+  } else if (e != nullptr) {
+    LOADER_ASSIGN_OR_RETURN(color.value, GetRgb(p, name, def));
+  }
+  return color;
+}
+
+// A file named by a string parameter: relative to the scene folder and inside it, and existing.
+absl::StatusOr<std::string> Parser::GetFile(Params& p, absl::string_view name) const {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"string"}));
+  if (e == nullptr) return Error(p.node, absl::StrCat(p.what, " needs a '", name, "' parameter"));
+  LOADER_ASSIGN_OR_RETURN(const std::string value, RequiredAttr(e->node, "value"));
+  const fs::path rel(value);
+  if (value.empty()) return Error(e->node, absl::StrCat("empty ", name));
+  if (rel.has_root_path()) {
+    return Error(e->node, absl::StrCat(name, " '", value,
+                                       "' is absolute; file names must be relative to the scene "
+                                       "folder and stay inside it"));
+  }
+  const fs::path normal = rel.lexically_normal();
+  if (!normal.empty() && *normal.begin() == "..") {
+    return Error(e->node, absl::StrCat(name, " '", value, "' leaves the scene folder"));
+  }
+  const fs::path full = base_dir_.empty() ? normal : base_dir_ / normal;
+  std::error_code ec;
+  if (!fs::is_regular_file(full, ec)) {
+    return absl::NotFoundError(
+        absl::StrCat(Where(e->node), "file '", value, "' not found (", full.string(), ")"));
+  }
+  return full.string();
+}
+
+// irrcache: every parameter not read yet, as name -> value text.
+absl::StatusOr<std::map<std::string, std::string>> Parser::TakeRestAsText(Params& p) const {
+  std::map<std::string, std::string> rest;
+  for (Entry& e : p.entries) {
+    if (e.used || !IsPropertyTag(e.tag) || e.tag == "transform") continue;
+    std::string text;
+    if (e.node.attribute("value") || !IsOneOf(e.tag, {"point", "vector"})) {
+      LOADER_ASSIGN_OR_RETURN(text, RequiredAttr(e.node, "value"));
+    } else {
+      LOADER_ASSIGN_OR_RETURN(const auto v, Xyz(e.node, 0, false));
+      text = absl::StrJoin(v, ", ");
+    }
+    rest[e.name] = text;
+    e.used = true;
+  }
+  return rest;
+}
+
+absl::Status Parser::RegisterId(pugi::xml_node n, absl::string_view kind, int index) {
+  LOADER_ASSIGN_OR_RETURN(const std::string id, Attr(n, "id"));
+  if (id.empty()) return absl::OkStatus();
+  const auto [it, inserted] = ids_.try_emplace(id, IdInfo{std::string(kind), index, Line(n)});
+  if (!inserted) {
+    return Error(
+        n, absl::StrCat("duplicate id '", id, "' (first defined at line ", it->second.line, ")"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::string> Parser::PluginType(
+    pugi::xml_node n, absl::string_view kind,
+    std::initializer_list<absl::string_view> supported) const {
+  LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
+  if (!IsOneOf(type, supported)) {
+    return Error(n, absl::StrCat("unknown ", kind, " type '", type,
+                                 "' (supported: ", absl::StrJoin(supported, ", "), ")"));
+  }
+  return type;
+}
+
+absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
+  if (integrator_) {
+    return Error(
+        n, absl::StrCat("a second <integrator> (the first is at line ", Line(integrator_), ")"));
+  }
+  integrator_ = n;
+  LOADER_ASSIGN_OR_RETURN(const std::string type,
+                          PluginType(n, "integrator", {"path", "irrcache"}));
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "integrator"));
+  IntegratorDesc& d = scene_.integrator;
+  d.type = type;
+  d.loc = Loc(n);
+  LOADER_ASSIGN_OR_RETURN(d.max_depth, GetInt(p, "max_depth", -1));
+  LOADER_ASSIGN_OR_RETURN(d.rr_depth, GetInt(p, "rr_depth", 5));
+  if (d.max_depth < -1) {
+    return Error(NodeOf(p, "max_depth"), "max_depth must be -1 (unbounded) or >= 0");
+  }
+  if (d.rr_depth < 1) return Error(NodeOf(p, "rr_depth"), "rr_depth must be >= 1");
+  if (type == "irrcache") {
+    LOADER_ASSIGN_OR_RETURN(d.params, TakeRestAsText(p));
+  }
+  LOADER_RETURN_IF_ERROR(Finish(p));
+  return RegisterId(n, "integrator", -1);
+}
+
+absl::Status Parser::ParseSensor(pugi::xml_node n) {
+  if (sensor_) {
+    return Error(n, absl::StrCat("a second <sensor> (the first is at line ", Line(sensor_),
+                                 "); irfarm renders one camera"));
+  }
+  sensor_ = n;
+  LOADER_RETURN_IF_ERROR(PluginType(n, "sensor", {"perspective"}).status());
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "sensor"));
+  CameraDesc& cam = scene_.camera;
+  cam.loc = Loc(n);
+  LOADER_ASSIGN_OR_RETURN(const Entry* fov_entry, Find(p, "fov", {"float", "integer"}));
+  // Without fov Mitsuba uses a 50 mm lens on a 36 x 24 mm film, measured along the diagonal.
+  float fov = float(2 * std::atan(std::sqrt(36.0 * 36 + 24 * 24) / (2 * 50)) / kDegToRad);
+  LOADER_ASSIGN_OR_RETURN(fov, GetFloat(p, "fov", fov));
+  LOADER_ASSIGN_OR_RETURN(std::string axis,
+                          GetString(p, "fov_axis", fov_entry != nullptr ? "x" : "diagonal"));
+  axis = absl::AsciiStrToLower(axis);
+  LOADER_ASSIGN_OR_RETURN(cam.near_clip, GetFloat(p, "near_clip", 0.01f));
+  LOADER_ASSIGN_OR_RETURN(cam.far_clip, GetFloat(p, "far_clip", 1e4f));
+  LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
+  cam.to_world = to_world.value_or(Mat4());
+  const std::vector<const Entry*> films = TakeObjects(p, "film");
+  const std::vector<const Entry*> samplers = TakeObjects(p, "sampler");
+  LOADER_RETURN_IF_ERROR(Finish(p));
+  if (films.size() > 1) return Error(films[1]->node, "a sensor has at most one <film>");
+  if (samplers.size() > 1) return Error(samplers[1]->node, "a sensor has at most one <sampler>");
+  if (films.empty()) {
+    Warn(n, "no <film>: using hdrfilm 768 x 576 with a box filter");
+  } else {
+    LOADER_RETURN_IF_ERROR(ParseFilm(films[0]->node));
+  }
+  if (!samplers.empty()) LOADER_RETURN_IF_ERROR(ParseSampler(samplers[0]->node));
+
+  if (!(fov > 0 && fov < 180)) {
+    return Error(NodeOf(p, "fov"), absl::StrCat("fov must be in (0, 180) degrees, got ", fov));
+  }
+  const std::optional<double> fov_x = FovX(fov, axis, double(cam.width) / cam.height);
+  if (!fov_x) {
+    return Error(NodeOf(p, "fov_axis"), absl::StrCat("unknown fov_axis '", axis,
+                                                     "' (supported: x, y, diagonal, smaller, "
+                                                     "larger)"));
+  }
+  cam.fov_x_deg = float(*fov_x);
+  if (!(cam.near_clip > 0)) return Error(NodeOf(p, "near_clip"), "near_clip must be positive");
+  if (!(cam.far_clip > cam.near_clip)) {
+    return Error(NodeOf(p, "far_clip"), "far_clip must be greater than near_clip");
+  }
+  return RegisterId(n, "sensor", -1);
+}
+
+absl::Status Parser::ParseFilm(pugi::xml_node n) {
+  LOADER_RETURN_IF_ERROR(PluginType(n, "film", {"hdrfilm"}).status());
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "film"));
+  CameraDesc& cam = scene_.camera;
+  LOADER_ASSIGN_OR_RETURN(cam.width, GetInt(p, "width", 768));
+  LOADER_ASSIGN_OR_RETURN(cam.height, GetInt(p, "height", 576));
+  const std::vector<const Entry*> filters = TakeObjects(p, "rfilter");
+  LOADER_RETURN_IF_ERROR(Finish(p));
+  if (cam.width <= 0 || cam.height <= 0) {
+    return Error(NodeOf(p, cam.width <= 0 ? "width" : "height"),
+                 absl::StrCat("film size must be positive, got ", cam.width, " x ", cam.height));
+  }
+  if (filters.size() > 1) return Error(filters[1]->node, "a film has at most one <rfilter>");
+  if (filters.empty()) {
+    Warn(n, "film has no <rfilter>: Mitsuba would use a gaussian filter, irfarm uses box");
+  } else {
+    const pugi::xml_node f = filters[0]->node;
+    LOADER_RETURN_IF_ERROR(PluginType(f, "rfilter", {"box"}).status());
+    LOADER_ASSIGN_OR_RETURN(const Params fp, Collect(f, "rfilter"));
+    LOADER_RETURN_IF_ERROR(Finish(fp));
+    LOADER_RETURN_IF_ERROR(RegisterId(f, "rfilter", -1));
+  }
+  return RegisterId(n, "film", -1);
+}
+
+absl::Status Parser::ParseSampler(pugi::xml_node n) {
+  LOADER_ASSIGN_OR_RETURN(
+      const std::string type,
+      PluginType(n, "sampler",
+                 {"independent", "stratified", "multijitter", "orthogonal", "ldsampler"}));
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "sampler"));
+  LOADER_ASSIGN_OR_RETURN(scene_.camera.spp, GetInt(p, "sample_count", 4));
+  LOADER_RETURN_IF_ERROR(GetInt(p, "seed", 0).status());  // irfarm seeds per job and pixel
+  if (type != "independent") {
+    // Their tuning knobs only change the noise pattern; accepted and ignored like the type.
+    LOADER_RETURN_IF_ERROR(GetBool(p, "jitter", true).status());
+    LOADER_RETURN_IF_ERROR(GetFloat(p, "strength", 1).status());
+    Warn(n, absl::StrCat("sampler '", type, "' treated as independent"));
+  }
+  LOADER_RETURN_IF_ERROR(Finish(p));
+  if (scene_.camera.spp <= 0) {
+    return Error(NodeOf(p, "sample_count"), "sample_count must be positive");
+  }
+  return RegisterId(n, "sampler", -1);
+}
+
+absl::StatusOr<BsdfDesc> Parser::ParseBsdf(pugi::xml_node n) {
+  LOADER_ASSIGN_OR_RETURN(
+      const std::string type,
+      PluginType(n, "bsdf", {"diffuse", "twosided", "conductor", "dielectric", "thindielectric"}));
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "bsdf"));
+  BsdfDesc b;
+  if (type == "diffuse") {
+    b.type = BsdfType::kDiffuse;
+    LOADER_ASSIGN_OR_RETURN(b.reflectance, GetColor(p, "reflectance", Vec3(0.5f)));
+  } else if (type == "twosided") {
+    const std::vector<const Entry*> inner = TakeObjects(p, "bsdf");
+    if (inner.size() != 1) {
+      return Error(n,
+                   "twosided needs exactly one nested bsdf (different front and back bsdfs are "
+                   "not supported)");
+    }
+    if (inner[0]->ref >= 0) {
+      b = scene_.bsdfs[inner[0]->ref];
+    } else {
+      LOADER_ASSIGN_OR_RETURN(b, ParseBsdf(inner[0]->node));
+      if (inner[0]->node.attribute("id")) {
+        LOADER_RETURN_IF_ERROR(AddBsdf(inner[0]->node, b).status());
+      }
+    }
+    if (b.type != BsdfType::kDiffuse && b.type != BsdfType::kConductor) {
+      return Error(inner[0]->node,
+                   "twosided can only wrap a bsdf without transmission "
+                   "(diffuse or conductor)");
+    }
+    b.twosided = true;
+  } else if (type == "conductor") {
+    b.type = BsdfType::kConductor;
+    LOADER_ASSIGN_OR_RETURN(const std::string material, GetString(p, "material", "none"));
+    if (material != "none") {
+      return Error(NodeOf(p, "material"),
+                   absl::StrCat("conductor material '", material,
+                                "' is not supported (only \"none\": a perfect mirror scaled by "
+                                "specular_reflectance)"));
+    }
+    LOADER_ASSIGN_OR_RETURN(b.specular_reflectance, GetRgb(p, "specular_reflectance", Vec3(1.0f)));
+  } else {  // dielectric, thindielectric
+    b.type = type == "dielectric" ? BsdfType::kDielectric : BsdfType::kThinDielectric;
+    LOADER_ASSIGN_OR_RETURN(b.int_ior, GetIor(p, "int_ior", 1.5046f));    // bk7
+    LOADER_ASSIGN_OR_RETURN(b.ext_ior, GetIor(p, "ext_ior", 1.000277f));  // air
+    LOADER_ASSIGN_OR_RETURN(b.specular_reflectance, GetRgb(p, "specular_reflectance", Vec3(1.0f)));
+    LOADER_ASSIGN_OR_RETURN(b.specular_transmittance,
+                            GetRgb(p, "specular_transmittance", Vec3(1.0f)));
+  }
+  LOADER_RETURN_IF_ERROR(Finish(p));
+  LOADER_ASSIGN_OR_RETURN(b.id, Attr(n, "id"));
+  b.loc = Loc(n);
+  return b;
+}
+
+absl::StatusOr<int> Parser::AddBsdf(pugi::xml_node n, BsdfDesc bsdf) {
+  const int index = int(scene_.bsdfs.size());
+  LOADER_RETURN_IF_ERROR(RegisterId(n, "bsdf", index));
+  scene_.bsdfs.push_back(std::move(bsdf));
+  return index;
+}
+
+absl::StatusOr<int> Parser::ParseTexture(pugi::xml_node n) {
+  LOADER_RETURN_IF_ERROR(PluginType(n, "texture", {"bitmap"}).status());
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "texture"));
+  TextureDesc t;
+  t.loc = Loc(n);
+  LOADER_ASSIGN_OR_RETURN(t.filename, GetFile(p, "filename"));
+  LOADER_ASSIGN_OR_RETURN(t.filter_type, GetString(p, "filter_type", "bilinear"));
+  LOADER_ASSIGN_OR_RETURN(t.wrap_mode, GetString(p, "wrap_mode", "repeat"));
+  LOADER_ASSIGN_OR_RETURN(t.raw, GetBool(p, "raw", false));
+  LOADER_RETURN_IF_ERROR(Finish(p));
+  if (!IsOneOf(t.filter_type, {"bilinear", "nearest"})) {
+    return Error(NodeOf(p, "filter_type"), absl::StrCat("unknown filter_type '", t.filter_type,
+                                                        "' (supported: bilinear, nearest)"));
+  }
+  if (!IsOneOf(t.wrap_mode, {"repeat", "mirror", "clamp"})) {
+    return Error(NodeOf(p, "wrap_mode"), absl::StrCat("unknown wrap_mode '", t.wrap_mode,
+                                                      "' (supported: repeat, mirror, clamp)"));
+  }
+  const int index = int(scene_.textures.size());
+  LOADER_RETURN_IF_ERROR(RegisterId(n, "texture", index));
+  scene_.textures.push_back(std::move(t));
+  return index;
+}
+
+absl::Status Parser::ParseShape(pugi::xml_node n) {
+  LOADER_ASSIGN_OR_RETURN(
+      const std::string type,
+      PluginType(n, "shape", {"obj", "ply", "rectangle", "cube", "sphere", "disk"}));
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "shape"));
+  ShapeDesc s;
+  LOADER_ASSIGN_OR_RETURN(s.id, Attr(n, "id"));
+  s.loc = Loc(n);
+  LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world_opt, GetTransform(p, "to_world"));
+  const Mat4 to_world = to_world_opt.value_or(Mat4());
+  LOADER_ASSIGN_OR_RETURN(s.flip_normals, GetBool(p, "flip_normals", false));
+  bool face_normals = false, flip_tex_coords = true;
+  std::string filename;
+  Vec3 center;
+  float radius = 1;
+  if (type == "sphere") {
+    s.type = ShapeType::kSphere;
+    LOADER_ASSIGN_OR_RETURN(const std::optional<Vec3> c, GetVec3(p, "center"));
+    center = c.value_or(Vec3(0.0f));
+    LOADER_ASSIGN_OR_RETURN(radius, GetFloat(p, "radius", 1));
+  } else {
+    LOADER_ASSIGN_OR_RETURN(face_normals, GetBool(p, "face_normals", false));
+    if (type == "obj" || type == "ply") {
+      LOADER_ASSIGN_OR_RETURN(filename, GetFile(p, "filename"));
+    }
+    if (type == "obj") {
+      LOADER_ASSIGN_OR_RETURN(flip_tex_coords, GetBool(p, "flip_tex_coords", true));
+    }
+  }
+
+  const std::vector<const Entry*> bsdfs = TakeObjects(p, "bsdf");
+  if (bsdfs.size() > 1) return Error(bsdfs[1]->node, "a shape has at most one bsdf");
+  if (bsdfs.empty()) {
+    if (default_bsdf_ < 0) {  // Mitsuba gives such shapes a diffuse 0.5
+      default_bsdf_ = int(scene_.bsdfs.size());
+      BsdfDesc b;
+      b.loc = Loc(n);
+      scene_.bsdfs.push_back(b);
+    }
+    s.bsdf = default_bsdf_;
+  } else if (bsdfs[0]->ref >= 0) {
+    s.bsdf = bsdfs[0]->ref;
+  } else {
+    LOADER_ASSIGN_OR_RETURN(BsdfDesc b, ParseBsdf(bsdfs[0]->node));
+    LOADER_ASSIGN_OR_RETURN(s.bsdf, AddBsdf(bsdfs[0]->node, std::move(b)));
+  }
+  const std::vector<const Entry*> emitters = TakeObjects(p, "emitter");
+  if (emitters.size() > 1) return Error(emitters[1]->node, "a shape has at most one emitter");
+  if (!emitters.empty()) {
+    LOADER_ASSIGN_OR_RETURN(s.area_radiance, ParseAreaEmitter(emitters[0]->node));
+  }
+  LOADER_RETURN_IF_ERROR(Finish(p));
+
+  const double det = to_world.Determinant3();
+  if (s.type == ShapeType::kSphere) {
+    if (!(radius > 0)) {
+      return Error(NodeOf(p, "radius"),
+                   absl::StrCat("sphere radius must be positive, got ", radius));
+    }
+    if (det == 0) return Error(NodeOf(p, "to_world"), "the sphere's to_world is singular");
+    s.center = to_world.ApplyPoint(center);
+    s.radius = float(radius * std::cbrt(std::abs(det)));
+  } else {
+    absl::StatusOr<TriangleMesh> mesh;
+    if (type == "obj") mesh = LoadObjMesh(filename, flip_tex_coords);
+    if (type == "ply") mesh = LoadPlyMesh(filename);
+    if (type == "rectangle") mesh = MakeRectangleMesh();
+    if (type == "cube") mesh = MakeCubeMesh();
+    if (type == "disk") mesh = MakeDiskMesh(128);
+    if (!mesh.ok()) {
+      return absl::Status(mesh.status().code(),
+                          absl::StrCat(Where(n), "mesh ", mesh.status().message()));
+    }
+    s.mesh = *std::move(mesh);
+    TransformMesh(to_world, &s.mesh);
+    // Mitsuba's rectangle and disk are analytic: their normal is to_world's normal transform of
+    // +z even when to_world mirrors, so the triangles must turn with it. (Meshes keep their order.)
+    if ((type == "rectangle" || type == "disk") && det < 0) ReverseWinding(&s.mesh);
+    s.degenerate_dropped = DropDegenerateTriangles(&s.mesh);
+    if (!face_normals && s.mesh.normals.empty()) ComputeSmoothNormals(&s.mesh);
+    if (s.flip_normals) FlipNormals(&s.mesh);
+    if (face_normals) s.mesh.normals.clear();
+    if (s.degenerate_dropped > 0) {
+      Warn(n, absl::StrCat("shape '", s.id, "': dropped ", s.degenerate_dropped,
+                           " degenerate triangle(s) (zero area, repeated or non-finite vertices)"));
+    }
+    if (s.mesh.indices.empty()) {
+      Warn(n, absl::StrCat("shape '", s.id, "' has no triangles left and is skipped"));
+      return RegisterId(n, "shape", -1);
+    }
+  }
+  scene_.shapes.push_back(std::move(s));
+  return RegisterId(n, "shape", -1);
+}
+
+absl::StatusOr<Vec3> Parser::ParseAreaEmitter(pugi::xml_node n) {
+  LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
+  if (type != "area") {
+    return Error(
+        n, absl::StrCat("emitter '", type, "' cannot be attached to a shape (only 'area' can)"));
+  }
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "emitter"));
+  LOADER_ASSIGN_OR_RETURN(const Vec3 radiance, GetRgb(p, "radiance", Vec3(1.0f)));
+  LOADER_RETURN_IF_ERROR(Finish(p));
+  LOADER_RETURN_IF_ERROR(RegisterId(n, "emitter", -1));
+  return radiance;
+}
+
+absl::Status Parser::ParseEmitter(pugi::xml_node n) {
+  LOADER_ASSIGN_OR_RETURN(
+      const std::string type,
+      PluginType(n, "emitter", {"area", "point", "spot", "directional", "constant", "envmap"}));
+  if (type == "area") return Error(n, "an area emitter must be nested in a <shape>");
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "emitter"));
+  EmitterDesc e;
+  e.loc = Loc(n);
+  if (type == "point") {
+    e.type = EmitterType::kPoint;
+    LOADER_ASSIGN_OR_RETURN(const std::optional<Vec3> position, GetVec3(p, "position"));
+    LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
+    if (position && to_world) {
+      return Error(n, "give either position or to_world for a point emitter, not both");
+    }
+    e.position = position ? *position : to_world.value_or(Mat4()).ApplyPoint(Vec3(0.0f));
+    LOADER_ASSIGN_OR_RETURN(e.intensity, GetRgb(p, "intensity", Vec3(1.0f)));
+  } else if (type == "spot") {
+    e.type = EmitterType::kSpot;
+    LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
+    const Mat4 m = to_world.value_or(Mat4());
+    e.position = m.ApplyPoint(Vec3(0.0f));
+    e.direction = Normalize(m.ApplyVector(Vec3(0, 0, 1)));
+    LOADER_ASSIGN_OR_RETURN(e.intensity, GetRgb(p, "intensity", Vec3(1.0f)));
+    LOADER_ASSIGN_OR_RETURN(e.cutoff_angle_deg, GetFloat(p, "cutoff_angle", 20));
+    LOADER_ASSIGN_OR_RETURN(e.beam_width_deg,
+                            GetFloat(p, "beam_width", e.cutoff_angle_deg * 0.75f));
+    if (!(e.cutoff_angle_deg > 0 && e.beam_width_deg > 0)) {
+      return Error(n, "spot cutoff_angle and beam_width must be positive");
+    }
+  } else if (type == "directional") {
+    e.type = EmitterType::kDirectional;
+    LOADER_ASSIGN_OR_RETURN(const std::optional<Vec3> direction, GetVec3(p, "direction"));
+    LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
+    if (direction && to_world) {
+      return Error(n, "give either direction or to_world for a directional emitter, not both");
+    }
+    const Vec3 d = direction ? *direction : to_world.value_or(Mat4()).ApplyVector(Vec3(0, 0, 1));
+    if (!(LengthSquared(d) > 0)) return Error(NodeOf(p, "direction"), "zero light direction");
+    e.direction = Normalize(d);
+    LOADER_ASSIGN_OR_RETURN(e.irradiance, GetRgb(p, "irradiance", Vec3(1.0f)));
+  } else {  // constant, envmap: the environment, at most one per scene as in Mitsuba
+    if (environment_) {
+      return Error(n, absl::StrCat("a second environment emitter (the first is at line ",
+                                   Line(environment_), ")"));
+    }
+    environment_ = n;
+    if (type == "constant") {
+      e.type = EmitterType::kConstant;
+      LOADER_ASSIGN_OR_RETURN(e.radiance, GetRgb(p, "radiance", Vec3(1.0f)));
+    } else {
+      e.type = EmitterType::kEnvmap;
+      LOADER_ASSIGN_OR_RETURN(e.filename, GetFile(p, "filename"));
+      LOADER_ASSIGN_OR_RETURN(e.scale, GetFloat(p, "scale", 1));
+      LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
+      e.to_world = to_world.value_or(Mat4());
+    }
+  }
+  LOADER_RETURN_IF_ERROR(Finish(p));
+  LOADER_RETURN_IF_ERROR(RegisterId(n, "emitter", -1));
+  scene_.emitters.push_back(std::move(e));
+  return absl::OkStatus();
+}
+
+absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
+  for (size_t i = 0; i < xml.size(); ++i) {
+    if (xml[i] == '\n') newlines_.push_back(i);
+  }
+  scene_.path = path_;
+  pugi::xml_document doc;
+  const pugi::xml_parse_result result =
+      doc.load_buffer(xml.data(), xml.size(), pugi::parse_default);
+  if (!result) {
+    const int line = int(std::lower_bound(newlines_.begin(), newlines_.end(),
+                                          size_t(std::max<ptrdiff_t>(result.offset, 0))) -
+                         newlines_.begin()) +
+                     1;
+    return absl::InvalidArgumentError(
+        absl::StrCat(path_, ":", line, ": malformed XML: ", result.description()));
+  }
+  const pugi::xml_node root = doc.document_element();
+  if (!root) return absl::InvalidArgumentError(absl::StrCat(path_, ":1: no <scene> element"));
+  if (absl::string_view(root.name()) != "scene") {
+    return Error(root, absl::StrCat("the root element must be <scene>, not <", root.name(), ">"));
+  }
+  LOADER_RETURN_IF_ERROR(CheckAttributes(root, {"version"}));
+
+  // <default>s first, so that $name works anywhere; then the -D defines override them.
+  std::map<std::string, int> default_lines;
+  for (const pugi::xml_node d : root.children("default")) {
+    LOADER_RETURN_IF_ERROR(CheckAttributes(d, {"name", "value"}));
+    const std::string name = d.attribute("name").value();
+    if (name.empty() || !d.attribute("value")) {
+      return Error(d, "<default> needs a name and a value");
+    }
+    if (const auto [it, inserted] = default_lines.try_emplace(name, Line(d)); !inserted) {
+      return Error(d, absl::StrCat("duplicate <default name=\"", name, "\"> (first at line ",
+                                   it->second, ")"));
+    }
+    vars_[name] = d.attribute("value").value();
+  }
+  for (const auto& [name, value] : options_.defines) vars_[name] = value;
+
+  for (const pugi::xml_node c : root.children()) {
+    if (c.type() == pugi::node_pcdata) return Error(c, "unexpected text in <scene>");
+    if (c.type() != pugi::node_element) continue;
+    const absl::string_view tag = c.name();
+    if (tag == "default") continue;
+    if (tag == "integrator") {
+      LOADER_RETURN_IF_ERROR(ParseIntegrator(c));
+    } else if (tag == "sensor") {
+      LOADER_RETURN_IF_ERROR(ParseSensor(c));
+    } else if (tag == "bsdf") {
+      LOADER_ASSIGN_OR_RETURN(BsdfDesc b, ParseBsdf(c));
+      LOADER_RETURN_IF_ERROR(AddBsdf(c, std::move(b)).status());
+    } else if (tag == "texture") {
+      LOADER_RETURN_IF_ERROR(ParseTexture(c).status());
+    } else if (tag == "shape") {
+      LOADER_RETURN_IF_ERROR(ParseShape(c));
+    } else if (tag == "emitter") {
+      LOADER_RETURN_IF_ERROR(ParseEmitter(c));
+    } else if (tag == "spectrum") {
+      return Error(c, "spectra are not supported, use rgb");
+    } else {
+      return Error(c, absl::StrCat("unknown element <", tag,
+                                   "> in <scene> (supported: default, integrator, sensor, bsdf, "
+                                   "texture, shape, emitter)"));
+    }
+  }
+  if (!sensor_) return Error(root, "the scene has no <sensor>");
+  return std::move(scene_);
+}
+
+}  // namespace
+
+absl::StatusOr<SceneDesc> LoadSceneString(const std::string& xml, const std::string& path,
+                                          const LoadOptions& options) {
+  return Parser(path, options).Parse(xml);
+}
+
+absl::StatusOr<SceneDesc> LoadSceneFile(const std::string& path, const LoadOptions& options) {
+  std::error_code ec;
+  std::ifstream in(path, std::ios::binary);
+  if (!fs::is_regular_file(path, ec) || !in) {
+    return absl::NotFoundError(absl::StrCat(path, ":0: cannot open scene file"));
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  return LoadSceneString(text.str(), path, options);
+}
+
+}  // namespace irfarm
+
+#undef LOADER_RETURN_IF_ERROR
+#undef LOADER_CONCAT_INNER
+#undef LOADER_CONCAT
+#undef LOADER_ASSIGN_OR_RETURN
+#undef LOADER_ASSIGN_OR_RETURN_IMPL

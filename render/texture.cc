@@ -1,0 +1,59 @@
+#include "render/texture.h"
+
+#include <cmath>
+
+namespace irfarm {
+
+absl::StatusOr<Texture> Texture::Load(const TextureDesc& desc) {
+  absl::StatusOr<Image> image = ReadImageFile(desc.filename);
+  if (!image.ok())
+    return absl::InvalidArgumentError(desc.loc.ToString() + ": " +
+                                      std::string(image.status().message()));
+  Texture t;
+  t.image_ = std::move(*image);
+  const bool is_exr =
+      desc.filename.size() >= 4 && (desc.filename.substr(desc.filename.size() - 4) == ".exr");
+  if (!desc.raw && !is_exr)
+    for (Vec3& p : t.image_.pixels)
+      p = Vec3(SrgbToLinear(p.x), SrgbToLinear(p.y), SrgbToLinear(p.z));
+  t.bilinear_ = desc.filter_type != "nearest";
+  t.wrap_ = desc.wrap_mode == "mirror" ? 1 : (desc.wrap_mode == "clamp" ? 2 : 0);
+  Vec3 sum;
+  for (const Vec3& p : t.image_.pixels) sum += p;
+  t.average_ = sum / float(std::max<size_t>(1, t.image_.pixels.size()));
+  return t;
+}
+
+int Texture::Wrap(int i, int n) const {
+  switch (wrap_) {
+    case 1: {  // mirror
+      int m = i % (2 * n);
+      if (m < 0) m += 2 * n;
+      return m < n ? m : 2 * n - 1 - m;
+    }
+    case 2:
+      return std::clamp(i, 0, n - 1);
+    default: {
+      int m = i % n;
+      return m < 0 ? m + n : m;
+    }
+  }
+}
+
+Vec3 Texture::Eval(float u, float v) const {
+  const int w = image_.width, h = image_.height;
+  if (!std::isfinite(u) || !std::isfinite(v)) return average_;
+  if (!bilinear_) {
+    const int x = Wrap(int(std::floor(u * w)), w), y = Wrap(int(std::floor(v * h)), h);
+    return image_.at(x, y);
+  }
+  const float fx = u * w - 0.5f, fy = v * h - 0.5f;
+  const float x0f = std::floor(fx), y0f = std::floor(fy);
+  const float tx = fx - x0f, ty = fy - y0f;
+  const int x0 = Wrap(int(x0f), w), x1 = Wrap(int(x0f) + 1, w);
+  const int y0 = Wrap(int(y0f), h), y1 = Wrap(int(y0f) + 1, h);
+  return (image_.at(x0, y0) * (1 - tx) + image_.at(x1, y0) * tx) * (1 - ty) +
+         (image_.at(x0, y1) * (1 - tx) + image_.at(x1, y1) * tx) * ty;
+}
+
+}  // namespace irfarm

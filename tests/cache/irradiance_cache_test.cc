@@ -1,0 +1,509 @@
+// Tests of IrradianceCache and of Ward's weight rule (cache/irradiance_weight.h): the octree must
+// give exactly the brute-force answer at every scene scale, under concurrent inserts, and the
+// rule must reject what it should (too far, tilted, in front, other side of a thin surface).
+#include "cache/irradiance_cache.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include "cache/irradiance_weight.h"
+
+namespace irfarm {
+namespace {
+
+IrradianceRecord MakeRecord(const Vec3& p, const Vec3& n, float radius, const Vec3& e) {
+  IrradianceRecord r;
+  r.position = p;
+  r.normal = n;
+  r.radius = radius;
+  r.irradiance = e;
+  return r;
+}
+
+CacheSettings UnitSettings(float max_accuracy) {
+  CacheSettings s;
+  s.bounds.Extend(Vec3(-1, -1, -1));
+  s.bounds.Extend(Vec3(1, 1, 1));
+  s.max_accuracy = max_accuracy;
+  return s;
+}
+
+// ---- The rule itself ----------------------------------------------------------------------
+
+TEST(WardWeightTest, RecordAtPointWithSameNormalGetsCapWeight) {
+  const Vec3 n = Normalize(Vec3(0.3f, -0.5f, 0.8f));
+  const IrradianceRecord r = MakeRecord(Vec3(2, 3, 4), n, 0.5f, Vec3(1));
+  EXPECT_LT(WardEpsilon(r.position, n, r), kWardEpsilonFloor);
+  EXPECT_EQ(RecordWeight(r.position, n, 0.1f, r), kWardMaxWeight);
+  EXPECT_EQ(kWardMaxWeight, 1000.0f);
+}
+
+TEST(WardWeightTest, WeightIsInverseEpsilonWithinReach) {
+  const Vec3 n(0, 0, 1);
+  const IrradianceRecord r = MakeRecord(Vec3(0), n, 2.0f, Vec3(1));
+  const Vec3 x(0.2f, 0, 0);  // eps = 0.1
+  EXPECT_NEAR(WardEpsilon(x, n, r), 0.1f, 1e-6f);
+  EXPECT_NEAR(RecordWeight(x, n, 0.2f, r), 10.0f, 1e-4f);
+  EXPECT_EQ(RecordWeight(x, n, 0.1f, r), 0.0f);  // eps == a: w == 1/a does not count
+}
+
+TEST(WardWeightTest, BeyondReachDoesNotCount) {
+  const Vec3 n(0, 0, 1);
+  const float a = 0.2f, radius = 3.0f;
+  const IrradianceRecord r = MakeRecord(Vec3(0), n, radius, Vec3(1));
+  EXPECT_GT(RecordWeight(Vec3(0.99f * a * radius, 0, 0), n, a, r), 0.0f);
+  EXPECT_EQ(RecordWeight(Vec3(1.01f * a * radius, 0, 0), n, a, r), 0.0f);
+  EXPECT_EQ(RecordWeight(Vec3(0, 1.01f * a * radius, 0), n, a, r), 0.0f);
+}
+
+TEST(WardWeightTest, NormalDeviationBeyondLimitDoesNotCount) {
+  const float a = 0.2f;
+  const IrradianceRecord r = MakeRecord(Vec3(0), Vec3(0, 0, 1), 1.0f, Vec3(1));
+  // At x_i, eps = sqrt(1 - cos(theta)) < a  <=>  cos(theta) > 1 - a^2.
+  const float limit = std::acos(1 - a * a);
+  const auto tilted = [](float theta) { return Vec3(std::sin(theta), 0, std::cos(theta)); };
+  EXPECT_GT(RecordWeight(Vec3(0), tilted(0.98f * limit), a, r), 0.0f);
+  EXPECT_EQ(RecordWeight(Vec3(0), tilted(1.02f * limit), a, r), 0.0f);
+}
+
+TEST(WardWeightTest, RecordInFrontRejectedRecordBehindAccepted) {
+  const float a = 0.2f, radius = 1.0f;
+  const Vec3 n(0, 0, 1);
+  const Vec3 x(0);
+  const float h = 0.5f * a * radius;  // well beyond kInFrontTolerance * a * R
+  const IrradianceRecord front = MakeRecord(Vec3(0, 0, h), n, radius, Vec3(1));
+  const IrradianceRecord behind = MakeRecord(Vec3(0, 0, -h), n, radius, Vec3(1));
+  EXPECT_TRUE(IsInFront(x, n, a, front));
+  EXPECT_EQ(RecordWeight(x, n, a, front), 0.0f);
+  EXPECT_FALSE(IsInFront(x, n, a, behind));
+  EXPECT_GT(RecordWeight(x, n, a, behind), 0.0f);
+  // Within the tolerance (slightly curved or tessellated surface) the record still counts.
+  const IrradianceRecord bump =
+      MakeRecord(Vec3(0, 0, 0.5f * kInFrontTolerance * a * radius), n, radius, Vec3(1));
+  EXPECT_GT(RecordWeight(x, n, a, bump), 0.0f);
+}
+
+TEST(WardWeightTest, OppositeNormalNeverCounts) {
+  const IrradianceRecord r = MakeRecord(Vec3(0), Vec3(0, 0, 1), 1.0f, Vec3(1));
+  EXPECT_EQ(RecordWeight(Vec3(0), Vec3(0, 0, -1), 1.0f, r), 0.0f);
+  EXPECT_EQ(RecordWeight(Vec3(0), Vec3(1, 0, 0), 1.0f, r), 0.0f);  // perpendicular
+  // Even with a nonsensical a > 1 the sign test keeps the sides apart.
+  EXPECT_EQ(RecordWeight(Vec3(0), Vec3(0, 0, -1), 5.0f, r), 0.0f);
+}
+
+TEST(WardWeightTest, NonPositiveOrNanAccuracyCountsNothing) {
+  const IrradianceRecord r = MakeRecord(Vec3(0), Vec3(0, 0, 1), 1.0f, Vec3(1));
+  EXPECT_EQ(RecordWeight(Vec3(0), Vec3(0, 0, 1), 0.0f, r), 0.0f);
+  EXPECT_EQ(RecordWeight(Vec3(0), Vec3(0, 0, 1), -0.1f, r), 0.0f);
+  EXPECT_EQ(RecordWeight(Vec3(0), Vec3(0, 0, 1), NAN, r), 0.0f);
+}
+
+// ---- The cache on hand-made cases ---------------------------------------------------------
+
+TEST(IrradianceCacheTest, EmptyCacheFindsNothingAndLeavesOutputUntouched) {
+  IrradianceCache cache(UnitSettings(0.2f));
+  Vec3 e(7, 8, 9);
+  LookupInfo info;
+  info.records_used = 5;
+  EXPECT_FALSE(cache.Lookup(Vec3(0), Vec3(0, 0, 1), 0.2f, &e, &info));
+  EXPECT_EQ(e.x, 7.0f);
+  EXPECT_EQ(info.records_used, 0);
+  EXPECT_EQ(cache.size(), 0u);
+}
+
+TEST(IrradianceCacheTest, InterpolatesWithWardWeights) {
+  IrradianceCache cache(UnitSettings(0.3f));
+  const Vec3 n(0, 0, 1);
+  cache.Insert(MakeRecord(Vec3(0.0f, 0, 0), n, 1.0f, Vec3(1, 2, 3)));
+  cache.Insert(MakeRecord(Vec3(0.2f, 0, 0), n, 1.0f, Vec3(3, 2, 1)));
+  Vec3 e;
+  LookupInfo info;
+  // At x = 0.05: eps = 0.05 and 0.15, weights 20 and 20/3.
+  ASSERT_TRUE(cache.Lookup(Vec3(0.05f, 0, 0), n, 0.3f, &e, &info));
+  EXPECT_EQ(info.records_used, 2);
+  EXPECT_NEAR(info.weight_sum, 20.0f + 20.0f / 3, 1e-3f);
+  EXPECT_NEAR(e.x, (20 * 1 + 20.0f / 3 * 3) / (20 + 20.0f / 3), 1e-5f);
+  EXPECT_NEAR(e.z, (20 * 3 + 20.0f / 3 * 1) / (20 + 20.0f / 3), 1e-5f);
+  // Lower accuracy than the cache maximum: only the near record counts.
+  ASSERT_TRUE(cache.Lookup(Vec3(0.05f, 0, 0), n, 0.1f, &e, &info));
+  EXPECT_EQ(info.records_used, 1);
+  EXPECT_FLOAT_EQ(e.x, 1.0f);
+}
+
+TEST(IrradianceCacheTest, AccuracyAboveMaximumIsClamped) {
+  IrradianceCache cache(UnitSettings(0.1f));
+  const Vec3 n(0, 0, 1);
+  cache.Insert(MakeRecord(Vec3(0), n, 1.0f, Vec3(1)));
+  Vec3 e;
+  // 0.15 is within a = 0.5 but not within the cache's maximum 0.1.
+  EXPECT_FALSE(cache.Lookup(Vec3(0.15f, 0, 0), n, 0.5f, &e, nullptr));
+  EXPECT_FALSE(cache.LookupBruteForce(Vec3(0.15f, 0, 0), n, 0.5f, &e, nullptr));
+  EXPECT_TRUE(cache.Lookup(Vec3(0.05f, 0, 0), n, 0.5f, &e, nullptr));
+  EXPECT_EQ(IrradianceCache(UnitSettings(3.0f)).max_accuracy(), 1.0f);
+}
+
+TEST(IrradianceCacheTest, TwoSidesOfAThinSurfaceAreSeparate) {
+  IrradianceCache cache(UnitSettings(1.0f));
+  const Vec3 p(0.1f, 0.2f, 0.3f), up(0, 1, 0);
+  cache.Insert(MakeRecord(p, up, 0.5f, Vec3(1, 1, 1)));
+  cache.Insert(MakeRecord(p, -up, 0.5f, Vec3(5, 5, 5)));
+  for (float a : {0.1f, 0.5f, 1.0f}) {
+    Vec3 e;
+    LookupInfo info;
+    ASSERT_TRUE(cache.Lookup(p + Vec3(0.01f, 0, 0), up, a, &e, &info));
+    EXPECT_EQ(info.records_used, 1);
+    EXPECT_EQ(e.x, 1.0f);
+    ASSERT_TRUE(cache.Lookup(p + Vec3(0.01f, 0, 0), -up, a, &e, &info));
+    EXPECT_EQ(info.records_used, 1);
+    EXPECT_EQ(e.x, 5.0f);
+  }
+}
+
+TEST(IrradianceCacheTest, RecordsOutsideTheBoundsAreFound) {
+  IrradianceCache cache(UnitSettings(0.2f));
+  const Vec3 n(0, 0, 1);
+  const Vec3 far(100, -200, 50), edge(1.2f, 0, 0);
+  cache.Insert(MakeRecord(far, n, 1.0f, Vec3(2)));
+  cache.Insert(MakeRecord(edge, n, 10.0f, Vec3(3)));  // box sticks out of the root
+  Vec3 e;
+  ASSERT_TRUE(cache.Lookup(far, n, 0.2f, &e, nullptr));
+  EXPECT_EQ(e.x, 2.0f);
+  ASSERT_TRUE(cache.Lookup(edge + Vec3(1.5f, 0, 0), n, 0.2f, &e, nullptr));
+  EXPECT_EQ(e.x, 3.0f);
+  ASSERT_TRUE(cache.Lookup(Vec3(0.5f, 0, 0), n, 0.2f, &e, nullptr));
+  EXPECT_EQ(e.x, 3.0f);
+}
+
+TEST(IrradianceCacheTest, InvalidRecordsAreIgnored) {
+  IrradianceCache cache(UnitSettings(0.2f));
+  cache.Insert(MakeRecord(Vec3(0), Vec3(0, 0, 1), 0.0f, Vec3(1)));    // R = 0
+  cache.Insert(MakeRecord(Vec3(NAN), Vec3(0, 0, 1), 1.0f, Vec3(1)));  // position
+  cache.Insert(MakeRecord(Vec3(0), Vec3(0, 0, 2), 1.0f, Vec3(1)));    // normal not unit
+  EXPECT_EQ(cache.size(), 0u);
+}
+
+TEST(IrradianceCacheTest, DegenerateBoundsStillWork) {
+  for (const Bounds3& bounds : {Bounds3(), Bounds3{Vec3(3), Vec3(3)}}) {
+    IrradianceCache cache(CacheSettings{bounds, 0.2f});
+    cache.Insert(MakeRecord(Vec3(3), Vec3(0, 0, 1), 0.01f, Vec3(4)));
+    cache.Insert(MakeRecord(Vec3(-30), Vec3(0, 0, 1), 5.0f, Vec3(6)));
+    Vec3 e;
+    ASSERT_TRUE(cache.Lookup(Vec3(3), Vec3(0, 0, 1), 0.2f, &e, nullptr));
+    EXPECT_EQ(e.x, 4.0f);
+    ASSERT_TRUE(cache.Lookup(Vec3(-30.5f, -30, -30), Vec3(0, 0, 1), 0.2f, &e, nullptr));
+    EXPECT_EQ(e.x, 6.0f);
+  }
+}
+
+// ---- Octree against brute force on random scenes -------------------------------------------
+
+Vec3 RandomUnit(std::mt19937& rng) {
+  std::normal_distribution<float> g;
+  Vec3 v;
+  do v = Vec3(g(rng), g(rng), g(rng));
+  while (LengthSquared(v) < 1e-6f);
+  return Normalize(v);
+}
+
+// Perturbs unit n by an angle of up to about max_angle radians.
+Vec3 Jitter(const Vec3& n, float max_angle, std::mt19937& rng) {
+  std::uniform_real_distribution<float> u(0, 1);
+  Vec3 s, t;
+  MakeFrame(n, &s, &t);
+  const float theta = max_angle * u(rng), phi = 2 * kPi * u(rng);
+  return Normalize(n * std::cos(theta) + (s * std::cos(phi) + t * std::sin(phi)) * std::sin(theta));
+}
+
+struct Query {
+  Vec3 x, n;
+  float a;
+};
+
+// A scene in the unit-ish box [-1, 1]^3: half the records scattered in the volume with random
+// normals, half on three planes (x = -1 wall facing +x, z = 0 floor facing both ways, a tilted
+// plane), radii log-uniform over 1e-3..3 (nearly four decades). Queries: a third near records
+// with perturbed normals, a third at the edge of a record's reach, a third anywhere.
+struct RandomScene {
+  std::vector<IrradianceRecord> records;
+  std::vector<Query> queries;
+
+  RandomScene(int num_records, int num_queries, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0, 1), box(-1, 1);
+    const Vec3 tilted_n = Normalize(Vec3(1, 2, 3));
+    for (int i = 0; i < num_records; ++i) {
+      Vec3 p(box(rng), box(rng), box(rng)), n = RandomUnit(rng);
+      switch (i % 6) {
+        case 0:
+          p.x = -1;
+          n = Vec3(1, 0, 0);
+          break;
+        case 1:
+          p.z = 0;
+          n = Vec3(0, 0, u(rng) < 0.5f ? 1.0f : -1.0f);
+          break;
+        case 2:
+          p = p - tilted_n * Dot(p, tilted_n);
+          n = tilted_n;
+          break;
+        default:
+          break;
+      }
+      const float radius = 1e-3f * std::pow(3e3f, u(rng));
+      records.push_back(MakeRecord(p, n, radius, Vec3(u(rng), 2 * u(rng), 4 * u(rng))));
+    }
+    const float accuracies[] = {0.05f, 0.1f, 0.2f, 0.3f};
+    for (int i = 0; i < num_queries; ++i) {
+      Query q;
+      q.a = accuracies[i % 4];
+      const IrradianceRecord& r = records[rng() % records.size()];
+      if (i % 3 == 0) {
+        // Distance and normal error each up to 0.7 of what the rule tolerates, so that about
+        // half of these find their record (plus whatever else is near).
+        q.x = r.position + RandomUnit(rng) * (0.7f * q.a * r.radius * u(rng));
+        q.n = Jitter(r.normal, std::acos(1 - 0.5f * q.a * q.a), rng);
+      } else if (i % 3 == 1) {
+        // Near the edge of the record's reach (0.9..1 of a * R_i, in its tangent plane, same
+        // normal): probes that the octree stores each record in every node it can reach.
+        Vec3 s, t;
+        MakeFrame(r.normal, &s, &t);
+        const float phi = 2 * kPi * u(rng);
+        q.x = r.position +
+              (s * std::cos(phi) + t * std::sin(phi)) * ((0.9f + 0.1f * u(rng)) * q.a * r.radius);
+        q.n = r.normal;
+      } else {
+        q.x = Vec3(1.1f * box(rng), 1.1f * box(rng), 1.1f * box(rng));
+        q.n = RandomUnit(rng);
+      }
+      queries.push_back(q);
+    }
+  }
+};
+
+struct Result {
+  bool found = false;
+  Vec3 e;
+  LookupInfo info;
+};
+
+std::vector<Result> RunQueries(const IrradianceCache& cache, const std::vector<Query>& queries,
+                               float scale, bool brute_force) {
+  std::vector<Result> out(queries.size());
+  for (size_t i = 0; i < queries.size(); ++i) {
+    const Query& q = queries[i];
+    Result& r = out[i];
+    r.found = brute_force ? cache.LookupBruteForce(q.x * scale, q.n, q.a, &r.e, &r.info)
+                          : cache.Lookup(q.x * scale, q.n, q.a, &r.e, &r.info);
+  }
+  return out;
+}
+
+// Expects equal found / records_used and E, weight_sum within rel_tol (relative). At most
+// max_flips queries may differ in found / records_used (they are then not compared further).
+void ExpectSame(const std::vector<Result>& a, const std::vector<Result>& b, float rel_tol,
+                int max_flips, const char* what) {
+  ASSERT_EQ(a.size(), b.size());
+  int flips = 0, failures = 0;
+  for (size_t i = 0; i < a.size() && failures < 10; ++i) {
+    if (a[i].found != b[i].found || a[i].info.records_used != b[i].info.records_used) {
+      ++flips;
+      continue;
+    }
+    const float tol_w = rel_tol * b[i].info.weight_sum;
+    bool ok = std::abs(a[i].info.weight_sum - b[i].info.weight_sum) <= tol_w;
+    for (int k = 0; k < 3 && a[i].found; ++k) {
+      ok = ok && std::abs(a[i].e[k] - b[i].e[k]) <= rel_tol * std::abs(b[i].e[k]);
+    }
+    EXPECT_TRUE(ok) << what << ": query " << i << " weight " << a[i].info.weight_sum << " vs "
+                    << b[i].info.weight_sum << ", E.x " << a[i].e.x << " vs " << b[i].e.x;
+    failures += !ok;
+  }
+  EXPECT_LE(flips, max_flips) << what << ": queries differing in found or records_used";
+}
+
+// Builds the scene scaled by `scale` (positions, radii and bounds) and runs its queries.
+std::vector<Result> RunScaled(const RandomScene& scene, float scale, bool brute_force) {
+  CacheSettings settings = UnitSettings(0.3f);
+  settings.bounds.lo *= scale;
+  settings.bounds.hi *= scale;
+  IrradianceCache cache(settings);
+  for (IrradianceRecord r : scene.records) {
+    r.position *= scale;
+    r.radius *= scale;
+    cache.Insert(r);
+  }
+  EXPECT_EQ(cache.size(), scene.records.size());
+  return RunQueries(cache, scene.queries, scale, brute_force);
+}
+
+TEST(IrradianceCacheTest, OctreeMatchesBruteForceAtEveryScale) {
+  const RandomScene scene(4000, 6000, 1234);
+  for (float scale : {1.0f, 1e-3f, 1e4f}) {
+    SCOPED_TRACE(scale);
+    const std::vector<Result> fast = RunScaled(scene, scale, false);
+    const std::vector<Result> slow = RunScaled(scene, scale, true);
+    // Same records, same rule: only the summation order differs.
+    ExpectSame(fast, slow, 1e-5f, 0, "octree vs brute force");
+    // The comparison is only meaningful if many queries find several records and many none.
+    int found = 0, multi = 0;
+    for (const Result& r : slow) {
+      found += r.found;
+      multi += r.info.records_used >= 2;
+    }
+    EXPECT_GT(found, 1000);
+    EXPECT_LT(found, 5000);
+    EXPECT_GT(multi, 300);
+  }
+}
+
+// Scaling by a power of two is exact in float, so every quantity of the rule (eps, weights, the
+// in-front tolerance) and the octree's grid mapping scale exactly: results must be bit-identical.
+TEST(IrradianceCacheTest, ScaleInvariantExactlyForPowerOfTwoScales) {
+  const RandomScene scene(4000, 6000, 1234);
+  const std::vector<Result> reference = RunScaled(scene, 1.0f, false);
+  for (float scale : {std::ldexp(1.0f, -10), std::ldexp(1.0f, 13)}) {  // ~1e-3, ~1e4
+    SCOPED_TRACE(scale);
+    ExpectSame(RunScaled(scene, scale, false), reference, 0.0f, 0, "scaled vs unit scale");
+  }
+}
+
+// Scaling by 1e-3 or 1e4 rounds every coordinate, which moves |x - x_i| by a few ulps of |x|
+// (not of |x - x_i|): eps changes by up to ~4 * 2^-24 * |x| / R_i (~5e-4 here, where R_i goes
+// down to 1e-3 in a scene of size 2). Weights w = 1/eps near the cap then change by a relative
+// Delta_eps * w, so results are not bit-identical; the test bounds how much they move: over
+// half of the queries agree to float precision, none by more than 1%, and at most 0.1% flip between
+// found / not found (eps within rounding of a).
+TEST(IrradianceCacheTest, ScaleInvariantUpToRoundingForDecimalScales) {
+  const RandomScene scene(4000, 6000, 1234);
+  const std::vector<Result> reference = RunScaled(scene, 1.0f, false);
+  for (float scale : {1e-3f, 1e4f}) {
+    SCOPED_TRACE(scale);
+    const std::vector<Result> scaled = RunScaled(scene, scale, false);
+    int flips = 0, compared = 0, close = 0;
+    for (size_t i = 0; i < scaled.size(); ++i) {
+      const Result &a = scaled[i], &b = reference[i];
+      if (a.found != b.found || a.info.records_used != b.info.records_used) {
+        ++flips;
+        continue;
+      }
+      if (!b.found) continue;
+      float err = std::abs(a.info.weight_sum / b.info.weight_sum - 1);
+      for (int k = 0; k < 3; ++k) err = std::max(err, std::abs(a.e[k] / b.e[k] - 1));
+      EXPECT_LT(err, 1e-2f) << "query " << i;
+      ++compared;
+      close += err < 1e-5f;
+    }
+    EXPECT_LE(flips, int(scene.queries.size() / 1000));
+    EXPECT_GT(compared, 1000);
+    EXPECT_GT(close, compared / 2);
+  }
+}
+
+TEST(IrradianceCacheTest, ForEachVisitsEveryRecordOnce) {
+  const RandomScene scene(1000, 0, 7);
+  IrradianceCache cache(UnitSettings(0.2f));
+  for (const IrradianceRecord& r : scene.records) cache.Insert(r);
+  double sum = 0, expected = 0;
+  size_t count = 0;
+  cache.ForEach([&](const IrradianceRecord& r) {
+    sum += r.irradiance.x;
+    ++count;
+  });
+  for (const IrradianceRecord& r : scene.records) expected += r.irradiance.x;
+  EXPECT_EQ(count, scene.records.size());
+  EXPECT_NEAR(sum, expected, 1e-9 * expected);
+}
+
+// ---- Concurrency --------------------------------------------------------------------------
+
+TEST(IrradianceCacheTest, ConcurrentInsertsAndLookups) {
+  constexpr int kWriters = 3, kReaders = 2, kPerWriter = 4000;
+  const RandomScene scene(kWriters * kPerWriter, 20000, 99);
+  IrradianceCache cache(UnitSettings(0.2f));
+  std::atomic<bool> done{false};
+  std::vector<std::thread> threads;
+  for (int w = 0; w < kWriters; ++w) {
+    threads.emplace_back([&, w] {
+      for (int i = w; i < kWriters * kPerWriter; i += kWriters) cache.Insert(scene.records[i]);
+    });
+  }
+  std::atomic<long> lookups{0}, hits{0};
+  for (int t = 0; t < kReaders; ++t) {
+    threads.emplace_back([&, t] {
+      long n = 0, h = 0;
+      for (size_t i = t; !done.load(std::memory_order_relaxed) || n < 1000;
+           i = (i + kReaders) % scene.queries.size()) {
+        const Query& q = scene.queries[i];
+        Vec3 e;
+        LookupInfo info;
+        if (cache.Lookup(q.x, q.n, q.a, &e, &info)) {
+          ++h;
+          EXPECT_TRUE(IsFinite(e));
+          EXPECT_GE(info.records_used, 1);
+        }
+        ++n;
+      }
+      lookups += n;
+      hits += h;
+    });
+  }
+  for (int w = 0; w < kWriters; ++w) threads[w].join();
+  done = true;
+  for (size_t t = kWriters; t < threads.size(); ++t) threads[t].join();
+  EXPECT_GT(lookups.load(), 0);
+  EXPECT_GT(hits.load(), 0);
+
+  ASSERT_EQ(cache.size(), scene.records.size());
+  size_t visited = 0;
+  cache.ForEach([&](const IrradianceRecord&) { ++visited; });
+  EXPECT_EQ(visited, scene.records.size());
+  int missing = 0;
+  for (const IrradianceRecord& r : scene.records) {
+    Vec3 e;
+    LookupInfo info;
+    if (!cache.Lookup(r.position, r.normal, 0.2f, &e, &info)) ++missing;
+  }
+  EXPECT_EQ(missing, 0);
+  // And the octree is consistent after the concurrent build.
+  const std::vector<Query> some(scene.queries.begin(), scene.queries.begin() + 2000);
+  ExpectSame(RunQueries(cache, some, 1, false), RunQueries(cache, some, 1, true), 1e-5f, 0,
+             "after concurrent build");
+}
+
+// All threads insert at the same spot at the same time, so they race on the same child pointers
+// and list heads; every record must end up in the lists exactly once.
+TEST(IrradianceCacheTest, ConcurrentInsertsAtOnePlaceLoseNothing) {
+  constexpr int kThreads = 4, kPerThread = 2000;
+  IrradianceCache cache(UnitSettings(0.2f));
+  const Vec3 p(0.3f, -0.2f, 0.1f), n(0, 1, 0);
+  std::atomic<int> ready{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&, t] {
+      ++ready;
+      while (ready.load() < kThreads) {
+      }
+      for (int i = 0; i < kPerThread; ++i) {
+        // Tiny radii put the records at the deepest level, so each insert walks (and may
+        // create) the whole path.
+        const float radius = 1e-4f * (1 + (i % 7));
+        cache.Insert(MakeRecord(p, n, radius, Vec3(float(t))));
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(cache.size(), size_t(kThreads * kPerThread));
+  Vec3 e;
+  LookupInfo info;
+  ASSERT_TRUE(cache.Lookup(p, n, 0.2f, &e, &info));
+  EXPECT_EQ(info.records_used, kThreads * kPerThread);
+  EXPECT_NEAR(e.x, (kThreads - 1) / 2.0f, 1e-4f);  // all weights equal (capped)
+}
+
+}  // namespace
+}  // namespace irfarm

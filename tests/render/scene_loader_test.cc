@@ -1,0 +1,885 @@
+// Tests for the XML scene loader and the mesh loader: every error kind of docs/scene-format.md
+// ("What a bad scene gets") with its PATH:LINE, transforms, the camera, $name substitution,
+// materials, OBJ/PLY meshes, degenerate triangles, and every scene under IRFARM_TEST_DATA/scenes.
+// Scenes are given as strings; meshes are written to a temporary folder.
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "render/mesh_loader.h"
+#include "render/scene_loader.h"
+
+#ifndef IRFARM_TEST_DATA
+#error "IRFARM_TEST_DATA must name the test data folder"
+#endif
+
+namespace irfarm {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr char kSensor[] = R"(  <sensor type="perspective">
+    <float name="fov" value="45"/>
+    <film type="hdrfilm">
+      <integer name="width" value="64"/>
+      <integer name="height" value="48"/>
+      <rfilter type="box"/>
+    </film>
+  </sensor>
+)";
+
+// A scene whose `body` starts on line 2, followed by a valid sensor.
+std::string Wrap(const std::string& body) {
+  return "<scene version=\"3.0.0\">\n" + body + kSensor + "</scene>\n";
+}
+
+absl::StatusOr<SceneDesc> Load(const std::string& body, const std::string& path = "scene.xml",
+                               const LoadOptions& options = {}) {
+  return LoadSceneString(Wrap(body), path, options);
+}
+
+// Checks a one-line error message that starts with `prefix` ("PATH:LINE:") and contains `part`.
+void ExpectError(const absl::StatusOr<SceneDesc>& result, const std::string& prefix,
+                 const std::string& part,
+                 absl::StatusCode code = absl::StatusCode::kInvalidArgument) {
+  ASSERT_FALSE(result.ok()) << "expected an error containing: " << part;
+  const std::string message(result.status().message());
+  EXPECT_EQ(result.status().code(), code) << message;
+  EXPECT_EQ(message.rfind(prefix, 0), 0u)
+      << "message: " << message << "\nexpected prefix: " << prefix;
+  EXPECT_NE(message.find(part), std::string::npos) << "message: " << message;
+  EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+}
+
+// A fresh folder for one test's scene and meshes.
+std::string MakeDir(const std::string& name) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("scene_loader_test_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir / "meshes");
+  return dir.string();
+}
+
+void WriteFile(const std::string& path, const std::string& data) {
+  std::ofstream(path, std::ios::binary) << data;
+}
+
+void ExpectNear(const Vec3& a, const Vec3& b, float tolerance = 1e-5f) {
+  EXPECT_NEAR(a.x, b.x, tolerance);
+  EXPECT_NEAR(a.y, b.y, tolerance);
+  EXPECT_NEAR(a.z, b.z, tolerance);
+}
+
+Vec3 Column(const Mat4& m, int j) {
+  return Vec3(float(m.m[0][j]), float(m.m[1][j]), float(m.m[2][j]));
+}
+
+// The center of a unit sphere after the given <transform> children.
+Vec3 SphereCenterAfter(const std::string& transform_children) {
+  const auto scene = Load("<shape type=\"sphere\"><transform name=\"to_world\">" +
+                          transform_children + "</transform></shape>\n");
+  EXPECT_TRUE(scene.ok()) << scene.status();
+  return scene.ok() ? scene->shapes.at(0).center : Vec3(NAN);
+}
+
+// ---------------------------------------------------------------- errors, one per kind
+
+TEST(SceneLoaderErrorTest, MalformedXml) {
+  const auto r = LoadSceneString("<scene version=\"3.0.0\">\n  <shape type=\"cube\">\n</scene>\n",
+                                 "bad.xml", {});
+  ExpectError(r, "bad.xml:3:", "malformed XML");
+}
+
+TEST(SceneLoaderErrorTest, MissingSceneFile) {
+  const std::string path = ::testing::TempDir() + "/no/such/scene.xml";
+  ExpectError(LoadSceneFile(path, {}), path + ":0:", "cannot open", absl::StatusCode::kNotFound);
+}
+
+TEST(SceneLoaderErrorTest, MissingMeshFile) {
+  const std::string dir = MakeDir("missing_mesh");
+  const auto r = Load(R"(  <shape type="obj">
+    <string name="filename" value="meshes/none.obj"/>
+  </shape>
+)",
+                      dir + "/scene.xml");
+  ExpectError(r, dir + "/scene.xml:3:", "'meshes/none.obj' not found", absl::StatusCode::kNotFound);
+}
+
+TEST(SceneLoaderErrorTest, MissingTextureFile) {
+  const std::string dir = MakeDir("missing_texture");
+  const auto r = Load(R"(  <bsdf type="diffuse" id="b">
+    <texture type="bitmap" name="reflectance">
+      <string name="filename" value="textures/none.png"/>
+    </texture>
+  </bsdf>
+)",
+                      dir + "/scene.xml");
+  ExpectError(r, dir + "/scene.xml:4:", "'textures/none.png' not found",
+              absl::StatusCode::kNotFound);
+}
+
+TEST(SceneLoaderErrorTest, MalformedNumber) {
+  ExpectError(Load("  <shape type=\"sphere\">\n    <float name=\"radius\" value=\"1.2.3\"/>\n"
+                   "  </shape>\n"),
+              "scene.xml:3:", "malformed number '1.2.3' in <float name=\"radius\">");
+  ExpectError(Load("  <shape type=\"sphere\">\n    <transform name=\"to_world\">\n"
+                   "      <translate x=\"abc\"/>\n    </transform>\n  </shape>\n"),
+              "scene.xml:4:", "malformed number 'abc' in attribute 'x' of <translate>");
+  ExpectError(
+      Load("  <bsdf type=\"diffuse\">\n    <rgb name=\"reflectance\" value=\"0.5, x, 0.5\"/>\n"
+           "  </bsdf>\n"),
+      "scene.xml:3:", "malformed number 'x'");
+  ExpectError(Load("  <integrator type=\"path\">\n    <integer name=\"max_depth\" value=\"2.5\"/>\n"
+                   "  </integrator>\n"),
+              "scene.xml:3:", "malformed integer '2.5'");
+}
+
+TEST(SceneLoaderErrorTest, NonFiniteNumber) {
+  ExpectError(Load("  <shape type=\"sphere\">\n    <float name=\"radius\" value=\"nan\"/>\n"
+                   "  </shape>\n"),
+              "scene.xml:3:", "non-finite number 'nan'");
+  ExpectError(
+      Load("  <bsdf type=\"diffuse\">\n    <rgb name=\"reflectance\" value=\"1, inf, 0\"/>\n"
+           "  </bsdf>\n"),
+      "scene.xml:3:", "non-finite number 'inf'");
+  ExpectError(Load("  <shape type=\"sphere\">\n    <point name=\"center\" value=\"0, 1e999, 0\"/>\n"
+                   "  </shape>\n"),
+              "scene.xml:3:", "non-finite number '1e999'");
+}
+
+TEST(SceneLoaderErrorTest, NegativeOrZeroRadius) {
+  ExpectError(Load("  <shape type=\"sphere\">\n    <float name=\"radius\" value=\"-0.5\"/>\n"
+                   "  </shape>\n"),
+              "scene.xml:3:", "sphere radius must be positive, got -0.5");
+  ExpectError(Load("\n  <shape type=\"sphere\">\n    <float name=\"radius\" value=\"0\"/>\n"
+                   "  </shape>\n"),
+              "scene.xml:4:", "sphere radius must be positive, got 0");
+}
+
+TEST(SceneLoaderErrorTest, ObjIndexOutOfRange) {
+  const std::string dir = MakeDir("obj_index");
+  WriteFile(dir + "/meshes/bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n");
+  const auto r = Load(R"(  <bsdf type="diffuse" id="b"/>
+  <shape type="obj">
+    <string name="filename" value="meshes/bad.obj"/>
+  </shape>
+)",
+                      dir + "/scene.xml");
+  ExpectError(r, dir + "/scene.xml:3:", "bad.obj:5: vertex index 9 out of range (the file has 3");
+  // Relative indices are checked too, and so are vt / vn.
+  WriteFile(dir + "/meshes/bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n");
+  ExpectError(Load("  <shape type=\"obj\">\n    <string name=\"filename\" "
+                   "value=\"meshes/bad.obj\"/>\n  </shape>\n",
+                   dir + "/scene.xml"),
+              dir + "/scene.xml:2:", "bad.obj:4: relative index -4 out of range");
+  WriteFile(dir + "/meshes/bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//2\n");
+  ExpectError(Load("  <shape type=\"obj\">\n    <string name=\"filename\" "
+                   "value=\"meshes/bad.obj\"/>\n  </shape>\n",
+                   dir + "/scene.xml"),
+              dir + "/scene.xml:2:", "bad.obj:5: normal index 2 out of range");
+}
+
+TEST(SceneLoaderErrorTest, PlyIndexOutOfRange) {
+  const std::string dir = MakeDir("ply_index");
+  WriteFile(dir + "/meshes/bad.ply",
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+            "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 3\n");
+  const auto r = Load(R"(  <shape type="ply">
+    <string name="filename" value="meshes/bad.ply"/>
+  </shape>
+)",
+                      dir + "/scene.xml");
+  ExpectError(r, dir + "/scene.xml:2:", "bad.ply: face 1: vertex index 3 out of range");
+}
+
+TEST(SceneLoaderErrorTest, UnknownPluginType) {
+  const auto r = Load("  <bsdf type=\"roughplastic\" id=\"x\"/>\n");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(),
+            "scene.xml:2: unknown bsdf type 'roughplastic' (supported: diffuse, twosided, "
+            "conductor, dielectric, thindielectric)");
+  ExpectError(Load("\n  <shape type=\"mesh\"/>\n"), "scene.xml:3:", "unknown shape type 'mesh'");
+  ExpectError(Load("  <emitter type=\"sky\"/>\n"), "scene.xml:2:", "unknown emitter type 'sky'");
+  ExpectError(Load("  <integrator type=\"volpath\"/>\n"),
+              "scene.xml:2:", "unknown integrator type 'volpath' (supported: path, irrcache)");
+  ExpectError(Load("  <medium type=\"homogeneous\"/>\n"),
+              "scene.xml:2:", "unknown element <medium>");
+}
+
+TEST(SceneLoaderErrorTest, UnknownParameter) {
+  ExpectError(
+      Load("  <bsdf type=\"diffuse\">\n    <rgb name=\"reflectnce\" value=\"0.5\"/>\n"
+           "  </bsdf>\n"),
+      "scene.xml:3:", "unknown parameter 'reflectnce' for bsdf 'diffuse' (supported: reflectance)");
+  ExpectError(Load("  <shape type=\"cube\">\n    <float name=\"radius\" value=\"1\"/>\n"
+                   "  </shape>\n"),
+              "scene.xml:3:", "unknown parameter 'radius' for shape 'cube'");
+  ExpectError(Load("  <bsdf type=\"diffuse\">\n    <float name=\"reflectance\" value=\"0.5\" "
+                   "extra=\"1\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "unexpected attribute 'extra'");
+  // A parameter of the wrong type is an error as well.
+  ExpectError(Load("  <shape type=\"sphere\">\n    <string name=\"radius\" value=\"1\"/>\n"
+                   "  </shape>\n"),
+              "scene.xml:3:", "parameter 'radius' of shape 'sphere' must be <float> or <integer>");
+}
+
+TEST(SceneLoaderErrorTest, FileOutsideSceneFolder) {
+  const std::string dir = MakeDir("outside");
+  const auto load = [&](const std::string& filename) {
+    return Load("  <shape type=\"obj\">\n    <string name=\"filename\" value=\"" + filename +
+                    "\"/>\n  </shape>\n",
+                dir + "/scene.xml");
+  };
+  ExpectError(load("../outside.obj"), dir + "/scene.xml:3:", "leaves the scene folder");
+  ExpectError(load("meshes/../../outside.obj"), dir + "/scene.xml:3:", "leaves the scene folder");
+  ExpectError(load("/etc/hosts"), dir + "/scene.xml:3:", "is absolute");
+}
+
+TEST(SceneLoaderErrorTest, Spectrum) {
+  ExpectError(Load("  <bsdf type=\"diffuse\">\n    <spectrum name=\"reflectance\" value=\"0.5\"/>\n"
+                   "  </bsdf>\n"),
+              "scene.xml:3:", "spectra are not supported, use rgb");
+}
+
+TEST(SceneLoaderErrorTest, UndefinedParameter) {
+  ExpectError(
+      Load("  <integrator type=\"path\">\n    <integer name=\"max_depth\" value=\"$depth\"/>\n"
+           "  </integrator>\n"),
+      "scene.xml:3:", "undefined parameter '$depth'");
+}
+
+TEST(SceneLoaderErrorTest, UnknownAndDuplicateIds) {
+  ExpectError(Load("  <shape type=\"cube\">\n    <ref id=\"nope\"/>\n  </shape>\n"),
+              "scene.xml:3:", "unknown id 'nope'");
+  const auto r = Load(
+      "  <bsdf type=\"diffuse\" id=\"white\"/>\n"
+      "  <bsdf type=\"conductor\" id=\"white\"/>\n");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().message(), "scene.xml:3: duplicate id 'white' (first defined at line 2)");
+  ExpectError(Load("  <shape type=\"cube\" id=\"a\"/>\n  <shape type=\"cube\">\n"
+                   "    <ref id=\"a\"/>\n  </shape>\n"),
+              "scene.xml:4:", "id 'a' names a shape");
+}
+
+TEST(SceneLoaderErrorTest, UnsupportedFeatures) {
+  const std::string gaussian = std::string(R"(<scene version="3.0.0">
+  <sensor type="perspective">
+    <film type="hdrfilm">
+      <rfilter type="gaussian"/>
+    </film>
+  </sensor>
+</scene>
+)");
+  ExpectError(LoadSceneString(gaussian, "s.xml", {}),
+              "s.xml:4:", "unknown rfilter type 'gaussian' (supported: box)");
+  ExpectError(Load("  <bsdf type=\"conductor\">\n    <string name=\"material\" value=\"Au\"/>\n"
+                   "  </bsdf>\n"),
+              "scene.xml:3:", "conductor material 'Au' is not supported");
+  ExpectError(Load("  <emitter type=\"area\"/>\n"), "scene.xml:2:", "must be nested in a <shape>");
+  ExpectError(LoadSceneString("<scene version=\"3.0.0\">\n</scene>\n", "s.xml", {}),
+              "s.xml:1:", "no <sensor>");
+}
+
+// ---------------------------------------------------------------- transforms and camera
+
+TEST(SceneLoaderTest, TransformsApplyInDocumentOrder) {
+  ExpectNear(SphereCenterAfter("<translate x=\"1\"/><scale value=\"2\"/>"), Vec3(2, 0, 0));
+  ExpectNear(SphereCenterAfter("<scale value=\"2\"/><translate x=\"1\"/>"), Vec3(1, 0, 0));
+  ExpectNear(SphereCenterAfter("<translate value=\"1, 0, 0\"/><rotate z=\"1\" angle=\"90\"/>"),
+             Vec3(0, 1, 0));
+  ExpectNear(SphereCenterAfter("<translate x=\"1\"/><rotate axis=\"0, 0, 1\" angle=\"90\"/>"
+                               "<translate y=\"2\"/>"),
+             Vec3(0, 3, 0));
+  ExpectNear(SphereCenterAfter("<translate x=\"1\" y=\"1\" z=\"1\"/><scale value=\"1 2 3\"/>"),
+             Vec3(1, 2, 3));
+  ExpectNear(SphereCenterAfter("<matrix value=\"1 0 0 5  0 1 0 6  0 0 1 7  0 0 0 1\"/>"),
+             Vec3(5, 6, 7));
+}
+
+TEST(SceneLoaderTest, SphereRadiusScalesWithCubeRootOfDeterminant) {
+  const auto scene = Load(R"(  <shape type="sphere">
+    <point name="center" value="1, 0, 0"/>
+    <float name="radius" value="0.5"/>
+    <transform name="to_world"><scale x="2" y="4" z="1"/><translate z="3"/></transform>
+  </shape>
+)");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  const ShapeDesc& s = scene->shapes.at(0);
+  EXPECT_EQ(s.type, ShapeType::kSphere);
+  ExpectNear(s.center, Vec3(2, 0, 3));
+  EXPECT_NEAR(s.radius, 0.5f * 2, 1e-5f);
+}
+
+TEST(SceneLoaderTest, LookAtBuildsMitsubaCameraFrame) {
+  const auto scene = LoadSceneString(R"(<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="39.3077"/>
+    <float name="near_clip" value="0.5"/>
+    <float name="far_clip" value="50"/>
+    <transform name="to_world">
+      <lookat origin="0, 0, 3.9" target="0, 0, 0" up="0, 1, 0"/>
+    </transform>
+  </sensor>
+</scene>
+)",
+                                     "s.xml", {});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  const CameraDesc& cam = scene->camera;
+  ExpectNear(Column(cam.to_world, 0), Vec3(-1, 0, 0));  // +x is the image's left
+  ExpectNear(Column(cam.to_world, 1), Vec3(0, 1, 0));
+  ExpectNear(Column(cam.to_world, 2), Vec3(0, 0, -1));  // looks along +z
+  ExpectNear(Column(cam.to_world, 3), Vec3(0, 0, 3.9f));
+  EXPECT_FLOAT_EQ(cam.fov_x_deg, 39.3077f);
+  EXPECT_FLOAT_EQ(cam.near_clip, 0.5f);
+  EXPECT_FLOAT_EQ(cam.far_clip, 50);
+  EXPECT_EQ(cam.loc.line, 2);
+  // No film: Mitsuba's default size; the scene is still accepted, with a warning.
+  EXPECT_EQ(cam.width, 768);
+  EXPECT_EQ(cam.height, 576);
+  EXPECT_EQ(scene->warnings.size(), 1u);
+}
+
+float FovXFor(const std::string& axis, float fov, int width, int height) {
+  const std::string xml =
+      "<scene version=\"3.0.0\"><sensor type=\"perspective\">"
+      "<float name=\"fov\" value=\"" +
+      std::to_string(fov) +
+      "\"/>"
+      "<string name=\"fov_axis\" value=\"" +
+      axis +
+      "\"/>"
+      "<film type=\"hdrfilm\"><integer name=\"width\" value=\"" +
+      std::to_string(width) + "\"/><integer name=\"height\" value=\"" + std::to_string(height) +
+      "\"/><rfilter type=\"box\"/></film>"
+      "</sensor></scene>";
+  const auto scene = LoadSceneString(xml, "s.xml", {});
+  EXPECT_TRUE(scene.ok()) << scene.status();
+  return scene.ok() ? scene->camera.fov_x_deg : NAN;
+}
+
+TEST(SceneLoaderTest, FovAxisConvertsToHorizontal) {
+  const auto deg = [](double r) { return float(r * 180 / 3.14159265358979323846); };
+  const double t = std::tan(45.0 / 2 * 3.14159265358979323846 / 180);
+  EXPECT_FLOAT_EQ(FovXFor("x", 45, 200, 100), 45);
+  EXPECT_NEAR(FovXFor("y", 45, 200, 100), deg(2 * std::atan(t * 2)), 1e-4);
+  // Diagonal: the half-diagonal tangent t splits as w : h on the film.
+  EXPECT_NEAR(FovXFor("diagonal", 45, 300, 400), deg(2 * std::atan(t * 3 / 5)), 1e-4);
+  EXPECT_NEAR(FovXFor("smaller", 45, 200, 100), deg(2 * std::atan(t * 2)), 1e-4);  // y is smaller
+  EXPECT_FLOAT_EQ(FovXFor("smaller", 45, 100, 200), 45);
+  EXPECT_FLOAT_EQ(FovXFor("larger", 45, 200, 100), 45);
+  EXPECT_NEAR(FovXFor("larger", 45, 100, 200), deg(2 * std::atan(t / 2)), 1e-4);  // y is larger
+  ExpectError(LoadSceneString("<scene version=\"3.0.0\"><sensor type=\"perspective\">\n"
+                              "<string name=\"fov_axis\" value=\"z\"/></sensor></scene>",
+                              "s.xml", {}),
+              "s.xml:2:", "unknown fov_axis 'z'");
+}
+
+TEST(SceneLoaderTest, CameraFromMatrix) {
+  const auto scene = LoadSceneString(R"(<scene version="3.0.0">
+  <sensor type="perspective">
+    <transform name="to_world">
+      <matrix value="-1 0 0 1  0 1 0 2  0 0 -1 3  0 0 0 1"/>
+    </transform>
+  </sensor>
+</scene>
+)",
+                                     "s.xml", {});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ExpectNear(Column(scene->camera.to_world, 2), Vec3(0, 0, -1));
+  ExpectNear(Column(scene->camera.to_world, 3), Vec3(1, 2, 3));
+  // Without fov: Mitsuba's 50 mm lens on 36 x 24 mm, diagonal, on the 768 x 576 default film.
+  EXPECT_NEAR(scene->camera.fov_x_deg, 38.1848f, 1e-3f);
+}
+
+// ---------------------------------------------------------------- $defaults and -D defines
+
+constexpr char kParameterized[] = R"(<scene version="3.0.0">
+  <default name="spp" value="8"/>
+  <default name="resx" value="32"/>
+  <integrator type="path">
+    <integer name="max_depth" value="$depth"/>
+  </integrator>
+  <sensor type="perspective">
+    <float name="fov" value="$fov"/>
+    <sampler type="independent">
+      <integer name="sample_count" value="$spp"/>
+    </sampler>
+    <film type="hdrfilm">
+      <integer name="width" value="$resx"/>
+      <integer name="height" value="2$resx"/>
+      <rfilter type="box"/>
+    </film>
+  </sensor>
+</scene>
+)";
+
+TEST(SceneLoaderTest, DefaultsAndDefines) {
+  LoadOptions options;
+  options.defines = {{"depth", "3"}, {"fov", "30"}};  // no <default> for these two
+  auto scene = LoadSceneString(kParameterized, "p.xml", options);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->camera.spp, 8);
+  EXPECT_EQ(scene->camera.width, 32);
+  EXPECT_EQ(scene->camera.height, 232);  // "2$resx": substitution inside a value
+  EXPECT_EQ(scene->integrator.max_depth, 3);
+  EXPECT_FLOAT_EQ(scene->camera.fov_x_deg, 30);
+
+  options.defines["spp"] = "16";  // -D spp=16 overrides the default
+  scene = LoadSceneString(kParameterized, "p.xml", options);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->camera.spp, 16);
+
+  options.defines.erase("fov");
+  ExpectError(LoadSceneString(kParameterized, "p.xml", options),
+              "p.xml:8:", "undefined parameter '$fov'");
+}
+
+// ---------------------------------------------------------------- materials and emitters
+
+TEST(SceneLoaderTest, Materials) {
+  const std::string dir = MakeDir("materials");
+  fs::create_directories(dir + "/textures");
+  WriteFile(dir + "/textures/wood.png", "not decoded by the loader");
+  const auto scene = Load(R"(  <bsdf type="diffuse" id="red">
+    <rgb name="reflectance" value="0.7, 0.1 0.1"/>
+  </bsdf>
+  <bsdf type="twosided" id="red-2s">
+    <ref id="red"/>
+  </bsdf>
+  <texture type="bitmap" id="wood">
+    <string name="filename" value="./textures/wood.png"/>
+    <string name="filter_type" value="nearest"/>
+    <boolean name="raw" value="true"/>
+  </texture>
+  <bsdf type="twosided" id="wood-2s">
+    <bsdf type="diffuse">
+      <ref name="reflectance" id="wood"/>
+    </bsdf>
+  </bsdf>
+  <bsdf type="conductor" id="mirror">
+    <string name="material" value="none"/>
+    <rgb name="specular_reflectance" value="0.9"/>
+  </bsdf>
+  <bsdf type="dielectric" id="glass">
+    <float name="int_ior" value="1.5"/>
+    <string name="ext_ior" value="air"/>
+  </bsdf>
+  <bsdf type="thindielectric" id="thin">
+    <string name="int_ior" value="water"/>
+    <integer name="ext_ior" value="1"/>
+  </bsdf>
+  <shape type="cube"/>
+  <shape type="cube"><ref id="wood-2s"/></shape>
+)",
+                          dir + "/scene.xml");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->bsdfs.size(), 7u);  // 6 + the default one of the first cube
+  const BsdfDesc& red2s = scene->bsdfs[1];
+  EXPECT_EQ(red2s.id, "red-2s");
+  EXPECT_TRUE(red2s.twosided);
+  EXPECT_FALSE(scene->bsdfs[0].twosided);
+  ExpectNear(red2s.reflectance.value, Vec3(0.7f, 0.1f, 0.1f));
+  const BsdfDesc& wood = scene->bsdfs[2];
+  EXPECT_EQ(wood.id, "wood-2s");
+  EXPECT_TRUE(wood.twosided);
+  ASSERT_EQ(wood.reflectance.texture, 0);
+  const TextureDesc& tex = scene->textures[0];
+  EXPECT_EQ(fs::path(tex.filename), fs::path(dir) / "textures/wood.png");
+  EXPECT_EQ(tex.filter_type, "nearest");
+  EXPECT_EQ(tex.wrap_mode, "repeat");
+  EXPECT_TRUE(tex.raw);
+  EXPECT_EQ(scene->bsdfs[3].type, BsdfType::kConductor);
+  ExpectNear(scene->bsdfs[3].specular_reflectance, Vec3(0.9f));
+  EXPECT_EQ(scene->bsdfs[4].type, BsdfType::kDielectric);
+  EXPECT_FLOAT_EQ(scene->bsdfs[4].int_ior, 1.5f);
+  EXPECT_FLOAT_EQ(scene->bsdfs[4].ext_ior, 1.000277f);
+  EXPECT_EQ(scene->bsdfs[5].type, BsdfType::kThinDielectric);
+  EXPECT_FLOAT_EQ(scene->bsdfs[5].int_ior, 1.333f);
+  EXPECT_FLOAT_EQ(scene->bsdfs[5].ext_ior, 1);
+  // A shape without a bsdf gets diffuse 0.5, as in Mitsuba.
+  const BsdfDesc& fallback = scene->bsdfs.at(scene->shapes.at(0).bsdf);
+  EXPECT_EQ(fallback.type, BsdfType::kDiffuse);
+  ExpectNear(fallback.reflectance.value, Vec3(0.5f));
+  EXPECT_EQ(scene->shapes.at(1).bsdf, 2);
+
+  ExpectError(Load("  <bsdf type=\"twosided\">\n    <bsdf type=\"dielectric\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "twosided can only wrap");
+  ExpectError(Load("  <bsdf type=\"dielectric\">\n    <string name=\"int_ior\" value=\"glas\"/>\n"
+                   "  </bsdf>\n"),
+              "scene.xml:3:", "unknown index of refraction 'glas'");
+}
+
+TEST(SceneLoaderTest, Emitters) {
+  const auto scene = Load(R"(  <shape type="rectangle">
+    <emitter type="area"><rgb name="radiance" value="1, 2, 3"/></emitter>
+  </shape>
+  <emitter type="point">
+    <point name="position" x="1" y="2" z="3"/>
+    <rgb name="intensity" value="5"/>
+  </emitter>
+  <emitter type="spot">
+    <transform name="to_world"><lookat origin="0, 4, 0" target="0, 0, 0" up="0, 0, 1"/></transform>
+    <float name="cutoff_angle" value="30"/>
+  </emitter>
+  <emitter type="directional">
+    <vector name="direction" value="0, -2, 0"/>
+    <rgb name="irradiance" value="9, 8, 7"/>
+  </emitter>
+  <emitter type="directional">
+    <transform name="to_world"><rotate x="1" angle="90"/></transform>
+  </emitter>
+  <emitter type="constant"><rgb name="radiance" value="0.3, 0.4, 0.5"/></emitter>
+)");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_TRUE(scene->shapes.at(0).area_radiance.has_value());
+  ExpectNear(*scene->shapes[0].area_radiance, Vec3(1, 2, 3));
+  ASSERT_EQ(scene->emitters.size(), 5u);
+  EXPECT_EQ(scene->emitters[0].type, EmitterType::kPoint);
+  ExpectNear(scene->emitters[0].position, Vec3(1, 2, 3));
+  ExpectNear(scene->emitters[0].intensity, Vec3(5));
+  EXPECT_EQ(scene->emitters[1].type, EmitterType::kSpot);
+  ExpectNear(scene->emitters[1].position, Vec3(0, 4, 0));
+  ExpectNear(scene->emitters[1].direction, Vec3(0, -1, 0));
+  EXPECT_FLOAT_EQ(scene->emitters[1].cutoff_angle_deg, 30);
+  EXPECT_FLOAT_EQ(scene->emitters[1].beam_width_deg, 22.5f);
+  ExpectNear(scene->emitters[2].direction, Vec3(0, -1, 0));
+  ExpectNear(scene->emitters[2].irradiance, Vec3(9, 8, 7));
+  ExpectNear(scene->emitters[3].direction, Vec3(0, -1, 0));  // +z rotated 90 degrees about x
+  EXPECT_EQ(scene->emitters[4].type, EmitterType::kConstant);
+  ExpectNear(scene->emitters[4].radiance, Vec3(0.3f, 0.4f, 0.5f));
+  EXPECT_EQ(scene->emitters[4].loc.line, 20);
+
+  ExpectError(Load("  <emitter type=\"constant\"/>\n  <emitter type=\"constant\"/>\n"),
+              "scene.xml:3:", "a second environment emitter (the first is at line 2)");
+  ExpectError(Load("  <shape type=\"cube\">\n    <emitter type=\"point\"/>\n  </shape>\n"),
+              "scene.xml:3:", "cannot be attached to a shape");
+}
+
+TEST(SceneLoaderTest, IntegratorAndSampler) {
+  const auto scene = LoadSceneString(R"(<scene version="3.0.0">
+  <integrator type="irrcache">
+    <integer name="max_depth" value="4"/>
+    <integer name="rr_depth" value="3"/>
+    <float name="error" value="0.15"/>
+    <boolean name="gradients" value="true"/>
+  </integrator>
+  <sensor type="perspective">
+    <sampler type="stratified">
+      <integer name="sample_count" value="64"/>
+    </sampler>
+    <film type="hdrfilm"><rfilter type="box"/></film>
+  </sensor>
+</scene>
+)",
+                                     "s.xml", {});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->integrator.type, "irrcache");
+  EXPECT_EQ(scene->integrator.max_depth, 4);
+  EXPECT_EQ(scene->integrator.rr_depth, 3);
+  const std::map<std::string, std::string> params = {{"error", "0.15"}, {"gradients", "true"}};
+  EXPECT_EQ(scene->integrator.params, params);
+  EXPECT_EQ(scene->camera.spp, 64);
+  ASSERT_EQ(scene->warnings.size(), 1u);
+  EXPECT_EQ(scene->warnings[0], "s.xml:9: sampler 'stratified' treated as independent");
+  // The path integrator is strict.
+  ExpectError(Load("  <integrator type=\"path\">\n    <float name=\"error\" value=\"0.1\"/>\n"
+                   "  </integrator>\n"),
+              "scene.xml:3:", "unknown parameter 'error' for integrator 'path'");
+}
+
+// ---------------------------------------------------------------- meshes
+
+TEST(SceneLoaderTest, BuiltInShapes) {
+  const auto scene = Load(R"(  <shape type="rectangle">
+    <transform name="to_world"><scale x="2"/><translate z="1"/></transform>
+  </shape>
+  <shape type="rectangle">
+    <transform name="to_world"><scale x="-1"/></transform>
+  </shape>
+  <shape type="rectangle"><boolean name="flip_normals" value="true"/></shape>
+  <shape type="cube"/>
+  <shape type="disk"><boolean name="face_normals" value="true"/></shape>
+)");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->shapes.size(), 5u);
+  const auto geometric_normal = [](const TriangleMesh& m, size_t t) {
+    const Vec3& p0 = m.positions[m.indices[3 * t]];
+    return Normalize(
+        Cross(m.positions[m.indices[3 * t + 1]] - p0, m.positions[m.indices[3 * t + 2]] - p0));
+  };
+  const TriangleMesh& rect = scene->shapes[0].mesh;
+  ASSERT_EQ(rect.indices.size(), 6u);
+  ExpectNear(rect.positions[2], Vec3(2, 1, 1));
+  ExpectNear(geometric_normal(rect, 0), Vec3(0, 0, 1));
+  ExpectNear(rect.normals[0], Vec3(0, 0, 1));
+  // Mirrored rectangle: Mitsuba's normal is still +z, so the winding turns with the mirror.
+  ExpectNear(geometric_normal(scene->shapes[1].mesh, 1), Vec3(0, 0, 1));
+  ExpectNear(geometric_normal(scene->shapes[2].mesh, 0), Vec3(0, 0, -1));
+  ExpectNear(scene->shapes[2].mesh.normals[0], Vec3(0, 0, -1));
+  EXPECT_TRUE(scene->shapes[2].flip_normals);
+  const TriangleMesh& cube = scene->shapes[3].mesh;
+  EXPECT_EQ(cube.positions.size(), 24u);
+  ASSERT_EQ(cube.indices.size(), 36u);
+  for (size_t t = 0; t < 12; ++t) {  // outward: the normal points the way of the face centre
+    const Vec3 centre =
+        (cube.positions[cube.indices[3 * t]] + cube.positions[cube.indices[3 * t + 1]] +
+         cube.positions[cube.indices[3 * t + 2]]) /
+        3.0f;
+    EXPECT_GT(Dot(geometric_normal(cube, t), centre), 0.3f) << "triangle " << t;
+    EXPECT_NEAR(Dot(geometric_normal(cube, t), cube.normals[cube.indices[3 * t]]), 1, 1e-5);
+  }
+  const TriangleMesh& disk = scene->shapes[4].mesh;
+  EXPECT_EQ(disk.indices.size(), 3u * 128);
+  EXPECT_TRUE(disk.normals.empty());  // face_normals
+  ExpectNear(geometric_normal(disk, 5), Vec3(0, 0, 1));
+}
+
+TEST(SceneLoaderTest, LoadsObj) {
+  const std::string dir = MakeDir("obj");
+  WriteFile(dir + "/meshes/quad.obj", R"(# a quad as one polygon, all corner forms
+o quad
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+vt 0 0
+vt 1 0
+vt 1 0.25
+vn 0 0 1
+f 1/1/1 2/2/1 -2/3/-1 -1/3/1
+s off
+)");
+  WriteFile(dir + "/meshes/plain.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nf 1 2 3\nf 1 4 5\n");
+  WriteFile(dir + "/meshes/mixed.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n"
+            "f 1//1 2//1 3//1\nf 1/1 2/1 3/1\n");
+  const auto scene = Load(R"(  <shape type="obj">
+    <string name="filename" value="meshes/quad.obj"/>
+    <transform name="to_world"><translate x="10"/></transform>
+  </shape>
+  <shape type="obj">
+    <string name="filename" value="meshes/plain.obj"/>
+  </shape>
+  <shape type="obj">
+    <string name="filename" value="meshes/mixed.obj"/>
+    <boolean name="face_normals" value="true"/>
+  </shape>
+)",
+                          dir + "/scene.xml");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  const TriangleMesh& quad = scene->shapes.at(0).mesh;
+  ASSERT_EQ(quad.indices.size(), 6u);  // fan of 2 triangles
+  ASSERT_EQ(quad.positions.size(), 4u);
+  ExpectNear(quad.positions[quad.indices[2]], Vec3(11, 1, 0));
+  ASSERT_EQ(quad.uvs.size(), 8u);
+  EXPECT_FLOAT_EQ(quad.uvs[2 * quad.indices[2] + 1], 0.75f);  // v flipped: 1 - 0.25
+  ASSERT_EQ(quad.normals.size(), 4u);
+  ExpectNear(quad.normals[0], Vec3(0, 0, 1));
+
+  // No normals, no face_normals: smooth angle-weighted normals, as Mitsuba computes them.
+  const TriangleMesh& plain = scene->shapes.at(1).mesh;
+  // The faces (normals +z and +y, equal areas) meet vertex 0 at 90 and 45 degrees: weights 2 : 1
+  // (area weighting would give 1 : 1).
+  ASSERT_EQ(plain.normals.size(), 5u);
+  ExpectNear(plain.normals[0], Normalize(Vec3(0, 1, 2)));
+  ExpectNear(plain.normals[1], Vec3(0, 0, 1));
+  ExpectNear(plain.normals[3], Vec3(0, 1, 0));
+
+  // Some corners lack vt: no uvs; face_normals: no normals.
+  const TriangleMesh& mixed = scene->shapes.at(2).mesh;
+  EXPECT_TRUE(mixed.uvs.empty());
+  EXPECT_TRUE(mixed.normals.empty());
+  EXPECT_EQ(mixed.indices.size(), 6u);
+
+  WriteFile(dir + "/meshes/bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 nan\nf 1 2 3\n");
+  ExpectError(Load("  <shape type=\"obj\">\n    <string name=\"filename\" "
+                   "value=\"meshes/bad.obj\"/>\n  </shape>\n",
+                   dir + "/scene.xml"),
+              dir + "/scene.xml:2:", "bad.obj:3: non-finite number 'nan'");
+}
+
+// A binary little-endian PLY with normals and uvs: a quad (fan) and a triangle.
+std::string BinaryPly(uint32_t last_index) {
+  std::string ply =
+      "ply\nformat binary_little_endian 1.0\ncomment test\nelement vertex 4\n"
+      "property float x\nproperty float y\nproperty float z\nproperty float nx\n"
+      "property float ny\nproperty float nz\nproperty uchar red\nproperty float u\n"
+      "property float v\nelement face 2\nproperty list uint8 uint vertex_indices\nend_header\n";
+  const auto put = [&ply](const void* data, size_t size) {
+    ply.append(static_cast<const char*>(data), size);
+  };
+  const float xy[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  for (const auto& [x, y] : xy) {
+    const float values[6] = {x, y, 0, 0, 0, 1};
+    put(values, sizeof(values));
+    ply.push_back('\x7f');
+    const float uv[2] = {x, y};
+    put(uv, sizeof(uv));
+  }
+  const uint32_t quad[4] = {0, 1, 2, 3}, tri[3] = {0, 2, last_index};
+  ply.push_back('\x04');
+  put(quad, sizeof(quad));
+  ply.push_back('\x03');
+  put(tri, sizeof(tri));
+  return ply;
+}
+
+TEST(SceneLoaderTest, LoadsPly) {
+  uint32_t probe = 1;
+  char first_byte;
+  std::memcpy(&first_byte, &probe, 1);
+  if (first_byte != 1) GTEST_SKIP() << "the test writes PLY data in host byte order";
+  const std::string dir = MakeDir("ply");
+  WriteFile(dir + "/meshes/binary.ply", BinaryPly(3));
+  WriteFile(dir + "/meshes/ascii.ply",
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+            "property double z\nelement face 1\nproperty list uchar int vertex_indices\n"
+            "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  const auto scene = Load(R"(  <shape type="ply">
+    <string name="filename" value="meshes/binary.ply"/>
+    <transform name="to_world"><rotate x="1" angle="180"/></transform>
+  </shape>
+  <shape type="ply">
+    <string name="filename" value="meshes/ascii.ply"/>
+    <boolean name="face_normals" value="true"/>
+  </shape>
+)",
+                          dir + "/scene.xml");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  const TriangleMesh& bin = scene->shapes.at(0).mesh;
+  ASSERT_EQ(bin.indices.size(), 9u);
+  ASSERT_EQ(bin.positions.size(), 4u);
+  ExpectNear(bin.positions[2], Vec3(1, -1, 0));
+  ExpectNear(bin.normals[2], Vec3(0, 0, -1));
+  ASSERT_EQ(bin.uvs.size(), 8u);
+  EXPECT_FLOAT_EQ(bin.uvs[5], 1);  // PLY uvs are not flipped
+  const std::vector<uint32_t> expected = {0, 1, 2, 0, 2, 3, 0, 2, 3};
+  EXPECT_EQ(bin.indices, expected);
+  EXPECT_EQ(scene->shapes.at(1).mesh.indices.size(), 3u);
+  EXPECT_TRUE(scene->shapes.at(1).mesh.normals.empty());
+
+  WriteFile(dir + "/meshes/binary.ply", BinaryPly(4));
+  ExpectError(Load("  <shape type=\"ply\">\n    <string name=\"filename\" "
+                   "value=\"meshes/binary.ply\"/>\n  </shape>\n",
+                   dir + "/scene.xml"),
+              dir + "/scene.xml:2:", "binary.ply: face 1: vertex index 4 out of range");
+  WriteFile(dir + "/meshes/binary.ply", BinaryPly(3).substr(0, BinaryPly(3).size() - 5));
+  ExpectError(Load("  <shape type=\"ply\">\n    <string name=\"filename\" "
+                   "value=\"meshes/binary.ply\"/>\n  </shape>\n",
+                   dir + "/scene.xml"),
+              dir + "/scene.xml:2:", "truncated");
+}
+
+TEST(SceneLoaderTest, DropsDegenerateTriangles) {
+  const std::string dir = MakeDir("degenerate");
+  WriteFile(dir + "/meshes/mix.obj", R"(v 0 0 0
+v 1 0 0
+v 0 1 0
+v 0 0 0
+v 2 0 0
+v 0.1 0.1 0.5
+v 0.2 0.2 0.5
+v 0.4 0.4 0.5
+v 1 0.001 0
+f 1 2 3
+f 1 1 2
+f 1 4 2
+f 1 2 5
+f 6 7 8
+f 1 2 9
+)");
+  WriteFile(dir + "/meshes/none.obj", "v 0 0 0\nv 1 1 1\nf 1 2 2\n");
+  const auto scene = Load(R"(  <shape type="obj" id="mix">
+    <string name="filename" value="meshes/mix.obj"/>
+    <boolean name="face_normals" value="true"/>
+  </shape>
+  <shape type="obj" id="none">
+    <string name="filename" value="meshes/none.obj"/>
+  </shape>
+)",
+                          dir + "/scene.xml");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->shapes.size(), 1u);  // "none" has nothing left and is skipped
+  const ShapeDesc& mix = scene->shapes[0];
+  // Kept: the right triangle and the thin (1 x 0.001) but proper sliver.
+  EXPECT_EQ(mix.mesh.indices.size(), 6u);
+  EXPECT_EQ(mix.degenerate_dropped, 4);
+  ASSERT_EQ(scene->warnings.size(), 3u);
+  EXPECT_EQ(scene->warnings[0].rfind(dir + "/scene.xml:2: shape 'mix': dropped 4 degenerate", 0),
+            0u)
+      << scene->warnings[0];
+  EXPECT_NE(scene->warnings[2].find("'none' has no triangles left"), std::string::npos);
+}
+
+// ---------------------------------------------------------------- the shipped scenes
+
+// The folder holding scenes/<name>/scene.xml: $IRFARM_TEST_DATA, else the compiled-in
+// IRFARM_TEST_DATA, else the shared/ folder beside the repository (until the scenes are copied
+// into tests/data).
+std::string ScenesRoot() {
+  std::vector<std::string> candidates;
+  if (const char* env = std::getenv("IRFARM_TEST_DATA")) candidates.push_back(env);
+  candidates.push_back(IRFARM_TEST_DATA);
+  candidates.push_back(IRFARM_TEST_DATA "/../../../shared");
+  for (const std::string& c : candidates) {
+    std::error_code ec;
+    if (fs::is_directory(fs::path(c) / "scenes", ec)) return c + "/scenes";
+  }
+  return "";
+}
+
+TEST(SceneLoaderTest, LoadsEveryTestScene) {
+  const std::string root = ScenesRoot();
+  ASSERT_FALSE(root.empty()) << "no scenes folder under IRFARM_TEST_DATA";
+  std::vector<fs::path> files;
+  for (const fs::directory_entry& d : fs::directory_iterator(root)) {
+    if (fs::is_regular_file(d.path() / "scene.xml")) files.push_back(d.path() / "scene.xml");
+  }
+  std::sort(files.begin(), files.end());
+  ASSERT_FALSE(files.empty()) << "no <name>/scene.xml under " << root;
+  for (const fs::path& file : files) {
+    SCOPED_TRACE(file.string());
+    const auto scene = LoadSceneFile(file.string(), {});
+    ASSERT_TRUE(scene.ok()) << scene.status();
+    size_t triangles = 0;
+    int emitters = int(scene->emitters.size());
+    for (const ShapeDesc& s : scene->shapes) {
+      triangles += s.mesh.indices.size() / 3;
+      emitters += s.area_radiance.has_value();
+      EXPECT_GE(s.bsdf, 0);
+      EXPECT_LT(s.bsdf, int(scene->bsdfs.size()));
+      for (uint32_t i : s.mesh.indices) ASSERT_LT(i, s.mesh.positions.size());
+      EXPECT_TRUE(s.mesh.normals.empty() || s.mesh.normals.size() == s.mesh.positions.size());
+    }
+    EXPECT_GT(scene->shapes.size(), 0u);
+    EXPECT_GT(triangles, 0u);
+    EXPECT_GT(emitters, 0);
+    const CameraDesc& cam = scene->camera;
+    EXPECT_GT(cam.fov_x_deg, 1);
+    EXPECT_LT(cam.fov_x_deg, 179);
+    EXPECT_GT(cam.width, 0);
+    EXPECT_GT(cam.height, 0);
+    EXPECT_GT(cam.spp, 0);
+    for (int j = 0; j < 3; ++j) {  // a rotation: unit, orthogonal axes, right-handed with left
+      EXPECT_NEAR(Length(Column(cam.to_world, j)), 1, 1e-4);
+      EXPECT_NEAR(Dot(Column(cam.to_world, j), Column(cam.to_world, (j + 1) % 3)), 0, 1e-4);
+    }
+    EXPECT_TRUE(IsFinite(Column(cam.to_world, 3)));
+    std::cout << file.parent_path().filename().string() << ": " << scene->shapes.size()
+              << " shapes, " << triangles << " triangles, " << emitters << " emitters, fov_x "
+              << cam.fov_x_deg << ", " << cam.width << " x " << cam.height << ", spp " << cam.spp
+              << ", " << scene->warnings.size() << " warnings\n";
+  }
+}
+
+}  // namespace
+}  // namespace irfarm
