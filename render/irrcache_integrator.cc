@@ -56,7 +56,9 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   const int T = strata_t_, P = strata_p_;
   for (int i = 0; i < T; ++i)
     for (int j = 0; j < P; ++j) {
-      const Vec3 local = StratifiedCosineHemisphere(i, j, T, P, rng.Next(), rng.Next());
+      const float u = rng.Next();
+      const float v = rng.Next();  // drawn in order: argument evaluation order is unspecified
+      const Vec3 local = StratifiedCosineHemisphere(i, j, T, P, u, v);
       const Vec3 dir = s * local.x + t * local.y + nf * local.z;
       if (Dot(dir, ng_side) <= 0) continue;  // below the geometric surface: blocked, no light
       const Ray ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, dir);

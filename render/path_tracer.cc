@@ -65,7 +65,9 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       }
       Vec3 s, t;
       MakeFrame(nf, &s, &t);
-      const Vec3 local = CosineHemisphere(rng.Next(), rng.Next());
+      const float u = rng.Next();
+      const float v = rng.Next();  // drawn in order: argument evaluation order is unspecified
+      const Vec3 local = CosineHemisphere(u, v);
       wi = s * local.x + t * local.y + nf * local.z;
       prev_pdf = local.z * kInvPi;
       beta *= albedo;

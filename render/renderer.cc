@@ -59,11 +59,11 @@ struct Tile {
   int x0, y0, x1, y1;
 };
 
-std::vector<Tile> MakeTiles(int w, int h, int size) {
+std::vector<Tile> MakeTiles(const PixelRect& r, int size) {
   std::vector<Tile> tiles;
-  for (int y = 0; y < h; y += size)
-    for (int x = 0; x < w; x += size)
-      tiles.push_back(Tile{x, y, std::min(x + size, w), std::min(y + size, h)});
+  for (int y = r.y0; y < r.y1; y += size)
+    for (int x = r.x0; x < r.x1; x += size)
+      tiles.push_back(Tile{x, y, std::min(x + size, r.x1), std::min(y + size, r.y1)});
   return tiles;
 }
 
@@ -117,9 +117,16 @@ CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& setting
 }
 
 RenderOutput Render(const Scene& scene, const RenderSettings& settings, IrradianceCache* cache) {
+  const Camera& cam = scene.camera();
+  return RenderRect(scene, settings, cache, PixelRect{0, 0, cam.width(), cam.height()});
+}
+
+RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, IrradianceCache* cache,
+                        const PixelRect& rect) {
   RenderOutput out;
   const Camera& cam = scene.camera();
-  const int w = cam.width(), h = cam.height();
+  const int w = cam.width();
+  const int rw = rect.width(), rh = rect.height();
   const bool irrcache = settings.integrator == "irrcache";
   const int threads = settings.threads > 0 ? settings.threads
                                            : int(std::max(1u, std::thread::hardware_concurrency()));
@@ -129,11 +136,11 @@ RenderOutput Render(const Scene& scene, const RenderSettings& settings, Irradian
     cache = own_cache.get();
   }
   IrrcacheIntegrator integrator(scene, cache, settings.irrcache);
-  out.image = Image(w, h);
-  std::vector<uint8_t> marks(settings.record_map ? size_t(w) * h : 0);
+  out.image = Image(rw, rh);
+  std::vector<uint8_t> marks(settings.record_map ? size_t(rw) * rh : 0);
   tbb::enumerable_thread_specific<RenderCounters> counters;
   tbb::task_arena arena(threads);
-  const std::vector<Tile> tiles = MakeTiles(w, h, settings.tile_size);
+  const std::vector<Tile> tiles = MakeTiles(rect, settings.tile_size);
   const PathSettings& path = settings.irrcache.path;
   const bool tty = settings.progress && isatty(STDERR_FILENO);
   const int light_samples = std::max(1, settings.irrcache.light_samples);
@@ -143,20 +150,21 @@ RenderOutput Render(const Scene& scene, const RenderSettings& settings, Irradian
     // Coarse-to-fine: pixel centres on grids of stride 32, 16, ..., 1. Early passes spread records
     // over the image; later ones only fill what is still uncovered.
     for (int stride = 32; stride >= 1; stride /= 2) {
-      const int gw = (w + stride - 1) / stride, gh = (h + stride - 1) / stride;
+      const int gw = (rw + stride - 1) / stride, gh = (rh + stride - 1) / stride;
       Progress progress(tty && stride == 1, gh, "overture");
       arena.execute([&] {
         tbb::parallel_for(tbb::blocked_range<int>(0, gh), [&](const tbb::blocked_range<int>& r) {
           RenderCounters& c = counters.local();
           for (int gy = r.begin(); gy < r.end(); ++gy) {
             for (int gx = 0; gx < gw; ++gx) {
-              const int x = std::min(w - 1, gx * stride + stride / 2);
-              const int y = std::min(h - 1, gy * stride + stride / 2);
+              const int x = rect.x0 + std::min(rw - 1, gx * stride + stride / 2);
+              const int y = rect.y0 + std::min(rh - 1, gy * stride + stride / 2);
               Rng rng(HashCombine(settings.seed, uint64_t(y) * w + x),
                       kStreamOverture + 8 * uint64_t(stride));
               const Ray ray{cam.origin(), cam.Direction(x + 0.5f, y + 0.5f), INFINITY};
               ++c.camera_rays;
-              if (integrator.Prime(ray, rng, c) && !marks.empty()) marks[size_t(y) * w + x] = 1;
+              if (integrator.Prime(ray, rng, c) && !marks.empty())
+                marks[size_t(y - rect.y0) * rw + (x - rect.x0)] = 1;
             }
             progress.Tick();
           }
@@ -198,8 +206,8 @@ RenderOutput Render(const Scene& scene, const RenderSettings& settings, Irradian
               // A non-finite sample would poison the pixel; it is dropped (counted as black).
               if (IsFinite(L)) sum += L;
             }
-            out.image.at(x, y) = sum / float(settings.spp);
-            if (made && !marks.empty()) marks[size_t(y) * w + x] = 1;
+            out.image.at(x - rect.x0, y - rect.y0) = sum / float(settings.spp);
+            if (made && !marks.empty()) marks[size_t(y - rect.y0) * rw + (x - rect.x0)] = 1;
           }
         progress.Tick();
       });
@@ -210,8 +218,8 @@ RenderOutput Render(const Scene& scene, const RenderSettings& settings, Irradian
   RenderStats& st = out.stats;
   for (const RenderCounters& c : counters) st.counters.Add(c);
   st.integrator = settings.integrator;
-  st.width = w;
-  st.height = h;
+  st.width = rw;
+  st.height = rh;
   st.spp = settings.spp;
   st.threads = threads;
   st.seed = settings.seed;

@@ -47,8 +47,23 @@ struct RenderOutput {
   RenderStats stats;
 };
 
-// Renders with `cache` (irrcache; may already hold records, e.g. from a snapshot or other
-// workers). A null cache with irrcache makes a fresh one for this render.
+// A rectangle of image pixels [x0, x1) x [y0, y1) (row 0 at the top).
+struct PixelRect {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  int width() const { return x1 - x0; }
+  int height() const { return y1 - y0; }
+};
+
+// Renders the pixels of `rect` only (the overture too covers only `rect`); the output images
+// are rect-sized. A pixel's value does not depend on the rect it was rendered in (its random
+// stream is keyed by its position in the whole image), so tiles rendered on different machines
+// assemble into the image one process would make (exactly, for path).
+// `cache` (irrcache) may already hold records, e.g. from a snapshot or other workers; a null
+// cache makes a fresh one for this call.
+RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, IrradianceCache* cache,
+                        const PixelRect& rect);
+
+// The whole image.
 RenderOutput Render(const Scene& scene, const RenderSettings& settings,
                     IrradianceCache* cache = nullptr);
 
