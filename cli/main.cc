@@ -178,7 +178,7 @@ int main(int argc, char** argv) {
   render->add_option("--integrator", ra.integrator, "path or irrcache (default irrcache)")
       ->check(CLI::IsMember({"path", "irrcache"}));
   render->add_option("--spp", ra.spp, "samples per pixel")->check(CLI::PositiveNumber);
-  render->add_option("--accuracy", ra.accuracy, "irrcache: Ward's a (default 0.15)");
+  render->add_option("--accuracy", ra.accuracy, "irrcache: Ward's a (default 0.1)");
   render->add_option("--record-rays", ra.record_rays, "irrcache: hemisphere rays per record")
       ->check(CLI::PositiveNumber);
   render->add_option("--light-samples", ra.light_samples, "irrcache: direct samples per hit")

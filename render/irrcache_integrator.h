@@ -27,8 +27,8 @@
 namespace irfarm {
 
 struct IrrcacheSettings {
-  float accuracy = 0.15f;        // Ward's a: records count when eps_i < a
-  int record_rays = 512;         // hemisphere rays per record (T x P with P ~ pi T)
+  float accuracy = 0.1f;     // Ward's a: records count when eps_i < a (RADIANCE rtrace -aa 0.1)
+  int record_rays = 1024;    // rays per record, T x P with P ~ pi T (RADIANCE rtrace -ad 1024)
   int light_samples = 1;         // direct-light samples per shading point and camera sample
   float min_spacing_px = 1.5f;   // validity radius a*R_i >= this many pixel footprints at x
   float max_spacing_px = 48.0f;  // ... and <= this many

@@ -76,7 +76,7 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
   s.irrcache.path.max_depth = desc.integrator.max_depth;
   s.irrcache.path.rr_depth = desc.integrator.rr_depth;
   IrrcacheSettings& ic = s.irrcache;
-  double spp = 16;
+  double spp = 64;
   if (desc.integrator.type == "irrcache") {
     static constexpr const char* kKnown[] = {"accuracy",       "record_rays",    "light_samples",
                                              "min_spacing_px", "max_spacing_px", "spp"};

@@ -20,7 +20,7 @@ namespace irfarm {
 
 struct RenderSettings {
   std::string integrator = "irrcache";  // "path" or "irrcache"
-  int spp = 16;
+  int spp = 64;
   int threads = 0;  // 0 = all cores
   uint64_t seed = 0;
   int tile_size = 16;
@@ -34,7 +34,7 @@ struct RenderSettings {
 // and rr_depth from the scene's <integrator>; irrcache parameters given in the scene
 // (<integrator type="irrcache"> children accuracy, record_rays, light_samples, min_spacing_px,
 // max_spacing_px, spp); samples per pixel: for path the scene's sampler, for irrcache its own
-// default of 16 (the scene's sample_count is meant for a path tracer). Bad values: file:line.
+// default of 64 (the scene's sample_count is meant for a path tracer). Bad values: file:line.
 absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
                                                 const std::string& integrator);
 

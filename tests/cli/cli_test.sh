@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# End-to-end checks of the `irfarm` command as a user runs it: a render writes the EXR, the PNG
+# preview and a stats JSON with the documented figures; a bad scene fails with a one-line
+# file:line error and a non-zero exit, writing nothing; compare prints the relMSE.
+set -euo pipefail
+irfarm=$1
+data=$2
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+"$irfarm" render "$data/scenes/cornell-box/scene.xml" -D resx=32 -D resy=32 --spp 4 \
+  -o "$tmp/out.exr" --stats "$tmp/out.json" --record-map "$tmp/records.png" -q
+for f in out.exr out.png out.json records.png; do [[ -s $tmp/$f ]] || fail "missing $f"; done
+python3 - "$tmp/out.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+assert s["integrator"] == "irrcache" and s["width"] == 32 and s["spp"] == 4, s
+assert s["records"]["computed"] > 0 and s["rays"]["record"] > 0, s["records"]
+assert s["cache"]["lookups"] >= s["cache"]["hits"] > 0, s["cache"]
+assert s["seconds"]["render"] > 0 and s["peak_rss_mib"] > 0
+assert s["image"]["nonfinite_pixels"] == 0
+PY
+
+# compare: an image against itself has relMSE 0.
+"$irfarm" compare "$tmp/out.exr" "$tmp/out.exr" | grep -q '"relmse": 0,' || fail "compare"
+
+# A bad scene: unknown BSDF type on line 5.
+mkdir -p "$tmp/bad"
+cat > "$tmp/bad/scene.xml" <<'XML'
+<scene version="3.0.0">
+    <sensor type="perspective">
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/><rfilter type="box"/></film>
+    </sensor>
+    <bsdf type="roughplastic" id="x"/>
+</scene>
+XML
+set +e
+err=$("$irfarm" render "$tmp/bad/scene.xml" -o "$tmp/bad/out.exr" -q 2>&1)
+code=$?
+set -e
+[[ $code -ne 0 ]] || fail "bad scene exited 0"
+[[ $err == *"scene.xml:5: "*"roughplastic"* ]] || fail "unexpected error: $err"
+[[ $(printf '%s\n' "$err" | wc -l) -eq 1 ]] || fail "error is not one line: $err"
+[[ ! -e $tmp/bad/out.exr ]] || fail "bad scene wrote an image"
+
+# Bad irrcache parameter in the scene: file:line too.
+sed 's|<integrator type="path">|<integrator type="irrcache"><float name="accuracy" value="3"/>|' \
+  "$data/scenes/cornell-box/scene.xml" > "$tmp/cb.xml"
+cp -r "$data/scenes/cornell-box/meshes" "$tmp/"
+set +e
+err=$("$irfarm" render "$tmp/cb.xml" -o "$tmp/x.exr" -q 2>&1)
+code=$?
+set -e
+[[ $code -ne 0 && $err == *"cb.xml:"*"accuracy"* ]] || fail "bad accuracy: $code $err"
+echo "cli_test: all checks passed"

@@ -1,0 +1,102 @@
+// Golden-image tests: every test scene rendered at 1/4 resolution with both integrators and
+// compared with the Mitsuba reference box-filtered to the same size. Tolerances are derived from
+// noise measured in the same test, not guessed:
+//   - path: two renders with different seeds give noise = relMSE(A, B) / 2, the expected relMSE
+//     of one render against the truth. An unbiased renderer's relMSE against the reference is
+//     noise + the reference's own error; we allow 1.5x noise plus the reference's error (scaled
+//     to the low resolution). A bias of a few percent in any region fails this.
+//   - irrcache (biased by design: interpolation): its relMSE must stay below that expected of
+//     the path tracer at 256 spp (noise at N spp scales as N/256), the claim the issue makes for
+//     full resolution, with the same 1.5x allowance.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "render_test_util.h"
+
+namespace irfarm {
+namespace {
+
+// relmse_est_ref_vs_truth from the scene's reference.json; box-filtering by 4x4 divides the
+// variance of the reference's noise by 16.
+double ReferenceError(const std::string& name) {
+  std::ifstream f(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference.json");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  const std::string s = ss.str();
+  const size_t at = s.find("\"relmse_est_ref_vs_truth\":");
+  if (at == std::string::npos) return 0;
+  return std::atof(s.c_str() + at + 26) / 16.0;
+}
+
+class GoldenImageTest : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(GoldenImageTest, PathMatchesReferenceWithinMeasuredNoise) {
+  const std::string name = GetParam();
+  const LoadedScene s = LoadQuarter(name);
+  const Image ref = QuarterReference(name);
+  const int spp = 64;
+  const RenderOutput a = RenderWith(s, "path", spp, 1);
+  const RenderOutput b = RenderWith(s, "path", spp, 2);
+  EXPECT_EQ(a.stats.nonfinite_pixels, 0);
+  const double noise = CompareImages(a.image, b.image).relmse / 2;
+  const double err = CompareImages(a.image, ref).relmse;
+  const double ref_err = ReferenceError(name);
+  RecordProperty("noise", std::to_string(noise));
+  RecordProperty("relmse", std::to_string(err));
+  EXPECT_LT(err, 1.5 * noise + ref_err) << name << ": noise " << noise << " ref " << ref_err;
+  // Image means: within 4 standard errors, estimated from the two renders' means.
+  const ImageError m = CompareImages(a.image, ref);
+  const ImageError mb = CompareImages(b.image, ref);
+  for (int c = 0; c < 3; ++c) {
+    const double se = std::abs(m.mean_test[c] - mb.mean_test[c]) / std::sqrt(2.0) +
+                      1e-3 * m.mean_ref[c];
+    EXPECT_NEAR(m.mean_test[c], m.mean_ref[c], 4 * se) << name << " channel " << c;
+  }
+}
+
+TEST_P(GoldenImageTest, IrrcacheBeatsPathAt256Spp) {
+  const std::string name = GetParam();
+  const LoadedScene s = LoadQuarter(name);
+  const Image ref = QuarterReference(name);
+  const int spp = 64;
+  const RenderOutput a = RenderWith(s, "path", spp, 1);
+  const RenderOutput b = RenderWith(s, "path", spp, 2);
+  const double path256 = CompareImages(a.image, b.image).relmse / 2 * spp / 256.0;
+  const RenderOutput irr = RenderWith(s, "irrcache", 0, 3);
+  EXPECT_EQ(irr.stats.nonfinite_pixels, 0);
+  EXPECT_GT(irr.stats.counters.records_computed, 0u);
+  const double err = CompareImages(irr.image, ref).relmse;
+  RecordProperty("irrcache_relmse", std::to_string(err));
+  RecordProperty("path256_expected", std::to_string(path256));
+  EXPECT_LT(err, 1.5 * path256 + ReferenceError(name)) << name;
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, GoldenImageTest,
+                         ::testing::Values("cornell-box", "sunlit-room", "specular", "thin-panels",
+                                           "stress-degenerate", "stress-scale-tiny",
+                                           "stress-scale-huge"),
+                         [](const auto& info) {
+                           std::string n = info.param;
+                           for (char& c : n)
+                             if (c == '-') c = '_';
+                           return n;
+                         });
+
+// veach-ajar's reference is too noisy for pixel statistics at this size (see its README); it
+// must render clean with both integrators and land near the reference's mean.
+TEST(GoldenImageTest, VeachAjarRendersClean) {
+  const LoadedScene s = LoadQuarter("veach-ajar");
+  const Image ref = QuarterReference("veach-ajar");
+  for (const char* integrator : {"path", "irrcache"}) {
+    const RenderOutput out = RenderWith(s, integrator, integrator[0] == 'p' ? 16 : 16, 4);
+    EXPECT_EQ(out.stats.nonfinite_pixels, 0) << integrator;
+    const ImageError e = CompareImages(out.image, ref);
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(e.mean_test[c], e.mean_ref[c], 0.15 * e.mean_ref[c]) << integrator;
+  }
+}
+
+}  // namespace
+}  // namespace irfarm

@@ -1,0 +1,60 @@
+// Shared helpers for the rendering tests: load a test scene at reduced resolution, render it,
+// and compare with its low-resolution reference (tests/data/scenes/<name>/reference-x4.exr, the
+// Mitsuba reference box-filtered by 4 in each direction).
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <string>
+
+#include "render/image.h"
+#include "render/renderer.h"
+#include "render/scene.h"
+#include "render/scene_loader.h"
+
+namespace irfarm {
+
+inline std::string TestScenePath(const std::string& name) {
+  return std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/scene.xml";
+}
+
+struct LoadedScene {
+  SceneDesc desc;
+  std::unique_ptr<Scene> scene;
+};
+
+// Loads test scene `name` at 1/4 of its resolution (matching reference-x4.exr).
+inline LoadedScene LoadQuarter(const std::string& name) {
+  LoadedScene s;
+  absl::StatusOr<SceneDesc> full = LoadSceneFile(TestScenePath(name), LoadOptions{});
+  EXPECT_TRUE(full.ok()) << full.status();
+  LoadOptions opt;
+  opt.defines["resx"] = std::to_string(full->camera.width / 4);
+  opt.defines["resy"] = std::to_string(full->camera.height / 4);
+  absl::StatusOr<SceneDesc> desc = LoadSceneFile(TestScenePath(name), opt);
+  EXPECT_TRUE(desc.ok()) << desc.status();
+  s.desc = *desc;
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(s.desc);
+  EXPECT_TRUE(scene.ok()) << scene.status();
+  s.scene = std::move(*scene);
+  return s;
+}
+
+inline Image QuarterReference(const std::string& name) {
+  absl::StatusOr<Image> ref =
+      ReadExr(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference-x4.exr");
+  EXPECT_TRUE(ref.ok()) << ref.status();
+  return ref.ok() ? *ref : Image();
+}
+
+inline RenderOutput RenderWith(const LoadedScene& s, const std::string& integrator, int spp,
+                               uint64_t seed, int threads = 0) {
+  RenderSettings settings = *SettingsForScene(s.desc, integrator);
+  if (spp > 0) settings.spp = spp;
+  settings.seed = seed;
+  settings.threads = threads;
+  return Render(*s.scene, settings);
+}
+
+}  // namespace irfarm
