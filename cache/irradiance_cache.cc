@@ -34,6 +34,7 @@ struct IrradianceCache::Accumulator {
   double weight = 0;
   double e[3] = {0, 0, 0};
   int count = 0;
+  int remote = 0;  // counted records with origin != 0
 
   void Add(const IrradianceRecord& r) {
     const float w = RecordWeight(x, n, a, r);
@@ -41,12 +42,14 @@ struct IrradianceCache::Accumulator {
       weight += w;
       for (int k = 0; k < 3; ++k) e[k] += double(w) * r.irradiance[k];
       ++count;
+      if (r.origin != 0) ++remote;
     }
   }
   bool Finish(Vec3* irradiance, LookupInfo* info) const {
     if (info != nullptr) {
       info->records_used = count;
       info->weight_sum = float(weight);
+      info->remote_records_used = remote;
     }
     if (count == 0) return false;
     *irradiance = Vec3(float(e[0] / weight), float(e[1] / weight), float(e[2] / weight));

@@ -41,6 +41,7 @@ struct CacheSettings {
 struct LookupInfo {
   int records_used = 0;  // records that counted
   float weight_sum = 0;  // sum of their weights w_i
+  int remote_records_used = 0;  // of records_used, those with origin != 0 (made elsewhere)
 };
 
 class IrradianceCache {

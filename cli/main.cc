@@ -1,7 +1,7 @@
 // The `irfarm` command. `render` renders a scene locally in one process (no network);
 // `compare` prints the error metrics of one EXR against another (relMSE as the project defines
-// it); `downsample` box-filters an EXR (for low-resolution reference images). The distributed
-// subcommands (submit, status, ...) come with the service.
+// it); `downsample` box-filters an EXR (for low-resolution reference images). `submit`, `status`,
+// `cancel`, `fetch` and `snapshot` talk to a coordinator (cli/service_commands.h).
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
@@ -9,10 +9,13 @@
 #include <map>
 #include <string>
 
+#include "cache/snapshot.h"
+#include "cli/service_commands.h"
 #include "render/image.h"
 #include "render/renderer.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
+#include "service/scene_hash.h"
 
 namespace irfarm {
 namespace {
@@ -31,6 +34,7 @@ struct RenderArgs {
   float accuracy = 0, min_spacing = 0, max_spacing = 0;
   uint64_t seed = 0;
   bool no_overture = false, quiet = false;
+  std::string cache_in;  // warm-start from this cache snapshot
   std::vector<std::string> defines;
 };
 
@@ -85,7 +89,22 @@ int RunRender(const RenderArgs& args) {
   s.record_map = !args.record_map.empty();
   s.progress = !args.quiet;
 
-  RenderOutput out = Render(**scene, s);
+  std::unique_ptr<IrradianceCache> warm_cache;
+  if (!args.cache_in.empty()) {
+    absl::StatusOr<Snapshot> snap = ReadSnapshotFile(args.cache_in);
+    absl::Status st =
+        snap.ok() ? CheckSnapshotScene(*snap, SceneHash(*desc), args.cache_in) : snap.status();
+    if (!st.ok()) {
+      std::fprintf(stderr, "error: %s\n", std::string(st.message()).c_str());
+      return 1;
+    }
+    warm_cache = std::make_unique<IrradianceCache>(CacheSettingsFor(**scene, s));
+    for (IrradianceRecord r : snap->records) {
+      r.origin = 0xffffffffu;  // not computed by this render
+      warm_cache->Insert(r);
+    }
+  }
+  RenderOutput out = Render(**scene, s, warm_cache.get());
   RenderStats& st = out.stats;
   st.scene = args.scene;
   st.phases.insert(st.phases.begin(), build_time);
@@ -192,6 +211,53 @@ int main(int argc, char** argv) {
   render->add_option("--record-map", ra.record_map, "write an image marking computed records");
   render->add_option("-D", ra.defines, "name=value for the scene's <default>s");
   render->add_flag("-q,--quiet", ra.quiet, "no progress or summary on stderr");
+  render->add_option("--cache-in", ra.cache_in, "warm-start from this cache snapshot file")
+      ->check(CLI::ExistingFile);
+
+  // Service subcommands: each talks to a coordinator.
+  const std::string default_coordinator = irfarm::DefaultCoordinator();
+  irfarm::SubmitArgs sa;
+  sa.coordinator = default_coordinator;
+  CLI::App* submit = app.add_subcommand("submit", "submit scenes as jobs to a coordinator");
+  submit->add_option("scenes", sa.scenes, "scene.xml files (a batch, queued by priority)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  submit->add_option("--coordinator", sa.coordinator, "coordinator address");
+  submit->add_option("--priority", sa.priority, "higher runs first (0-100, default 50)");
+  submit->add_flag("--wait", sa.wait, "follow progress until the jobs end");
+  submit->add_option("-o,--output", sa.output, "with --wait: write the image(s) here");
+  submit->add_option("--cache-in", sa.cache_in, "warm-start from this cache snapshot")
+      ->check(CLI::ExistingFile);
+  submit->add_option("--integrator", sa.integrator, "path or irrcache (default irrcache)");
+  submit->add_option("--spp", sa.spp, "samples per pixel");
+  submit->add_option("--accuracy", sa.accuracy, "irrcache: Ward's a");
+  submit->add_option("--record-rays", sa.record_rays, "irrcache: hemisphere rays per record");
+  submit->add_option("--tile-size", sa.tile_size, "tile edge in pixels (default 32)");
+  submit->add_option("--seed", sa.seed, "random seed");
+  submit->add_flag("--no-share", sa.no_share, "do not share records between workers");
+  submit->add_flag("--no-overture", sa.no_overture, "irrcache: skip the per-tile prepass");
+  submit->add_flag("--shared-path", sa.shared_path,
+                   "send the scene path (readable by coordinator and workers), not a bundle");
+  submit->add_option("-D", sa.defines, "name=value for the scene's <default>s");
+  submit->add_flag("-q,--quiet", sa.quiet, "no progress on stderr");
+
+  std::string coordinator = default_coordinator, job_id, job_out;
+  bool status_json = false;
+  CLI::App* status = app.add_subcommand("status", "show jobs (all, or one) with progress");
+  status->add_option("job", job_id, "job id");
+  status->add_option("--coordinator", coordinator, "coordinator address");
+  status->add_flag("--json", status_json, "print each job as JSON (with per-worker stats)");
+  CLI::App* cancel = app.add_subcommand("cancel", "cancel a job");
+  cancel->add_option("job", job_id, "job id")->required();
+  cancel->add_option("--coordinator", coordinator, "coordinator address");
+  CLI::App* fetch = app.add_subcommand("fetch", "download a finished job's EXR");
+  fetch->add_option("job", job_id, "job id")->required();
+  fetch->add_option("-o,--output", job_out, "output EXR")->required();
+  fetch->add_option("--coordinator", coordinator, "coordinator address");
+  CLI::App* snapshot = app.add_subcommand("snapshot", "export a job's irradiance cache to a file");
+  snapshot->add_option("job", job_id, "job id")->required();
+  snapshot->add_option("-o,--output", job_out, "snapshot file")->required();
+  snapshot->add_option("--coordinator", coordinator, "coordinator address");
 
   std::string cmp_test, cmp_ref;
   CLI::App* compare = app.add_subcommand("compare", "error metrics of an EXR against a reference");
@@ -210,5 +276,10 @@ int main(int argc, char** argv) {
   if (render->parsed()) return irfarm::RunRender(ra);
   if (compare->parsed()) return irfarm::RunCompare(cmp_test, cmp_ref);
   if (downsample->parsed()) return irfarm::RunDownsample(ds_in, ds_out, ds_factor);
+  if (submit->parsed()) return irfarm::RunSubmit(sa);
+  if (status->parsed()) return irfarm::RunStatus(coordinator, job_id, status_json);
+  if (cancel->parsed()) return irfarm::RunCancel(coordinator, job_id);
+  if (fetch->parsed()) return irfarm::RunFetch(coordinator, job_id, job_out);
+  if (snapshot->parsed()) return irfarm::RunSnapshot(coordinator, job_id, job_out);
   return 2;
 }

@@ -54,6 +54,11 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   Vec3 sum;
   double inv_dist_sum = 0;
   const int T = strata_t_, P = strata_p_;
+  // Russian roulette from the first bounce of each record ray (not from rr_depth): a record
+  // averages over many rays, so shorter paths with more rays win. Measured at equal CPU time on
+  // cornell-box and sunlit-room: 1536 rays with early roulette beat 1024 without it.
+  PathSettings record_path = settings_.path;
+  record_path.rr_depth = std::min(record_path.rr_depth, depth + 1);
   for (int i = 0; i < T; ++i)
     for (int j = 0; j < P; ++j) {
       const float u = rng.Next();
@@ -64,7 +69,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       const Ray ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, dir);
       ++counters.record_rays;
       float d = INFINITY;
-      const Vec3 L = TracePath(scene_, ray, depth + 1, true, settings_.path, rng, counters, &d);
+      const Vec3 L = TracePath(scene_, ray, depth + 1, true, record_path, rng, counters, &d);
       if (IsFinite(L)) sum += L;
       if (d > 0 && std::isfinite(d)) inv_dist_sum += 1.0 / d;
     }
@@ -90,14 +95,18 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
 }
 
 Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth,
-                                    float distance, Rng& rng, RenderCounters& counters,
+                                    float distance, bool relax, Rng& rng, RenderCounters& counters,
                                     bool* made) const {
   Vec3 E;
   LookupInfo info;
   ++counters.lookups;
-  if (cache_->Lookup(hit.p, nf, settings_.accuracy, &E, &info)) {
+  const float a = settings_.accuracy;
+  if (cache_->Lookup(hit.p, nf, a, &E, &info) ||
+      (relax &&
+       cache_->Lookup(hit.p, nf, std::min(1.0f, a * settings_.relaxed_factor), &E, &info))) {
     ++counters.lookup_hits;
     counters.records_used += uint64_t(info.records_used);
+    counters.remote_records_used += uint64_t(info.remote_records_used);
     return E;
   }
   const IrradianceRecord r =
@@ -143,7 +152,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& ray, const LightStrata& strata, Rng& rng,
   // Indirect irradiance from the cache.
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;
-    const Vec3 E = Irradiance(hit, nf, depth, distance, rng, counters, &made);
+    const Vec3 E = Irradiance(hit, nf, depth, distance, true, rng, counters, &made);
     if (shade) shade->made_record = made;
     L += beta * albedo * E * kInvPi;
   }
@@ -160,7 +169,7 @@ bool IrrcacheIntegrator::Prime(const Ray& ray, Rng& rng, RenderCounters& counter
   const int max_depth = settings_.path.max_depth;
   if (!(max_depth < 0 || depth + 2 <= max_depth)) return false;
   bool made = false;
-  Irradiance(hit, nf, depth, distance, rng, counters, &made);
+  Irradiance(hit, nf, depth, distance, false, rng, counters, &made);
   return made;
 }
 

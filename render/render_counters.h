@@ -12,10 +12,11 @@ struct RenderCounters {
   uint64_t shadow_rays = 0;  // next-event-estimation visibility rays
   uint64_t record_rays = 0;  // first rays of irradiance-record hemispheres
   uint64_t records_computed = 0;
-  uint64_t lookups = 0;       // irradiance-cache queries
-  uint64_t lookup_hits = 0;   // queries answered by interpolation
-  uint64_t records_used = 0;  // records summed over successful queries
-  double record_seconds = 0;  // thread time spent computing records
+  uint64_t lookups = 0;              // irradiance-cache queries
+  uint64_t lookup_hits = 0;          // queries answered by interpolation
+  uint64_t records_used = 0;         // records summed over successful queries
+  uint64_t remote_records_used = 0;  // of records_used, those computed by another process
+  double record_seconds = 0;         // thread time spent computing records
 
   void Add(const RenderCounters& o) {
     camera_rays += o.camera_rays;
@@ -26,6 +27,7 @@ struct RenderCounters {
     lookups += o.lookups;
     lookup_hits += o.lookup_hits;
     records_used += o.records_used;
+    remote_records_used += o.remote_records_used;
     record_seconds += o.record_seconds;
   }
 };

@@ -94,9 +94,10 @@ std::string RenderStats::ToJson() const {
     << ", \"shadow\": " << c.shadow_rays << ", \"record\": " << c.record_rays
     << ", \"total\": " << total_rays << "},\n";
   o << "  \"records\": {\"computed\": " << c.records_computed
-    << ", \"received\": " << records_received << ", \"in_cache\": " << records_in_cache
-    << ", \"used\": " << c.records_used << ", \"compute_thread_seconds\": " << Num(c.record_seconds)
-    << "},\n";
+    << ", \"computed_overture\": " << records_overture << ", \"received\": " << records_received
+    << ", \"in_cache\": " << records_in_cache << ", \"used\": " << c.records_used
+    << ", \"used_remote\": " << c.remote_records_used
+    << ", \"compute_thread_seconds\": " << Num(c.record_seconds) << "},\n";
   o << "  \"cache\": {\"lookups\": " << c.lookups << ", \"hits\": " << c.lookup_hits
     << ", \"hit_rate\": " << Num(c.lookups ? double(c.lookup_hits) / double(c.lookups) : 0)
     << ", \"records_per_hit\": "

@@ -112,7 +112,8 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
 CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& settings) {
   CacheSettings cs;
   cs.bounds = scene.bounds();
-  cs.max_accuracy = settings.irrcache.accuracy;
+  cs.max_accuracy =
+      std::min(1.0f, settings.irrcache.accuracy * std::max(1.0f, settings.irrcache.relaxed_factor));
   return cs;
 }
 
@@ -172,6 +173,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
       });
     }
     out.stats.phases.push_back(timer.Stop());
+    for (const RenderCounters& c : counters) out.stats.records_overture += c.records_computed;
   }
 
   {

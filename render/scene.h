@@ -125,6 +125,15 @@ class Scene {
     std::vector<Vec3> normals;
     std::vector<float> uvs;
     std::vector<uint32_t> indices;
+    // Per triangle, precomputed at build: unit geometric normal, the magnitude of its vertices'
+    // coordinates (ray-offset scale) and the barycentric inset that keeps hit points a few ray
+    // offsets away from its edges (see Intersect).
+    struct TriInfo {
+      Vec3 ng;
+      float error_scale;
+      float inset;
+    };
+    std::vector<TriInfo> tri_info;
     bool sphere = false;
     Vec3 center;
     float radius = 0;

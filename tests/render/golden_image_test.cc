@@ -50,8 +50,8 @@ TEST_P(GoldenImageTest, PathMatchesReferenceWithinMeasuredNoise) {
   const ImageError m = CompareImages(a.image, ref);
   const ImageError mb = CompareImages(b.image, ref);
   for (int c = 0; c < 3; ++c) {
-    const double se = std::abs(m.mean_test[c] - mb.mean_test[c]) / std::sqrt(2.0) +
-                      1e-3 * m.mean_ref[c];
+    const double se =
+        std::abs(m.mean_test[c] - mb.mean_test[c]) / std::sqrt(2.0) + 1e-3 * m.mean_ref[c];
     EXPECT_NEAR(m.mean_test[c], m.mean_ref[c], 4 * se) << name << " channel " << c;
   }
 }

@@ -1,0 +1,250 @@
+// Client side of the job API for the `irfarm` command (see service_commands.h).
+#include "cli/service_commands.h"
+
+#include <google/protobuf/util/json_util.h>
+#include <grpcpp/grpcpp.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "cache/snapshot.h"
+#include "irfarm/v1/jobs.grpc.pb.h"
+#include "service/scene_bundle.h"
+
+namespace irfarm {
+namespace {
+
+constexpr int kRpcSeconds = 60;  // deadline of unary calls
+
+std::unique_ptr<v1::JobService::Stub> Connect(const std::string& address) {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(-1);
+  args.SetMaxSendMessageSize(-1);
+  return v1::JobService::NewStub(
+      grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args));
+}
+
+void SetDeadline(grpc::ClientContext* c) {
+  c->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(kRpcSeconds));
+}
+
+int Fail(const grpc::Status& st) {
+  std::fprintf(stderr, "error: %s: %s\n",
+               absl::StatusCodeToString(absl::StatusCode(st.error_code())).c_str(),
+               st.error_message().c_str());
+  return 1;
+}
+
+int Fail(const absl::Status& st) {
+  std::fprintf(stderr, "error: %s\n", st.ToString().c_str());
+  return 1;
+}
+
+std::string StateName(v1::JobState s) {
+  std::string n = v1::JobState_Name(s);
+  return n.substr(std::string("JOB_STATE_").size());
+}
+
+void PrintProgress(const v1::Job& job, bool tty) {
+  const int width = 30;
+  const int total = std::max(1, job.tiles_total());
+  const int filled = job.tiles_done() * width / total;
+  std::fprintf(stderr, "%s%-10s [%s%s] %3d/%d tiles  %-9s records %llu%s", tty ? "\r" : "",
+               job.id().c_str(), std::string(size_t(filled), '#').c_str(),
+               std::string(size_t(width - filled), '.').c_str(), job.tiles_done(),
+               job.tiles_total(), StateName(job.state()).c_str(),
+               static_cast<unsigned long long>(job.records_merged()), tty ? "" : "\n");
+}
+
+bool IsFinal(v1::JobState s) {
+  return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
+}
+
+// Streams a file-like response (GetResult / ExportCache) into `path` via a temporary name.
+template <typename Response, typename Call>
+int StreamToFile(Call call, const std::string& path) {
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(600));
+  std::string bytes;
+  Response r;
+  auto reader = call(&context);
+  while (reader->Read(&r)) bytes += r.chunk();
+  const grpc::Status st = reader->Finish();
+  if (!st.ok()) return Fail(st);
+  const std::string tmp = path + ".tmp." + std::to_string(getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), std::streamsize(bytes.size()));
+    if (!out) return Fail(absl::InternalError(path + ": cannot write"));
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    return Fail(absl::InternalError(path + ": cannot rename into place"));
+  return 0;
+}
+
+}  // namespace
+
+std::string DefaultCoordinator() {
+  const char* env = std::getenv("IRFARM_COORDINATOR");
+  return env && *env ? env : "127.0.0.1:50051";
+}
+
+int RunSubmit(const SubmitArgs& args) {
+  auto stub = Connect(args.coordinator);
+  std::string snapshot;
+  if (!args.cache_in.empty()) {
+    std::ifstream in(args.cache_in, std::ios::binary);
+    if (!in) return Fail(absl::NotFoundError(args.cache_in + ": cannot open"));
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    snapshot = ss.str();
+    absl::StatusOr<Snapshot> parsed = ParseSnapshot(snapshot, args.cache_in);
+    if (!parsed.ok()) return Fail(parsed.status());
+  }
+  std::vector<std::string> ids;
+  for (const std::string& scene : args.scenes) {
+    v1::SubmitJobRequest req;
+    if (args.shared_path) {
+      req.mutable_scene()->set_path(scene);
+    } else {
+      absl::StatusOr<v1::SceneBundle> bundle = MakeBundle(scene);
+      if (!bundle.ok()) return Fail(bundle.status());
+      *req.mutable_scene()->mutable_bundle() = std::move(*bundle);
+    }
+    v1::RenderSettings* s = req.mutable_settings();
+    s->set_integrator(args.integrator);
+    s->set_spp(args.spp);
+    s->set_accuracy(args.accuracy);
+    s->set_record_rays(args.record_rays);
+    s->set_tile_size(args.tile_size);
+    s->set_share_records(!args.no_share);
+    s->set_seed(args.seed);
+    s->set_no_overture(args.no_overture);
+    for (const std::string& d : args.defines) {
+      const size_t eq = d.find('=');
+      if (eq == std::string::npos || eq == 0) {
+        std::fprintf(stderr, "error: -D expects name=value, got '%s'\n", d.c_str());
+        return 2;
+      }
+      (*s->mutable_defines())[d.substr(0, eq)] = d.substr(eq + 1);
+    }
+    req.set_priority(args.priority);
+    req.set_name(scene);
+    req.set_cache_snapshot(snapshot);
+    grpc::ClientContext context;
+    SetDeadline(&context);
+    v1::SubmitJobResponse resp;
+    const grpc::Status st = stub->SubmitJob(&context, req, &resp);
+    if (!st.ok()) return Fail(st);
+    std::printf("%s\n", resp.job().id().c_str());
+    std::fflush(stdout);
+    ids.push_back(resp.job().id());
+  }
+  if (!args.wait) return 0;
+  const bool tty = !args.quiet && isatty(STDERR_FILENO);
+  for (size_t i = 0; i < ids.size(); ++i) {
+    grpc::ClientContext context;
+    v1::WatchJobRequest req;
+    req.set_job_id(ids[i]);
+    auto reader = stub->WatchJob(&context, req);
+    v1::WatchJobResponse r;
+    v1::Job last;
+    while (reader->Read(&r)) {
+      last = r.job();
+      if (!args.quiet && (tty || IsFinal(last.state()))) PrintProgress(last, tty);
+    }
+    const grpc::Status st = reader->Finish();
+    if (tty) std::fprintf(stderr, "\n");
+    if (!st.ok()) return Fail(st);
+    if (last.state() != v1::JOB_STATE_SUCCEEDED) {
+      std::fprintf(stderr, "error: job %s %s: %s\n", ids[i].c_str(),
+                   StateName(last.state()).c_str(), last.error().c_str());
+      return 1;
+    }
+    if (!args.output.empty()) {
+      std::string out = args.output;
+      if (ids.size() > 1) {
+        const size_t dot = out.rfind('.');
+        out = out.substr(0, dot) + "-" + std::to_string(i) +
+              (dot == std::string::npos ? "" : out.substr(dot));
+      }
+      const int code = RunFetch(args.coordinator, ids[i], out);
+      if (code != 0) return code;
+    }
+  }
+  return 0;
+}
+
+int RunStatus(const std::string& coordinator, const std::string& job_id, bool json) {
+  auto stub = Connect(coordinator);
+  std::vector<v1::Job> jobs;
+  grpc::ClientContext context;
+  SetDeadline(&context);
+  if (job_id.empty()) {
+    v1::ListJobsResponse resp;
+    const grpc::Status st = stub->ListJobs(&context, v1::ListJobsRequest(), &resp);
+    if (!st.ok()) return Fail(st);
+    jobs.assign(resp.jobs().begin(), resp.jobs().end());
+  } else {
+    v1::GetJobRequest req;
+    req.set_job_id(job_id);
+    v1::GetJobResponse resp;
+    const grpc::Status st = stub->GetJob(&context, req, &resp);
+    if (!st.ok()) return Fail(st);
+    jobs.push_back(resp.job());
+  }
+  for (const v1::Job& job : jobs) {
+    if (json) {
+      std::string text;
+      google::protobuf::util::JsonPrintOptions o;
+      o.always_print_primitive_fields = true;
+      (void)google::protobuf::util::MessageToJsonString(job, &text, o);
+      std::printf("%s\n", text.c_str());
+      continue;
+    }
+    const int width = 30, total = std::max(1, job.tiles_total());
+    const int filled = job.tiles_done() * width / total;
+    std::printf(
+        "%-10s %-9s [%s%s] %3d/%-3d tiles  prio %-3d records %llu  %s%s%s\n", job.id().c_str(),
+        StateName(job.state()).c_str(), std::string(size_t(filled), '#').c_str(),
+        std::string(size_t(width - filled), '.').c_str(), job.tiles_done(), job.tiles_total(),
+        job.priority(), static_cast<unsigned long long>(job.records_merged()), job.name().c_str(),
+        job.error().empty() ? "" : "  error: ", job.error().c_str());
+  }
+  return 0;
+}
+
+int RunCancel(const std::string& coordinator, const std::string& job_id) {
+  auto stub = Connect(coordinator);
+  grpc::ClientContext context;
+  SetDeadline(&context);
+  v1::CancelJobRequest req;
+  req.set_job_id(job_id);
+  v1::CancelJobResponse resp;
+  const grpc::Status st = stub->CancelJob(&context, req, &resp);
+  if (!st.ok()) return Fail(st);
+  std::printf("%s %s\n", job_id.c_str(), StateName(resp.job().state()).c_str());
+  return 0;
+}
+
+int RunFetch(const std::string& coordinator, const std::string& job_id, const std::string& output) {
+  auto stub = Connect(coordinator);
+  v1::GetResultRequest req;
+  req.set_job_id(job_id);
+  return StreamToFile<v1::GetResultResponse>(
+      [&](grpc::ClientContext* c) { return stub->GetResult(c, req); }, output);
+}
+
+int RunSnapshot(const std::string& coordinator, const std::string& job_id,
+                const std::string& output) {
+  auto stub = Connect(coordinator);
+  v1::ExportCacheRequest req;
+  req.set_job_id(job_id);
+  return StreamToFile<v1::ExportCacheResponse>(
+      [&](grpc::ClientContext* c) { return stub->ExportCache(c, req); }, output);
+}
+
+}  // namespace irfarm

@@ -1,0 +1,36 @@
+// The `irfarm` subcommands that talk to a coordinator: submit, status, cancel, fetch, snapshot.
+// Each returns the process exit code (0 ok, 1 failed, 2 bad usage) and prints errors as
+// "error: CODE: message" on stderr.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace irfarm {
+
+// --coordinator, else $IRFARM_COORDINATOR, else 127.0.0.1:50051.
+std::string DefaultCoordinator();
+
+struct SubmitArgs {
+  std::string coordinator;
+  std::vector<std::string> scenes;
+  int priority = 50;
+  bool wait = false, quiet = false;
+  std::string output, cache_in;
+  std::string integrator;
+  int spp = 0, record_rays = 0, tile_size = 0;
+  float accuracy = 0;
+  uint64_t seed = 0;
+  bool no_share = false, shared_path = false, no_overture = false;
+  std::vector<std::string> defines;
+};
+
+int RunSubmit(const SubmitArgs& args);
+int RunStatus(const std::string& coordinator, const std::string& job_id, bool json);
+int RunCancel(const std::string& coordinator, const std::string& job_id);
+int RunFetch(const std::string& coordinator, const std::string& job_id, const std::string& output);
+int RunSnapshot(const std::string& coordinator, const std::string& job_id,
+                const std::string& output);
+
+}  // namespace irfarm

@@ -1,0 +1,94 @@
+// JobServiceImpl: proto <-> JobManager translation (see job_service.h).
+#include "coordinator/job_service.h"
+
+#include <algorithm>
+
+#include "service/grpc_status.h"
+
+namespace irfarm {
+namespace {
+
+constexpr size_t kChunkBytes = size_t(1) << 20;  // streamed files go in 1 MiB pieces
+
+template <typename Response>
+grpc::Status StreamBytes(const absl::StatusOr<std::string>& bytes,
+                         grpc::ServerWriter<Response>* writer) {
+  if (!bytes.ok()) return ToGrpcStatus(bytes.status());
+  for (size_t o = 0; o < bytes->size(); o += kChunkBytes) {
+    Response r;
+    r.set_chunk(bytes->substr(o, std::min(kChunkBytes, bytes->size() - o)));
+    if (!writer->Write(r)) return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
+  }
+  return grpc::Status::OK;
+}
+
+bool IsFinal(v1::JobState s) {
+  return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
+}
+
+}  // namespace
+
+grpc::Status JobServiceImpl::SubmitJob(grpc::ServerContext*, const v1::SubmitJobRequest* request,
+                                       v1::SubmitJobResponse* response) {
+  absl::StatusOr<v1::Job> job = manager_->Submit(*request);
+  if (!job.ok()) return ToGrpcStatus(job.status());
+  *response->mutable_job() = *job;
+  return grpc::Status::OK;
+}
+
+grpc::Status JobServiceImpl::GetJob(grpc::ServerContext*, const v1::GetJobRequest* request,
+                                    v1::GetJobResponse* response) {
+  absl::StatusOr<v1::Job> job = manager_->GetJob(request->job_id());
+  if (!job.ok()) return ToGrpcStatus(job.status());
+  *response->mutable_job() = *job;
+  return grpc::Status::OK;
+}
+
+grpc::Status JobServiceImpl::ListJobs(grpc::ServerContext*, const v1::ListJobsRequest*,
+                                      v1::ListJobsResponse* response) {
+  for (v1::Job& job : manager_->ListJobs()) *response->add_jobs() = std::move(job);
+  return grpc::Status::OK;
+}
+
+grpc::Status JobServiceImpl::WatchJob(grpc::ServerContext* context,
+                                      const v1::WatchJobRequest* request,
+                                      grpc::ServerWriter<v1::WatchJobResponse>* writer) {
+  uint64_t version = 0;
+  std::string last;
+  while (!context->IsCancelled()) {
+    absl::StatusOr<v1::Job> job = manager_->GetJob(request->job_id());
+    if (!job.ok()) return ToGrpcStatus(job.status());
+    job->clear_elapsed_seconds();  // only send when something else changed
+    std::string now = job->SerializeAsString();
+    if (now != last) {
+      v1::WatchJobResponse r;
+      *r.mutable_job() = *manager_->GetJob(request->job_id());
+      if (!writer->Write(r)) break;
+      last = std::move(now);
+    }
+    if (IsFinal(job->state())) break;
+    version = manager_->WaitForChange(version, std::chrono::milliseconds(500));
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status JobServiceImpl::CancelJob(grpc::ServerContext*, const v1::CancelJobRequest* request,
+                                       v1::CancelJobResponse* response) {
+  absl::StatusOr<v1::Job> job = manager_->Cancel(request->job_id());
+  if (!job.ok()) return ToGrpcStatus(job.status());
+  *response->mutable_job() = *job;
+  return grpc::Status::OK;
+}
+
+grpc::Status JobServiceImpl::GetResult(grpc::ServerContext*, const v1::GetResultRequest* request,
+                                       grpc::ServerWriter<v1::GetResultResponse>* writer) {
+  return StreamBytes(manager_->ResultExr(request->job_id()), writer);
+}
+
+grpc::Status JobServiceImpl::ExportCache(grpc::ServerContext*,
+                                         const v1::ExportCacheRequest* request,
+                                         grpc::ServerWriter<v1::ExportCacheResponse>* writer) {
+  return StreamBytes(manager_->ExportSnapshot(request->job_id()), writer);
+}
+
+}  // namespace irfarm

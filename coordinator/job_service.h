@@ -1,0 +1,33 @@
+// JobServiceImpl: the gRPC JobService. Translates requests into JobManager calls and statuses
+// back (service/grpc_status.h); no logic of its own.
+#pragma once
+
+#include "coordinator/job_manager.h"
+#include "irfarm/v1/jobs.grpc.pb.h"
+
+namespace irfarm {
+
+class JobServiceImpl final : public v1::JobService::Service {
+ public:
+  explicit JobServiceImpl(JobManager* manager) : manager_(manager) {}
+
+  grpc::Status SubmitJob(grpc::ServerContext* context, const v1::SubmitJobRequest* request,
+                         v1::SubmitJobResponse* response) override;
+  grpc::Status GetJob(grpc::ServerContext* context, const v1::GetJobRequest* request,
+                      v1::GetJobResponse* response) override;
+  grpc::Status ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest* request,
+                        v1::ListJobsResponse* response) override;
+  grpc::Status WatchJob(grpc::ServerContext* context, const v1::WatchJobRequest* request,
+                        grpc::ServerWriter<v1::WatchJobResponse>* writer) override;
+  grpc::Status CancelJob(grpc::ServerContext* context, const v1::CancelJobRequest* request,
+                         v1::CancelJobResponse* response) override;
+  grpc::Status GetResult(grpc::ServerContext* context, const v1::GetResultRequest* request,
+                         grpc::ServerWriter<v1::GetResultResponse>* writer) override;
+  grpc::Status ExportCache(grpc::ServerContext* context, const v1::ExportCacheRequest* request,
+                           grpc::ServerWriter<v1::ExportCacheResponse>* writer) override;
+
+ private:
+  JobManager* manager_;
+};
+
+}  // namespace irfarm

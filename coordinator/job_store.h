@@ -1,0 +1,42 @@
+// JobStore: where the coordinator keeps what must survive it: each job (its public state, scene
+// and settings), its finished tiles' pixels and its merged records. JobManager writes through to
+// the store and reads it all back at start-up to resume unfinished jobs. Two implementations
+// share one test suite: InMemoryJobStore (the default; nothing survives the process) and
+// RedisJobStore (survives a coordinator restart).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "cache/irradiance_record.h"
+#include "irfarm/v1/store.pb.h"
+
+namespace irfarm {
+
+class JobStore {
+ public:
+  virtual ~JobStore() = default;
+
+  // A new job number, unique for the life of the store (1, 2, ...).
+  virtual absl::StatusOr<uint64_t> NextJobNumber() = 0;
+  // Creates or replaces the job stored under job.job().id().
+  virtual absl::Status PutJob(const v1::StoredJob& job) = 0;
+  // Every stored job, in no particular order.
+  virtual absl::StatusOr<std::vector<v1::StoredJob>> LoadJobs() = 0;
+
+  // A finished tile's pixels (width*height*3 floats, as bytes). Idempotent per tile.
+  virtual absl::Status PutTile(const std::string& job_id, int tile, const std::string& pixels) = 0;
+  virtual absl::StatusOr<std::map<int, std::string>> LoadTiles(const std::string& job_id) = 0;
+
+  // Appends merged (already validated) records; LoadRecords returns them all in order. Readers
+  // validate them again (design: every record read back is validated before use).
+  virtual absl::Status AppendRecords(const std::string& job_id,
+                                     const std::vector<IrradianceRecord>& records) = 0;
+  virtual absl::StatusOr<std::vector<IrradianceRecord>> LoadRecords(const std::string& job_id) = 0;
+};
+
+}  // namespace irfarm

@@ -1,0 +1,191 @@
+// RedisJobStore: JobStore on hiredis (keys, atomicity and failure behaviour in the header).
+#include "coordinator/redis_job_store.h"
+
+#include <hiredis/hiredis.h>
+
+#include "service/record_codec.h"
+
+namespace irfarm {
+namespace {
+
+// Owns a reply; null when the command failed at the connection level.
+struct ReplyDeleter {
+  void operator()(redisReply* r) const {
+    if (r) freeReplyObject(r);
+  }
+};
+using Reply = std::unique_ptr<redisReply, ReplyDeleter>;
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<RedisJobStore>> RedisJobStore::Connect(const std::string& address,
+                                                                      const std::string& prefix) {
+  const size_t colon = address.rfind(':');
+  if (colon == std::string::npos)
+    return absl::InvalidArgumentError("--redis expects HOST:PORT, got '" + address + "'");
+  int port = 0;
+  try {
+    port = std::stoi(address.substr(colon + 1));
+  } catch (...) {
+    return absl::InvalidArgumentError("bad Redis port in '" + address + "'");
+  }
+  std::unique_ptr<RedisJobStore> s(new RedisJobStore(address.substr(0, colon), port, prefix));
+  std::lock_guard<std::mutex> lock(s->mu_);
+  absl::Status st = s->EnsureConnected();
+  if (!st.ok()) return st;
+  return s;
+}
+
+RedisJobStore::~RedisJobStore() {
+  if (ctx_) redisFree(ctx_);
+}
+
+void RedisJobStore::Drop() {
+  if (ctx_) redisFree(ctx_);
+  ctx_ = nullptr;
+}
+
+absl::Status RedisJobStore::EnsureConnected() {
+  if (ctx_ && ctx_->err == 0) return absl::OkStatus();
+  Drop();
+  const timeval timeout{2, 0};
+  ctx_ = redisConnectWithTimeout(host_.c_str(), port_, timeout);
+  if (ctx_ == nullptr || ctx_->err) {
+    const std::string why = ctx_ ? ctx_->errstr : "out of memory";
+    Drop();
+    return absl::UnavailableError("redis " + host_ + ":" + std::to_string(port_) + ": " + why);
+  }
+  redisSetTimeout(ctx_, timeval{5, 0});
+  Reply r(static_cast<redisReply*>(redisCommand(ctx_, "PING")));
+  if (!r || r->type == REDIS_REPLY_ERROR) {
+    Drop();
+    return absl::UnavailableError("redis " + host_ + ":" + std::to_string(port_) +
+                                  ": no answer to PING");
+  }
+  return absl::OkStatus();
+}
+
+#define IRFARM_REDIS_CALL(reply, ...)                                     \
+  absl::Status conn = EnsureConnected();                                  \
+  if (!conn.ok()) return conn;                                            \
+  Reply reply(static_cast<redisReply*>(redisCommand(ctx_, __VA_ARGS__))); \
+  if (!reply) {                                                           \
+    const std::string why = ctx_->errstr;                                 \
+    Drop();                                                               \
+    return absl::UnavailableError("redis: " + why);                       \
+  }                                                                       \
+  if (reply->type == REDIS_REPLY_ERROR)                                   \
+    return absl::UnavailableError("redis: " + std::string(reply->str, reply->len));
+
+absl::StatusOr<uint64_t> RedisJobStore::NextJobNumber() {
+  std::lock_guard<std::mutex> lock(mu_);
+  const std::string key = prefix_ + "job_counter";
+  IRFARM_REDIS_CALL(r, "INCR %b", key.data(), key.size());
+  return uint64_t(r->integer);
+}
+
+absl::Status RedisJobStore::PutJob(const v1::StoredJob& job) {
+  std::lock_guard<std::mutex> lock(mu_);
+  const std::string bytes = job.SerializeAsString();
+  const std::string jobs = prefix_ + "jobs", key = prefix_ + "job:" + job.job().id();
+  absl::Status conn = EnsureConnected();
+  if (!conn.ok()) return conn;
+  // MULTI/EXEC: the job and its set membership appear together.
+  redisAppendCommand(ctx_, "MULTI");
+  redisAppendCommand(ctx_, "SET %b %b", key.data(), key.size(), bytes.data(), bytes.size());
+  redisAppendCommand(ctx_, "SADD %b %b", jobs.data(), jobs.size(), job.job().id().data(),
+                     job.job().id().size());
+  redisAppendCommand(ctx_, "EXEC");
+  for (int i = 0; i < 4; ++i) {
+    void* raw = nullptr;
+    if (redisGetReply(ctx_, &raw) != REDIS_OK) {
+      const std::string why = ctx_->errstr;
+      Drop();
+      return absl::UnavailableError("redis: " + why);
+    }
+    Reply r(static_cast<redisReply*>(raw));
+    if (r->type == REDIS_REPLY_ERROR)
+      return absl::UnavailableError("redis: " + std::string(r->str, r->len));
+    if (i == 3 && r->type != REDIS_REPLY_ARRAY)
+      return absl::UnavailableError("redis: transaction aborted");
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<v1::StoredJob>> RedisJobStore::LoadJobs() {
+  std::lock_guard<std::mutex> lock(mu_);
+  const std::string jobs = prefix_ + "jobs";
+  std::vector<std::string> ids;
+  {
+    IRFARM_REDIS_CALL(r, "SMEMBERS %b", jobs.data(), jobs.size());
+    for (size_t i = 0; i < r->elements; ++i)
+      ids.emplace_back(r->element[i]->str, r->element[i]->len);
+  }
+  std::vector<v1::StoredJob> out;
+  for (const std::string& id : ids) {
+    const std::string key = prefix_ + "job:" + id;
+    Reply r(static_cast<redisReply*>(redisCommand(ctx_, "GET %b", key.data(), key.size())));
+    if (!r) {
+      Drop();
+      return absl::UnavailableError("redis: connection lost");
+    }
+    v1::StoredJob job;
+    if (r->type != REDIS_REPLY_STRING || !job.ParseFromArray(r->str, int(r->len)))
+      return absl::DataLossError("redis: job " + id + " is missing or unreadable");
+    out.push_back(std::move(job));
+  }
+  return out;
+}
+
+absl::Status RedisJobStore::PutTile(const std::string& job_id, int tile,
+                                    const std::string& pixels) {
+  std::lock_guard<std::mutex> lock(mu_);
+  const std::string key = prefix_ + "job:" + job_id + ":tiles", field = std::to_string(tile);
+  IRFARM_REDIS_CALL(r, "HSET %b %b %b", key.data(), key.size(), field.data(), field.size(),
+                    pixels.data(), pixels.size());
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::map<int, std::string>> RedisJobStore::LoadTiles(const std::string& job_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  const std::string key = prefix_ + "job:" + job_id + ":tiles";
+  IRFARM_REDIS_CALL(r, "HGETALL %b", key.data(), key.size());
+  std::map<int, std::string> out;
+  for (size_t i = 0; i + 1 < r->elements; i += 2) {
+    const int tile = std::atoi(std::string(r->element[i]->str, r->element[i]->len).c_str());
+    out[tile] = std::string(r->element[i + 1]->str, r->element[i + 1]->len);
+  }
+  return out;
+}
+
+absl::Status RedisJobStore::AppendRecords(const std::string& job_id,
+                                          const std::vector<IrradianceRecord>& records) {
+  if (records.empty()) return absl::OkStatus();
+  v1::RecordBatch batch;
+  PackRecords(records, 0, &batch);
+  const std::string bytes = batch.SerializeAsString();
+  std::lock_guard<std::mutex> lock(mu_);
+  const std::string key = prefix_ + "job:" + job_id + ":records";
+  IRFARM_REDIS_CALL(r, "RPUSH %b %b", key.data(), key.size(), bytes.data(), bytes.size());
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<IrradianceRecord>> RedisJobStore::LoadRecords(
+    const std::string& job_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  const std::string key = prefix_ + "job:" + job_id + ":records";
+  IRFARM_REDIS_CALL(r, "LRANGE %b 0 -1", key.data(), key.size());
+  std::vector<IrradianceRecord> out;
+  for (size_t i = 0; i < r->elements; ++i) {
+    v1::RecordBatch batch;
+    if (!batch.ParseFromArray(r->element[i]->str, int(r->element[i]->len)))
+      return absl::DataLossError("redis: record batch " + std::to_string(i) + " of " + job_id +
+                                 " is unreadable");
+    absl::StatusOr<std::vector<IrradianceRecord>> recs = DecodeRecords(batch);
+    if (!recs.ok()) return absl::DataLossError(recs.status().message());
+    out.insert(out.end(), recs->begin(), recs->end());  // the caller validates each record
+  }
+  return out;
+}
+
+}  // namespace irfarm

@@ -1,0 +1,120 @@
+// Scene bundles: building, checking and writing them (see scene_bundle.h).
+#include "service/scene_bundle.h"
+
+#include <pugixml.hpp>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <vector>
+
+#include "absl/strings/str_split.h"
+
+namespace irfarm {
+namespace fs = std::filesystem;
+
+namespace {
+
+absl::StatusOr<std::string> ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(path + ": cannot open");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+void CollectFilenames(const pugi::xml_node& node, std::set<std::string>* out) {
+  for (const pugi::xml_node& c : node.children()) {
+    if (std::string(c.name()) == "string" && std::string(c.attribute("name").value()) == "filename")
+      out->insert(c.attribute("value").value());
+    CollectFilenames(c, out);
+  }
+}
+
+}  // namespace
+
+absl::Status CheckBundlePath(const std::string& path) {
+  const auto bad = [&](const std::string& why) {
+    return absl::InvalidArgumentError("bundle path '" + path + "' " + why);
+  };
+  if (path.empty()) return bad("is empty");
+  if (path[0] == '/') return bad("is absolute (paths must stay inside the bundle)");
+  if (path.find('\\') != std::string::npos || path.find('\0') != std::string::npos)
+    return bad("contains a backslash or NUL");
+  for (const absl::string_view part : absl::StrSplit(path, '/')) {
+    if (part == "..") return bad("leaves the bundle ('..')");
+    if (part.empty() || part == ".") return bad("has an empty or '.' component");
+  }
+  return absl::OkStatus();
+}
+
+size_t BundleBytes(const v1::SceneBundle& bundle) {
+  size_t n = 0;
+  for (const v1::BundleFile& f : bundle.files()) n += f.content().size() + f.path().size();
+  return n;
+}
+
+absl::StatusOr<v1::SceneBundle> MakeBundle(const std::string& scene_path) {
+  absl::StatusOr<std::string> xml = ReadFile(scene_path);
+  if (!xml.ok()) return xml.status();
+  v1::SceneBundle bundle;
+  bundle.set_main_file("scene.xml");
+  v1::BundleFile* main = bundle.add_files();
+  main->set_path("scene.xml");
+  main->set_content(*xml);
+  pugi::xml_document doc;
+  if (!doc.load_string(xml->c_str())) return bundle;  // the coordinator reports where it fails
+  std::set<std::string> names;
+  CollectFilenames(doc, &names);
+  const fs::path folder = fs::path(scene_path).parent_path();
+  for (const std::string& name : names) {
+    if (name.find('$') != std::string::npos) continue;  // a parameter: cannot resolve here
+    absl::Status st = CheckBundlePath(fs::path(name).lexically_normal().string());
+    if (!st.ok()) return st;
+    absl::StatusOr<std::string> content = ReadFile((folder / name).string());
+    if (!content.ok()) return content.status();
+    v1::BundleFile* f = bundle.add_files();
+    f->set_path(fs::path(name).lexically_normal().string());
+    f->set_content(*content);
+  }
+  return bundle;
+}
+
+absl::StatusOr<std::string> WriteBundle(const v1::SceneBundle& bundle, const std::string& dir) {
+  const std::string main = bundle.main_file().empty() ? "scene.xml" : bundle.main_file();
+  absl::Status st = CheckBundlePath(main);
+  if (!st.ok()) return st;
+  bool has_main = false;
+  for (const v1::BundleFile& f : bundle.files()) {
+    st = CheckBundlePath(f.path());
+    if (!st.ok()) return st;
+    has_main |= f.path() == main;
+  }
+  if (!has_main) return absl::InvalidArgumentError("bundle has no main file '" + main + "'");
+  std::error_code ec;
+  for (const v1::BundleFile& f : bundle.files()) {
+    const fs::path p = fs::path(dir) / f.path();
+    fs::create_directories(p.parent_path(), ec);
+    std::ofstream out(p, std::ios::binary | std::ios::trunc);
+    out.write(f.content().data(), std::streamsize(f.content().size()));
+    if (!out) return absl::InternalError(p.string() + ": cannot write");
+  }
+  return (fs::path(dir) / main).string();
+}
+
+absl::StatusOr<std::string> MakeTempDir(const std::string& prefix) {
+  std::string templ = (fs::temp_directory_path() / (prefix + "XXXXXX")).string();
+  std::vector<char> buf(templ.begin(), templ.end());
+  buf.push_back('\0');
+  if (mkdtemp(buf.data()) == nullptr) return absl::InternalError("mkdtemp failed for " + templ);
+  return std::string(buf.data());
+}
+
+void RemoveTree(const std::string& dir) {
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+}
+
+}  // namespace irfarm

@@ -1,0 +1,36 @@
+// Scene bundles: a scene.xml and the files it references, uploaded with a job. Builds a bundle
+// from a scene file on disk (the client side), checks every path stays inside the bundle, and
+// writes a bundle into a folder (coordinator and worker side) so the scene loader can read it.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "irfarm/v1/common.pb.h"
+
+namespace irfarm {
+
+// OK when `path` is a relative path inside the bundle: not empty, not absolute, no "..", "." or
+// empty components, no backslash or NUL. INVALID_ARGUMENT naming the path otherwise.
+absl::Status CheckBundlePath(const std::string& path);
+
+// Total bytes of the bundle's file contents.
+size_t BundleBytes(const v1::SceneBundle& bundle);
+
+// The scene file plus every file it names (<string name="filename" value="..."/>), relative to
+// its folder. Errors: the scene or a referenced file cannot be read (NOT_FOUND), or a referenced
+// file lies outside the scene's folder (INVALID_ARGUMENT).
+absl::StatusOr<v1::SceneBundle> MakeBundle(const std::string& scene_path);
+
+// Checks every path, then writes the files under `dir` (created if needed). Returns the path of
+// the main scene file. INVALID_ARGUMENT for a bad path or a missing main file.
+absl::StatusOr<std::string> WriteBundle(const v1::SceneBundle& bundle, const std::string& dir);
+
+// A fresh private temporary directory (mkdtemp) whose name starts with `prefix`.
+absl::StatusOr<std::string> MakeTempDir(const std::string& prefix);
+// Removes `dir` and everything under it; errors are ignored (best-effort clean-up).
+void RemoveTree(const std::string& dir);
+
+}  // namespace irfarm

@@ -1,0 +1,85 @@
+// SceneHash: FNV-1a over the record-relevant parts of a SceneDesc (see scene_hash.h).
+#include "service/scene_hash.h"
+
+#include <cstring>
+#include <string>
+
+namespace irfarm {
+namespace {
+
+class Hasher {
+ public:
+  void Bytes(const void* data, size_t n) {
+    const unsigned char* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < n; ++i) h_ = (h_ ^ p[i]) * 1099511628211ull;
+  }
+  template <typename T>
+  void Pod(const T& v) {
+    Bytes(&v, sizeof(T));
+  }
+  void Str(const std::string& s) {
+    Pod(s.size());
+    Bytes(s.data(), s.size());
+  }
+  void V(const Vec3& v) {
+    Pod(v.x);
+    Pod(v.y);
+    Pod(v.z);
+  }
+  uint64_t value() const { return h_; }
+
+ private:
+  uint64_t h_ = 1469598103934665603ull;
+};
+
+}  // namespace
+
+uint64_t SceneHash(const SceneDesc& desc) {
+  Hasher h;
+  h.Pod(desc.integrator.max_depth);
+  h.Pod(desc.integrator.rr_depth);
+  for (const TextureDesc& t : desc.textures) {
+    h.Str(t.filename.substr(t.filename.find_last_of('/') + 1));
+    h.Pod(t.raw);
+  }
+  for (const BsdfDesc& b : desc.bsdfs) {
+    h.Pod(int(b.type));
+    h.Pod(b.twosided);
+    h.V(b.reflectance.value);
+    h.Pod(b.reflectance.texture);
+    h.V(b.specular_reflectance);
+    h.V(b.specular_transmittance);
+    h.Pod(b.int_ior);
+    h.Pod(b.ext_ior);
+  }
+  for (const ShapeDesc& s : desc.shapes) {
+    h.Pod(int(s.type));
+    h.Pod(s.mesh.positions.size());
+    for (const Vec3& p : s.mesh.positions) h.V(p);
+    for (const Vec3& n : s.mesh.normals) h.V(n);
+    h.Pod(s.mesh.indices.size());
+    if (!s.mesh.indices.empty())
+      h.Bytes(s.mesh.indices.data(), s.mesh.indices.size() * sizeof(uint32_t));
+    h.V(s.center);
+    h.Pod(s.radius);
+    h.Pod(s.flip_normals);
+    h.Pod(s.bsdf);
+    h.Pod(s.area_radiance.has_value());
+    if (s.area_radiance) h.V(*s.area_radiance);
+  }
+  for (const EmitterDesc& e : desc.emitters) {
+    h.Pod(int(e.type));
+    h.V(e.position);
+    h.V(e.direction);
+    h.V(e.intensity);
+    h.V(e.irradiance);
+    h.V(e.radiance);
+    h.Pod(e.cutoff_angle_deg);
+    h.Pod(e.beam_width_deg);
+    h.Str(e.filename.substr(e.filename.find_last_of('/') + 1));
+    h.Pod(e.scale);
+  }
+  return h.value();
+}
+
+}  // namespace irfarm

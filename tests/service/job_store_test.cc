@@ -1,0 +1,134 @@
+// One test suite run against both JobStore implementations: InMemoryJobStore, and RedisJobStore
+// on a real redis-server started here on a free 127.0.0.1 port with a temp dir (and stopped).
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <thread>
+
+#include "coordinator/in_memory_job_store.h"
+#include "coordinator/redis_job_store.h"
+#include "service/scene_bundle.h"
+
+namespace irfarm {
+namespace {
+
+int FreePort() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  socklen_t len = sizeof a;
+  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+  close(fd);
+  return ntohs(a.sin_port);
+}
+
+// A redis-server child process for one test.
+class RedisServer {
+ public:
+  RedisServer() {
+    dir_ = *MakeTempDir("irfarm-redis-test-");
+    port_ = FreePort();
+    pid_ = fork();
+    if (pid_ == 0) {
+      const std::string port = std::to_string(port_);
+      execlp("redis-server", "redis-server", "--port", port.c_str(), "--bind", "127.0.0.1", "--dir",
+             dir_.c_str(), "--save", "", "--appendonly", "no", "--logfile",
+             (dir_ + "/redis.log").c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  ~RedisServer() {
+    if (pid_ > 0) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+    RemoveTree(dir_);
+  }
+  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+
+ private:
+  std::string dir_;
+  int port_ = 0;
+  pid_t pid_ = -1;
+};
+
+class JobStoreTest : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override {
+    if (GetParam() == "memory") {
+      store_ = std::make_unique<InMemoryJobStore>();
+      return;
+    }
+    redis_ = std::make_unique<RedisServer>();
+    for (int i = 0; i < 100 && !store_; ++i) {
+      absl::StatusOr<std::unique_ptr<RedisJobStore>> s = RedisJobStore::Connect(redis_->address());
+      if (s.ok()) {
+        store_ = std::move(*s);
+      } else {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      }
+    }
+    ASSERT_TRUE(store_) << "redis-server did not start";
+  }
+  std::unique_ptr<RedisServer> redis_;
+  std::unique_ptr<JobStore> store_;
+};
+
+TEST_P(JobStoreTest, JobNumbersCountUp) {
+  EXPECT_EQ(*store_->NextJobNumber(), 1u);
+  EXPECT_EQ(*store_->NextJobNumber(), 2u);
+}
+
+TEST_P(JobStoreTest, JobsRoundTripAndReplace) {
+  v1::StoredJob job;
+  job.mutable_job()->set_id("job-1");
+  job.mutable_job()->set_state(v1::JOB_STATE_QUEUED);
+  job.mutable_scene()->set_path("/x/scene.xml");
+  ASSERT_TRUE(store_->PutJob(job).ok());
+  job.mutable_job()->set_state(v1::JOB_STATE_RUNNING);
+  ASSERT_TRUE(store_->PutJob(job).ok());
+  std::vector<v1::StoredJob> jobs = *store_->LoadJobs();
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].job().state(), v1::JOB_STATE_RUNNING);
+  EXPECT_EQ(jobs[0].scene().path(), "/x/scene.xml");
+}
+
+TEST_P(JobStoreTest, TilesAndRecordsRoundTrip) {
+  ASSERT_TRUE(store_->PutTile("job-1", 3, std::string("\0\1\2", 3)).ok());
+  ASSERT_TRUE(store_->PutTile("job-1", 5, "abc").ok());
+  std::map<int, std::string> tiles = *store_->LoadTiles("job-1");
+  ASSERT_EQ(tiles.size(), 2u);
+  EXPECT_EQ(tiles[3], std::string("\0\1\2", 3));
+  EXPECT_TRUE(store_->LoadTiles("job-2")->empty());
+  IrradianceRecord r;
+  r.position = Vec3(1, 2, 3);
+  r.normal = Vec3(0, 0, 1);
+  r.irradiance = Vec3(0.5f);
+  r.radius = 0.25f;
+  r.origin = 7;
+  ASSERT_TRUE(store_->AppendRecords("job-1", {r, r}).ok());
+  r.origin = 8;
+  ASSERT_TRUE(store_->AppendRecords("job-1", {r}).ok());
+  std::vector<IrradianceRecord> recs = *store_->LoadRecords("job-1");
+  ASSERT_EQ(recs.size(), 3u);
+  EXPECT_EQ(recs[0].origin, 7u);
+  EXPECT_EQ(recs[2].origin, 8u);
+  EXPECT_EQ(recs[1].position.y, 2.0f);
+}
+
+INSTANTIATE_TEST_SUITE_P(Stores, JobStoreTest, ::testing::Values("memory", "redis"));
+
+TEST(RedisJobStoreTest, RedisDownIsUnavailable) {
+  absl::StatusOr<std::unique_ptr<RedisJobStore>> s =
+      RedisJobStore::Connect("127.0.0.1:" + std::to_string(FreePort()));
+  EXPECT_EQ(s.status().code(), absl::StatusCode::kUnavailable);
+}
+
+}  // namespace
+}  // namespace irfarm

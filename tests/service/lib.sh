@@ -1,0 +1,61 @@
+# Helpers for the multi-process service tests: free loopback ports, starting and stopping a real
+# irfarm-coordinator and irfarm-worker processes, waiting on jobs, reading numbers from JSON.
+# Every process started here is recorded and killed (by pid) when the test script exits.
+set -euo pipefail
+
+BIN=${BIN:?set BIN to the build directory}
+DATA=${DATA:?set DATA to tests/data}
+WORK=$(mktemp -d /tmp/irfarm-svc-test.XXXXXX)
+PIDS=()
+
+cleanup() {
+  for pid in "${PIDS[@]}"; do kill -9 "$pid" 2>/dev/null || true; done
+  for pid in "${PIDS[@]}"; do wait "$pid" 2>/dev/null || true; done
+  rm -rf "$WORK"
+}
+trap cleanup EXIT
+
+fail() { echo "FAIL: $*" >&2; for f in "$WORK"/*.log; do echo "--- $f"; tail -20 "$f"; done >&2; exit 1; }
+
+free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
+
+# start_coordinator ADDR [args...]: starts it and waits until it answers.
+start_coordinator() {
+  local addr=$1; shift
+  "$BIN/irfarm-coordinator" --listen "$addr" "$@" >>"$WORK/coordinator.log" 2>&1 &
+  COORD_PID=$!
+  PIDS+=("$COORD_PID")
+  for _ in $(seq 100); do
+    "$BIN/irfarm" status --coordinator "$addr" >/dev/null 2>&1 && return 0
+    sleep 0.1
+  done
+  fail "coordinator did not come up on $addr"
+}
+
+# start_worker ADDR NAME: sets LAST_WORKER_PID.
+start_worker() {
+  "$BIN/irfarm-worker" --coordinator "$1" --threads 1 --name "$2" >>"$WORK/$2.log" 2>&1 &
+  LAST_WORKER_PID=$!
+  PIDS+=("$LAST_WORKER_PID")
+}
+
+# job_field ADDR JOB PYEXPR: evaluates PYEXPR with j = the job's JSON (irfarm status --json).
+job_field() {
+  "$BIN/irfarm" status --coordinator "$1" "$2" --json | python3 -c "import json,sys; j=json.load(sys.stdin); print($3)"
+}
+
+# wait_job ADDR JOB TIMEOUT_S: waits for a final state; prints it.
+wait_job() {
+  local end=$((SECONDS + $3)) state
+  while ((SECONDS < end)); do
+    state=$(job_field "$1" "$2" "j['state']")
+    case $state in *SUCCEEDED|*FAILED|*CANCELLED) echo "$state"; return 0 ;; esac
+    sleep 0.2
+  done
+  fail "job $2 did not finish in $3 s"
+}
+
+relmse() { "$BIN/irfarm" compare "$1" "$2" | python3 -c 'import json,sys; print(json.load(sys.stdin)["relmse"])'; }
+computed() { python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["records"]["computed"])' "$1"; }
+# check "description" PYTHON_BOOL_EXPR
+check() { python3 -c "import sys; sys.exit(0 if ($2) else 1)" || fail "$1: $2"; echo "ok: $1 ($2)"; }

@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# Two-process integration test: a real coordinator and two real workers on 127.0.0.1 render the
+# Cornell box at 64x64 (16 tiles of 16 px). Checks against single-process `irfarm render` runs:
+#  - the image matches within measured noise (tolerance = 3x the relMSE of two single-process
+#    renders with different seeds, both against the 64x64 reference);
+#  - each worker received the other's records and used them in lookups;
+#  - records computed by both workers <= 1.15x the single-process render's;
+#  - with sharing off, prints how many more records are computed;
+#  - snapshot export then import: the warm job computes <= 10% of the first job's records, and a
+#    snapshot of another scene is refused (submit and local render).
+source "$(dirname "$0")/lib.sh"
+SCENE=$DATA/scenes/cornell-box/scene.xml
+REF=$DATA/scenes/cornell-box/reference-x4.exr
+OPTS=(-Dresx=64 -Dresy=64)
+
+"$BIN/irfarm" render "$SCENE" "${OPTS[@]}" --threads 2 -q -o "$WORK/local0.exr" --stats "$WORK/local0.json"
+"$BIN/irfarm" render "$SCENE" "${OPTS[@]}" --threads 2 -q --seed 1 -o "$WORK/local1.exr" --stats "$WORK/local1.json"
+L0=$(relmse "$WORK/local0.exr" "$REF"); L1=$(relmse "$WORK/local1.exr" "$REF")
+LOCAL_REC=$(computed "$WORK/local0.json")
+TOL=$(python3 -c "print(3 * max($L0, $L1))")
+echo "single-process relMSE vs reference: seed0 $L0 seed1 $L1 -> tolerance $TOL; records $LOCAL_REC"
+
+ADDR=127.0.0.1:$(free_port)
+start_coordinator "$ADDR"
+start_worker "$ADDR" w1
+start_worker "$ADDR" w2
+
+# Shared records.
+JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" "${OPTS[@]}" --tile-size 16 -q)
+STATE=$(wait_job "$ADDR" "$JOB" 120)
+check "shared job succeeded" "'$STATE' == 'JOB_STATE_SUCCEEDED'"
+"$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$WORK/dist.exr"
+D=$(relmse "$WORK/dist.exr" "$REF")
+echo "MEASURED two-worker relMSE vs reference: $D (single-process $L0 / $L1)"
+check "two-worker image within noise" "$D <= $TOL"
+"$BIN/irfarm" status --coordinator "$ADDR" "$JOB" --json > "$WORK/job.json"
+python3 - "$WORK/job.json" "$LOCAL_REC" <<'PY' || fail "worker stats"
+import json, sys
+j = json.load(open(sys.argv[1])); local = int(sys.argv[2])
+ws = j["workers"]
+assert len(ws) == 2, ws
+total = sum(int(w["recordsComputed"]) for w in ws)
+for w in ws:
+    print("worker %s: tiles %d computed %s received %s remote-used %s sent %s B recv %s B" % (
+        w["workerName"], w["tiles"], w["recordsComputed"], w["recordsReceived"],
+        w["remoteRecordsUsed"], w["bytesSent"], w["bytesReceived"]))
+    assert int(w["recordsReceived"]) > 0, "worker received no records"
+    assert int(w["remoteRecordsUsed"]) > 0, "worker used no received record"
+print("MEASURED records computed: two workers %d, single process %d, ratio %.3f" % (total, local, total / local))
+assert total <= 1.15 * local, "too many records computed"
+print("ok: worker stats")
+PY
+SHARED_TOTAL=$(job_field "$ADDR" "$JOB" "sum(int(w['recordsComputed']) for w in j['workers'])")
+
+# Sharing off: how many more records.
+JOB2=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" "${OPTS[@]}" --tile-size 16 --no-share -q)
+wait_job "$ADDR" "$JOB2" 120 >/dev/null
+NOSHARE_TOTAL=$(job_field "$ADDR" "$JOB2" "sum(int(w['recordsComputed']) for w in j['workers'])")
+echo "MEASURED records computed without sharing: $NOSHARE_TOTAL vs $SHARED_TOTAL shared ($(python3 -c "print('%.2fx' % ($NOSHARE_TOTAL / $SHARED_TOTAL))"))"
+
+# Snapshot export -> import warm start.
+"$BIN/irfarm" snapshot --coordinator "$ADDR" "$JOB" -o "$WORK/cache.snap"
+JOB3=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" "${OPTS[@]}" --tile-size 16 --cache-in "$WORK/cache.snap" -q)
+wait_job "$ADDR" "$JOB3" 120 >/dev/null
+WARM_TOTAL=$(job_field "$ADDR" "$JOB3" "sum(int(w['recordsComputed']) for w in j['workers'])")
+echo "MEASURED warm-start records computed: $WARM_TOTAL vs $SHARED_TOTAL cold ($(python3 -c "print('%.3f' % ($WARM_TOTAL / $SHARED_TOTAL))"))"
+check "warm start computes <= 10%" "$WARM_TOTAL <= 0.10 * $SHARED_TOTAL"
+"$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB3" -o "$WORK/warm.exr"
+W=$(relmse "$WORK/warm.exr" "$REF")
+check "warm-start image within noise ($W)" "$W <= $TOL"
+"$BIN/irfarm" render "$SCENE" "${OPTS[@]}" --threads 2 -q --cache-in "$WORK/cache.snap" -o "$WORK/local-warm.exr" --stats "$WORK/local-warm.json"
+check "local render --cache-in computes <= 10%" "$(computed "$WORK/local-warm.json") <= 0.10 * $LOCAL_REC"
+OTHER=$DATA/scenes/specular/scene.xml
+if "$BIN/irfarm" submit --coordinator "$ADDR" "$OTHER" --cache-in "$WORK/cache.snap" -q 2>"$WORK/refused.txt"; then
+  fail "snapshot of another scene accepted"
+fi
+grep -q "another scene" "$WORK/refused.txt" || fail "unclear refusal: $(cat "$WORK/refused.txt")"
+if "$BIN/irfarm" render "$OTHER" -Dresx=16 -Dresy=16 -q --cache-in "$WORK/cache.snap" -o "$WORK/x.exr" 2>"$WORK/refused2.txt"; then
+  fail "local render accepted a snapshot of another scene"
+fi
+grep -q "another scene" "$WORK/refused2.txt" || fail "unclear refusal: $(cat "$WORK/refused2.txt")"
+echo "ok: snapshot of another scene refused: $(cat "$WORK/refused.txt")"
+echo PASS

@@ -1,0 +1,71 @@
+// JobContext: per-job scene, settings and local cache of a worker (see job_context.h).
+#include "worker/job_context.h"
+
+#include <algorithm>
+
+#include "service/job_settings.h"
+#include "service/scene_bundle.h"
+
+namespace irfarm {
+
+absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec& spec,
+                                                               int threads) {
+  std::unique_ptr<JobContext> c(new JobContext());
+  c->job_id_ = spec.job_id();
+  std::string scene_path = spec.scene().path();
+  if (spec.scene().has_bundle()) {
+    absl::StatusOr<std::string> dir = MakeTempDir("irfarm-worker-" + spec.job_id() + "-");
+    if (!dir.ok()) return dir.status();
+    c->dir_ = *dir;
+    absl::StatusOr<std::string> main = WriteBundle(spec.scene().bundle(), c->dir_);
+    if (!main.ok()) return main.status();
+    scene_path = *main;
+  }
+  absl::StatusOr<SceneDesc> desc = LoadJobScene(scene_path, spec.settings());
+  if (!desc.ok()) return desc.status();
+  absl::StatusOr<RenderSettings> settings = MakeRenderSettings(*desc, spec.settings(), threads);
+  if (!settings.ok()) return settings.status();
+  c->settings_ = *settings;
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
+  if (!scene.ok()) return scene.status();
+  c->scene_ = std::move(*scene);
+  c->cache_ = std::make_unique<IrradianceCache>(CacheSettingsFor(*c->scene_, c->settings_));
+  return c;
+}
+
+JobContext::~JobContext() {
+  if (!dir_.empty()) RemoveTree(dir_);
+}
+
+size_t JobContext::InsertRemote(const std::vector<IrradianceRecord>& records) {
+  size_t n = 0;
+  for (IrradianceRecord r : records) {
+    if (!IsValidRecord(r)) continue;
+    if (r.origin == 0) r.origin = kUnknownRemoteOrigin;
+    cache_->Insert(r);
+    ++n;
+  }
+  received_since_ += n;
+  return n;
+}
+
+std::vector<IrradianceRecord> JobContext::TakeNewOwnRecords(size_t max) {
+  std::lock_guard<std::mutex> lock(publish_mu_);
+  // ForEach sees a consistent newest-first list; own records not yet published are the first
+  // (own_total - own_published_) records with origin 0 in it.
+  std::vector<IrradianceRecord> own;
+  cache_->ForEach([&](const IrradianceRecord& r) {
+    if (r.origin == 0) own.push_back(r);
+  });
+  if (own.size() <= own_published_) return {};
+  const size_t fresh = own.size() - own_published_;
+  const size_t take = std::min(fresh, max);
+  // Oldest unpublished first: they sit at indices [fresh - take, fresh) in newest-first order.
+  std::vector<IrradianceRecord> out(own.begin() + std::ptrdiff_t(fresh - take),
+                                    own.begin() + std::ptrdiff_t(fresh));
+  std::reverse(out.begin(), out.end());
+  own_published_ += take;
+  return out;
+}
+
+}  // namespace irfarm

@@ -1,0 +1,53 @@
+// JobContext: what a worker keeps per job while it renders the job's tiles: the scene (the bundle
+// written to a private temp dir, loaded and built once), the render settings and the local
+// IrradianceCache that holds the worker's own records (origin 0) and those received from other
+// workers (origin = the sender's id). Knows which of its own records it has not published yet.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "cache/irradiance_cache.h"
+#include "irfarm/v1/worker.pb.h"
+#include "render/renderer.h"
+#include "render/scene.h"
+
+namespace irfarm {
+
+// `origin` for received records that carry none (never 0: 0 means "computed here").
+constexpr uint32_t kUnknownRemoteOrigin = 0xfffffffeu;
+
+class JobContext {
+ public:
+  // Writes the bundle (if any) to a temp dir, loads and builds the scene.
+  static absl::StatusOr<std::unique_ptr<JobContext>> Create(const v1::JobSpec& spec, int threads);
+  ~JobContext();
+
+  const std::string& job_id() const { return job_id_; }
+  const Scene& scene() const { return *scene_; }
+  const RenderSettings& settings() const { return settings_; }
+  IrradianceCache* cache() const { return cache_.get(); }
+
+  // Inserts other workers' records (validated); returns how many were inserted.
+  size_t InsertRemote(const std::vector<IrradianceRecord>& records);
+  // Own records (origin 0) computed since the last call, oldest first, at most `max` of them.
+  std::vector<IrradianceRecord> TakeNewOwnRecords(size_t max);
+  // Records received since the last call (for the next tile's stats).
+  uint64_t TakeReceivedCount() { return received_since_.exchange(0); }
+
+ private:
+  JobContext() = default;
+  std::string job_id_, dir_;
+  std::unique_ptr<Scene> scene_;
+  RenderSettings settings_;
+  std::unique_ptr<IrradianceCache> cache_;
+  std::mutex publish_mu_;
+  size_t own_published_ = 0;  // own records already taken by TakeNewOwnRecords
+  std::atomic<uint64_t> received_since_{0};
+};
+
+}  // namespace irfarm

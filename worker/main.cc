@@ -1,0 +1,44 @@
+// irfarm-worker: renders tiles for an irfarm coordinator (see worker/worker.h). SIGTERM/SIGINT:
+// finish the current tile, report it, then exit.
+#include <signal.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+#include <CLI/CLI.hpp>
+
+#include <thread>
+
+#include "worker/worker.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"irfarm-worker: renders tiles leased by an irfarm coordinator"};
+  irfarm::WorkerOptions options;
+  int flush_ms = 50;
+  app.add_option("--coordinator", options.coordinator, "coordinator address (127.0.0.1:50051)");
+  app.add_option("--threads", options.threads, "render threads (default: all cores)");
+  app.add_option("--name", options.name, "name shown in job stats (default: host:pid)");
+  app.add_option("--flush-ms", flush_ms, "publish new records at least this often (50)");
+  CLI11_PARSE(app, argc, argv);
+  options.flush_interval = std::chrono::milliseconds(flush_ms);
+  if (options.name.empty()) {
+    char host[256] = "worker";
+    gethostname(host, sizeof host - 1);
+    options.name = std::string(host) + ":" + std::to_string(getpid());
+  }
+
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  irfarm::Worker worker(options);
+  std::thread signal_thread([&] {
+    int sig = 0;
+    sigwait(&signals, &sig);
+    spdlog::info("signal {}: finishing the current tile, then exiting", sig);
+    worker.Stop();
+  });
+  const int code = worker.Run();
+  signal_thread.detach();
+  return code;
+}

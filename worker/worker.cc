@@ -1,0 +1,228 @@
+// Worker: session loop, tile rendering, record publishing, reconnects (see worker.h).
+#include "worker/worker.h"
+
+#include <grpcpp/grpcpp.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <thread>
+
+#include "service/record_codec.h"
+
+namespace irfarm {
+namespace {
+
+// State shared by a session's reader, publisher and render threads.
+struct SessionState {
+  std::mutex mu;
+  std::condition_variable cv;
+  std::deque<v1::TileLease> leases;
+  std::map<std::string, std::shared_ptr<JobContext>> jobs;
+  std::map<std::string, std::string> failed_jobs;  // job id -> why its scene did not load
+  bool broken = false;
+  uint32_t worker_id = 0;
+  std::mutex write_mu;  // one writer at a time on the stream
+};
+
+}  // namespace
+
+void Worker::Stop() {
+  stop_ = true;
+  stop_cv_.notify_all();
+}
+
+int Worker::Run() {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(256 << 20);
+  // Reconnect quickly after a coordinator restart (gRPC's default starts at 1 s and grows 1.6x).
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
+  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 100);
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
+  std::shared_ptr<grpc::Channel> channel =
+      grpc::CreateCustomChannel(options_.coordinator, grpc::InsecureChannelCredentials(), args);
+  std::unique_ptr<v1::WorkerService::Stub> stub = v1::WorkerService::NewStub(channel);
+  auto backoff = std::chrono::milliseconds(250);
+  while (!stop_) {
+    // Wait for a connection in short steps, so that a stop request is seen promptly.
+    if (!channel->WaitForConnected(std::chrono::system_clock::now() +
+                                   std::chrono::milliseconds(500)))
+      continue;
+    const auto start = std::chrono::steady_clock::now();
+    RunSession(stub.get());
+    if (stop_) break;
+    if (std::chrono::steady_clock::now() - start > std::chrono::seconds(10))
+      backoff = std::chrono::milliseconds(250);  // it was up for a while: retry soon
+    spdlog::warn("coordinator {} unreachable; retrying in {} ms", options_.coordinator,
+                 backoff.count());
+    std::unique_lock<std::mutex> lock(stop_mu_);
+    stop_cv_.wait_for(lock, backoff, [&] { return stop_.load(); });
+    backoff = std::min(backoff * 2, std::chrono::milliseconds(10000));
+  }
+  return 0;
+}
+
+void Worker::RunSession(v1::WorkerService::Stub* stub) {
+  grpc::ClientContext context;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::WorkerMessage, v1::CoordinatorMessage>> stream =
+      stub->Session(&context);
+  SessionState s;
+  {
+    v1::WorkerMessage reg;
+    reg.mutable_register_()->set_name(options_.name);
+    reg.mutable_register_()->set_threads(options_.threads);
+    v1::CoordinatorMessage reply;
+    if (!stream->Write(reg) || !stream->Read(&reply) || !reply.has_registered()) {
+      context.TryCancel();
+      stream->Finish();
+      return;
+    }
+    s.worker_id = reply.registered().worker_id();
+    spdlog::info("registered with {} as worker {}", options_.coordinator, s.worker_id);
+  }
+  const auto write = [&](const v1::WorkerMessage& m) {
+    std::lock_guard<std::mutex> lock(s.write_mu);
+    return stream->Write(m);
+  };
+
+  std::thread reader([&] {
+    v1::CoordinatorMessage m;
+    while (stream->Read(&m)) {
+      if (m.has_job_spec()) {
+        absl::StatusOr<std::unique_ptr<JobContext>> job =
+            JobContext::Create(m.job_spec(), options_.threads);
+        std::lock_guard<std::mutex> lock(s.mu);
+        if (job.ok()) {
+          s.jobs[m.job_spec().job_id()] = std::move(*job);
+        } else {
+          spdlog::error("job {}: {}", m.job_spec().job_id(), job.status().ToString());
+          s.failed_jobs[m.job_spec().job_id()] = std::string(job.status().message());
+        }
+      } else if (m.has_records()) {
+        std::shared_ptr<JobContext> job;
+        {
+          std::lock_guard<std::mutex> lock(s.mu);
+          auto it = s.jobs.find(m.records().job_id());
+          if (it != s.jobs.end()) job = it->second;
+        }
+        absl::StatusOr<std::vector<IrradianceRecord>> recs = DecodeRecords(m.records().batch());
+        if (job && recs.ok()) job->InsertRemote(*recs);
+      } else if (m.has_lease()) {
+        std::lock_guard<std::mutex> lock(s.mu);
+        s.leases.push_back(m.lease());
+        s.cv.notify_all();
+      } else if (m.has_job_closed()) {
+        std::lock_guard<std::mutex> lock(s.mu);
+        s.jobs.erase(m.job_closed().job_id());  // a tile in progress keeps its shared_ptr
+      } else if (m.has_drain()) {
+        Stop();
+      }
+    }
+    std::lock_guard<std::mutex> lock(s.mu);
+    s.broken = true;
+    s.cv.notify_all();
+  });
+
+  // Publisher: new own records of every job, at least every flush_interval; heartbeats.
+  std::atomic<bool> session_done{false};
+  const auto publish_all = [&] {
+    std::vector<std::shared_ptr<JobContext>> jobs;
+    {
+      std::lock_guard<std::mutex> lock(s.mu);
+      for (auto& [id, j] : s.jobs) jobs.push_back(j);
+    }
+    for (const std::shared_ptr<JobContext>& j : jobs) {
+      for (;;) {
+        std::vector<IrradianceRecord> recs = j->TakeNewOwnRecords(options_.max_batch_records);
+        if (recs.empty()) break;
+        v1::WorkerMessage m;
+        m.mutable_records()->set_job_id(j->job_id());
+        PackRecords(recs, s.worker_id, m.mutable_records()->mutable_batch());
+        if (!write(m)) return;
+      }
+    }
+  };
+  std::thread publisher([&] {
+    auto last_heartbeat = std::chrono::steady_clock::now();
+    while (!session_done) {
+      std::this_thread::sleep_for(options_.flush_interval);
+      publish_all();
+      if (std::chrono::steady_clock::now() - last_heartbeat > std::chrono::seconds(5)) {
+        v1::WorkerMessage hb;
+        hb.mutable_heartbeat();
+        write(hb);
+        last_heartbeat = std::chrono::steady_clock::now();
+      }
+    }
+  });
+
+  // Render loop (this thread).
+  for (;;) {
+    v1::TileLease lease;
+    std::shared_ptr<JobContext> job;
+    std::string failure;
+    {
+      std::unique_lock<std::mutex> lock(s.mu);
+      s.cv.wait_for(lock, std::chrono::milliseconds(200),
+                    [&] { return !s.leases.empty() || s.broken || stop_; });
+      if (s.broken || stop_) break;
+      if (s.leases.empty()) continue;
+      lease = s.leases.front();
+      s.leases.pop_front();
+      auto it = s.jobs.find(lease.job_id());
+      if (it != s.jobs.end()) job = it->second;
+      auto f = s.failed_jobs.find(lease.job_id());
+      failure = f != s.failed_jobs.end() ? f->second : "job spec not received";
+    }
+    if (!job) {
+      v1::WorkerMessage m;
+      v1::TileFailed* tf = m.mutable_tile_failed();
+      tf->set_job_id(lease.job_id());
+      tf->set_tile_index(lease.tile_index());
+      tf->set_lease_id(lease.lease_id());
+      tf->set_reason(failure);
+      write(m);
+      continue;
+    }
+    const PixelRect rect{lease.rect().x0(), lease.rect().y0(), lease.rect().x1(),
+                         lease.rect().y1()};
+    RenderOutput out = RenderRect(job->scene(), job->settings(), job->cache(), rect);
+    publish_all();  // the tile's records go out before its result
+    v1::WorkerMessage m;
+    v1::TileResult* tr = m.mutable_tile_result();
+    tr->set_job_id(lease.job_id());
+    tr->set_tile_index(lease.tile_index());
+    tr->set_lease_id(lease.lease_id());
+    *tr->mutable_rect() = lease.rect();
+    tr->mutable_pixels()->Reserve(int(out.image.pixels.size() * 3));
+    for (const Vec3& p : out.image.pixels) {
+      tr->add_pixels(p.x);
+      tr->add_pixels(p.y);
+      tr->add_pixels(p.z);
+    }
+    const RenderCounters& c = out.stats.counters;
+    v1::TileStats* ts = tr->mutable_stats();
+    ts->set_records_computed(c.records_computed);
+    ts->set_lookups(c.lookups);
+    ts->set_lookup_hits(c.lookup_hits);
+    ts->set_records_used(c.records_used);
+    ts->set_remote_records_used(c.remote_records_used);
+    ts->set_wall_seconds(out.stats.PhaseWall("overture") + out.stats.PhaseWall("render"));
+    ts->set_records_received(job->TakeReceivedCount());
+    if (!write(m)) break;
+  }
+
+  session_done = true;
+  publisher.join();
+  if (stop_) {
+    v1::WorkerMessage drain;
+    drain.mutable_drain();
+    write(drain);
+    stream->WritesDone();
+  }
+  context.TryCancel();
+  reader.join();
+  stream->Finish();
+}
+
+}  // namespace irfarm
