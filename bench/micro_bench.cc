@@ -1,0 +1,89 @@
+// Micro-benchmarks (Google Benchmark) of the two hot paths: irradiance-cache lookups and Embree
+// ray casts (closest hit and occlusion) in the Cornell box. Run: build/bench/bench_micro.
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "cache/irradiance_cache.h"
+#include "render/sampling.h"
+#include "render/scene.h"
+#include "render/scene_loader.h"
+
+namespace irfarm {
+namespace {
+
+// Records on the walls of a [-1,1]^3 room with validity radii a*R of 0.5 to 2 times the mean
+// record spacing (a = 0.1): the density of a real cache, where a lookup sees a few records.
+std::unique_ptr<IrradianceCache> MakeCache(int n) {
+  CacheSettings cs;
+  cs.bounds.Extend(Vec3(-1, -1, -1));
+  cs.bounds.Extend(Vec3(1, 1, 1));
+  cs.max_accuracy = 0.2f;
+  auto cache = std::make_unique<IrradianceCache>(cs);
+  Rng rng(1, 2);
+  for (int i = 0; i < n; ++i) {
+    const int axis = int(rng.Next() * 3) % 3;
+    const float side = rng.Next() < 0.5f ? -1.0f : 1.0f;
+    IrradianceRecord r;
+    r.position = Vec3(rng.Next() * 2 - 1, rng.Next() * 2 - 1, rng.Next() * 2 - 1);
+    r.position[axis] = side;
+    r.normal = Vec3(0, 0, 0);
+    r.normal[axis] = -side;
+    r.irradiance = Vec3(rng.Next(), rng.Next(), rng.Next());
+    r.radius = (0.5f + 1.5f * rng.Next()) * std::sqrt(24.0f / float(n)) / 0.1f;
+    cache->Insert(r);
+  }
+  return cache;
+}
+
+void BM_CacheLookup(benchmark::State& state) {
+  const auto cache = MakeCache(int(state.range(0)));
+  Rng rng(3, 4);
+  int hits = 0;
+  for (auto _ : state) {
+    Vec3 x(rng.Next() * 2 - 1, rng.Next() * 2 - 1, -1), E;
+    LookupInfo info;
+    hits += cache->Lookup(x, Vec3(0, 0, 1), 0.1f, &E, &info);
+    benchmark::DoNotOptimize(E);
+  }
+  state.counters["hit_rate"] = double(hits) / double(state.iterations());
+}
+BENCHMARK(BM_CacheLookup)->Arg(1000)->Arg(10000)->Arg(100000);
+
+std::unique_ptr<Scene> CornellBox() {
+  absl::StatusOr<SceneDesc> desc =
+      LoadSceneFile(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml", {});
+  if (!desc.ok()) return nullptr;
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
+  return scene.ok() ? std::move(*scene) : nullptr;
+}
+
+void BM_Intersect(benchmark::State& state) {
+  const auto scene = CornellBox();
+  if (!scene) return state.SkipWithError("cannot load cornell-box");
+  Rng rng(5, 6);
+  for (auto _ : state) {
+    const Ray ray{Vec3(0, 0, 0), UniformSphere(rng.Next(), rng.Next()), INFINITY};
+    SurfaceHit hit;
+    benchmark::DoNotOptimize(scene->Intersect(ray, &hit));
+  }
+}
+BENCHMARK(BM_Intersect);
+
+void BM_Occluded(benchmark::State& state) {
+  const auto scene = CornellBox();
+  if (!scene) return state.SkipWithError("cannot load cornell-box");
+  Rng rng(7, 8);
+  for (auto _ : state) {
+    Ray ray{Vec3(0, 0, 0), UniformSphere(rng.Next(), rng.Next()), 0.5f};
+    benchmark::DoNotOptimize(scene->Occluded(ray));
+  }
+}
+BENCHMARK(BM_Occluded);
+
+}  // namespace
+}  // namespace irfarm
+
+BENCHMARK_MAIN();
