@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "cache/snapshot.h"
+#include "coordinator/cache_seed.h"
 #include "render/image.h"
 #include "service/job_settings.h"
 #include "service/record_codec.h"
@@ -397,6 +398,7 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   ws.set_records_computed(ws.records_computed() + ts.records_computed());
   ws.set_records_received(ws.records_received() + ts.records_received());
   ws.set_remote_records_used(ws.remote_records_used() + ts.remote_records_used());
+  ws.set_records_used(ws.records_used() + ts.records_used());
   ws.set_lookups(ws.lookups() + ts.lookups());
   ws.set_lookup_hits(ws.lookup_hits() + ts.lookup_hits());
   ws.set_render_seconds(ws.render_seconds() + ts.wall_seconds());
@@ -421,6 +423,38 @@ absl::Status JobManager::FailTile(uint32_t worker, const v1::TileFailed& failed)
   return absl::OkStatus();
 }
 
+void JobManager::SeedCache(Job& job) {
+  v1::Job* j = job.stored.mutable_job();
+  // Once per job (a resumed job has its seed in the store already); a job warm-started from a
+  // snapshot keeps the cache it was given.
+  if (!j->seeded_from().empty() || j->records_imported() > 0) return;
+  std::vector<const Job*> sources;
+  for (const auto& [id, other] : jobs_) {
+    if (other.get() == &job || other->stored.sequence() > job.stored.sequence()) continue;
+    if (other->cache->size() > 0 && CanSeed(other->stored, job.stored))
+      sources.push_back(other.get());
+  }
+  if (sources.empty()) return;
+  std::sort(sources.begin(), sources.end(), [](const Job* a, const Job* b) {
+    return a->stored.sequence() < b->stored.sequence();
+  });
+  SeedSet seed;
+  std::string from;
+  for (const Job* src : sources) {
+    seed.Add(src->cache->records());
+    from += (from.empty() ? "" : ",") + src->stored.job().id();
+  }
+  std::vector<IrradianceRecord> records = seed.records();
+  // Stamped like imported records: sent to every worker of the job when it joins.
+  for (IrradianceRecord& r : records) r.origin = kSnapshotOrigin;
+  const std::vector<IrradianceRecord> merged = job.cache->Merge(records);
+  j->set_records_seeded(merged.size());
+  j->set_seeded_from(from);
+  // If the store fails here the job still renders with its seed; a restart seeds it again.
+  (void)store_->AppendRecords(j->id(), merged);
+  (void)store_->PutJob(job.stored);
+}
+
 void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
                            std::vector<v1::CoordinatorMessage>* out) {
   Job* best = nullptr;
@@ -434,6 +468,7 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   if (best == nullptr) return;
   Job& job = *best;
   const std::string& id = job.stored.job().id();
+  if (!job.has_started) SeedCache(job);
   std::optional<TileLeaseInfo> lease =
       job.tiles->Lease(worker_id, std::chrono::steady_clock::now(), options_.lease_time);
   if (!lease) return;

@@ -7,7 +7,8 @@
 // Worker protocol, as seen from here: RegisterWorker gives an id; Poll returns what to send the
 // worker next: other workers' record batches (fan-out), JobClosed notices and, when the worker
 // holds no lease, its next tile lease, preceded by the job's spec and the job's records so far
-// the first time the worker works on that job (late join). Records and tile results come in
+// the first time the worker works on that job (late join). A job starting after other jobs of
+// the same scene (a batch of frames) is first seeded with their records (cache_seed.h). Records and tile results come in
 // through AddRecords and CompleteTile; WorkerGone requeues the tiles of a worker whose stream
 // broke.
 #pragma once
@@ -102,6 +103,9 @@ class JobManager {
   bool IsFinal(const Job& job) const;
   void TryAssign(uint32_t worker_id, Worker& worker, std::vector<v1::CoordinatorMessage>* out);
   void FinishJob(Job& job, v1::JobState state, const std::string& error);
+  // When `job` starts: merges the records of earlier jobs of the same sensor-free scene and
+  // record settings (cache_seed.h) into its cache, so its workers get them on joining.
+  void SeedCache(Job& job);
   void Changed();
 
   const JobManagerOptions options_;

@@ -7,7 +7,7 @@ packages=(
   libembree-dev libtbb-dev libopenexr-dev libpugixml-dev libtinyobjloader-dev libstb-dev
   libspdlog-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
-  libhiredis-dev redis-server
+  libhiredis-dev redis-server python3-yaml
   python3
 )
 missing=()

@@ -1,0 +1,177 @@
+#!/usr/bin/env python3
+"""Checks the deploy/ files without a cluster:
+
+- deploy/k8s/*.yaml parse (PyYAML), hold exactly the expected objects (coordinator Deployment and
+  Service, workers Deployment, Redis Deployment and Service), every Deployment's selector matches
+  its pod labels, every Service selects a Deployment's pods and targets a port its container
+  declares, every probe names a declared port, the coordinator is ready by a TCP probe on its gRPC
+  port, and every "service:port" address in container args names a Service and one of its ports;
+- deploy/Containerfile is Debian 12 based, copies both entry points and installs runtime packages
+  that exist (apt-cache, when it knows the Debian package lists);
+- deploy/systemd/*.service pass `systemd-analyze verify` with no warning (ExecStart pointed at the
+  build's binaries), when systemd-analyze is installed (else the part is skipped with a message).
+
+Usage: deploy_files_test.py REPO_DIR BUILD_DIR
+"""
+import glob
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+
+import yaml
+
+REPO, BUILD = sys.argv[1], sys.argv[2]
+DEPLOY = os.path.join(REPO, "deploy")
+failures = []
+
+
+def check(ok, what):
+    print(("ok: " if ok else "FAIL: ") + what)
+    if not ok:
+        failures.append(what)
+
+
+def pod_ports(deployment):
+    """Declared container ports of a Deployment: name -> number, and the numbers."""
+    by_name, numbers = {}, set()
+    for c in deployment["spec"]["template"]["spec"]["containers"]:
+        for p in c.get("ports", []):
+            numbers.add(p["containerPort"])
+            if "name" in p:
+                by_name[p["name"]] = p["containerPort"]
+    return by_name, numbers
+
+
+def port_exists(port, deployment):
+    by_name, numbers = pod_ports(deployment)
+    return port in by_name if isinstance(port, str) else port in numbers
+
+
+# --- Kubernetes manifests ---
+docs = []
+for path in sorted(glob.glob(os.path.join(DEPLOY, "k8s", "*.yaml"))):
+    with open(path) as f:
+        for d in yaml.safe_load_all(f):
+            if d is None:
+                continue
+            check(all(k in d for k in ("apiVersion", "kind", "metadata")) and "name" in d["metadata"],
+                  "%s: object has apiVersion, kind, metadata.name" % os.path.basename(path))
+            docs.append(d)
+objects = {(d["kind"], d["metadata"]["name"]): d for d in docs}
+expected = {("Deployment", "irfarm-coordinator"), ("Service", "irfarm-coordinator"),
+            ("Deployment", "irfarm-worker"), ("Deployment", "irfarm-redis"),
+            ("Service", "irfarm-redis")}
+check(set(objects) == expected, "objects are %s" % sorted(objects))
+check(len(objects) == len(docs), "no object defined twice")
+
+deployments = {n: d for (k, n), d in objects.items() if k == "Deployment"}
+services = {n: d for (k, n), d in objects.items() if k == "Service"}
+for name, d in deployments.items():
+    check(d["apiVersion"] == "apps/v1", "%s: apps/v1" % name)
+    sel = d["spec"]["selector"]["matchLabels"]
+    labels = d["spec"]["template"]["metadata"]["labels"]
+    check(bool(sel) and all(labels.get(k) == v for k, v in sel.items()),
+          "Deployment %s: selector %s matches pod labels" % (name, sel))
+    for c in d["spec"]["template"]["spec"]["containers"]:
+        check("image" in c and "resources" in c and "requests" in c["resources"],
+              "Deployment %s/%s: image and resource requests" % (name, c["name"]))
+        for probe in ("readinessProbe", "livenessProbe"):
+            if probe in c:
+                port = (c[probe].get("tcpSocket") or c[probe].get("grpc") or {}).get("port")
+                check(port is not None and port_exists(port, d),
+                      "Deployment %s: %s port %r is declared" % (name, probe, port))
+
+for name, s in services.items():
+    sel = s["spec"]["selector"]
+    targets = [d for d in deployments.values()
+               if all(d["spec"]["template"]["metadata"]["labels"].get(k) == v
+                      for k, v in sel.items())]
+    check(len(targets) == 1, "Service %s selects exactly one Deployment's pods (%d)" %
+          (name, len(targets)))
+    for p in s["spec"]["ports"]:
+        tp = p.get("targetPort", p["port"])
+        check(bool(targets) and port_exists(tp, targets[0]),
+              "Service %s: targetPort %r is a declared container port" % (name, tp))
+
+coord = deployments.get("irfarm-coordinator")
+if coord:
+    c = coord["spec"]["template"]["spec"]["containers"][0]
+    by_name, _ = pod_ports(coord)
+    probe_port = c.get("readinessProbe", {}).get("tcpSocket", {}).get("port")
+    check(by_name.get(probe_port) == 50051 or probe_port == 50051,
+          "coordinator readiness: TCP probe on the gRPC port 50051 (%r)" % probe_port)
+    check("0.0.0.0:50051" in c.get("args", []), "coordinator listens on 0.0.0.0:50051 in the pod")
+    check(c.get("command") == ["irfarm-coordinator"], "coordinator entry point")
+worker = deployments.get("irfarm-worker")
+if worker:
+    check(worker["spec"]["template"]["spec"]["containers"][0].get("command") == ["irfarm-worker"],
+          "worker entry point")
+
+# Every "name:port" argument must be a Service and one of its ports.
+for name, d in deployments.items():
+    for c in d["spec"]["template"]["spec"]["containers"]:
+        for a in c.get("args", []):
+            m = re.fullmatch(r"([a-z][a-z0-9-]*):(\d+)", str(a))
+            if not m:
+                continue
+            svc = services.get(m.group(1))
+            check(svc is not None and int(m.group(2)) in [p["port"] for p in svc["spec"]["ports"]],
+                  "Deployment %s: address %s is a Service port" % (name, a))
+
+# --- Containerfile ---
+with open(os.path.join(DEPLOY, "Containerfile")) as f:
+    cf = f.read()
+froms = re.findall(r"^FROM\s+(\S+)", cf, re.M)
+check(bool(froms) and all(f == "debian:12" for f in froms), "Containerfile: FROM debian:12 (%s)" % froms)
+for b in ("irfarm-coordinator", "irfarm-worker"):
+    check(re.search(r"^COPY .*/%s\b" % b, cf, re.M) is not None, "Containerfile copies %s" % b)
+check(re.search(r"^(CMD|ENTRYPOINT) ", cf, re.M) is not None, "Containerfile has a default command")
+install = re.search(r"apt-get install[^\n\\]*((?:\\\n[^\n\\]*)*)", cf)
+pkgs = [p for p in re.findall(r"[a-z0-9][a-z0-9.+-]+", install.group(1) if install else "")
+        if p not in ("rm", "rf", "var", "lib", "apt", "lists", "useradd", "system", "uid", "home",
+                     "dir", "create", "irfarm")] if install else []
+if shutil.which("apt-cache") and subprocess.run(["apt-cache", "show", "libc6"],
+                                                capture_output=True).returncode == 0:
+    pkgs = [p for p in pkgs if re.fullmatch(r"lib[a-z0-9.+-]+|ca-certificates|zlib1g", p)]
+    missing = []
+    if subprocess.run(["apt-cache", "show"] + pkgs, capture_output=True).returncode != 0:
+        missing = [p for p in pkgs if subprocess.run(["apt-cache", "show", p],
+                                                     capture_output=True).returncode != 0]
+    check(len(pkgs) >= 10 and not missing,
+          "Containerfile: %d runtime packages known to apt (unknown: %s)" % (len(pkgs), missing))
+else:
+    print("skip: apt-cache has no package lists; runtime package names not checked")
+
+# --- systemd units ---
+units = sorted(glob.glob(os.path.join(DEPLOY, "systemd", "*.service")))
+check({os.path.basename(u) for u in units} ==
+      {"irfarm-coordinator.service", "irfarm-worker@.service"}, "systemd units present")
+if shutil.which("systemd-analyze"):
+    tmp = tempfile.mkdtemp(prefix="irfarm-units-")
+    try:
+        names = []
+        for u in units:
+            with open(u) as f:
+                text = f.read().replace("/usr/local/bin/", os.path.abspath(BUILD) + "/")
+            base = os.path.basename(u)
+            with open(os.path.join(tmp, base), "w") as f:
+                f.write(text)
+            names.append(os.path.join(tmp, base.replace("@.", "@1.")))  # an instance
+        r = subprocess.run(["systemd-analyze", "verify", "--man=no"] + names,
+                           capture_output=True, text=True, timeout=60)
+        out = (r.stdout + r.stderr).strip()
+        check(r.returncode == 0 and not out,
+              "systemd-analyze verify %s%s" % (" ".join(map(os.path.basename, names)),
+                                                ("\n" + out) if out else ""))
+    finally:
+        shutil.rmtree(tmp)
+else:
+    print("skip: systemd-analyze not installed; systemd units not verified")
+
+if failures:
+    print("%d check(s) failed" % len(failures))
+    sys.exit(1)
+print("PASS")
