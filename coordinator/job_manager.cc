@@ -435,9 +435,8 @@ void JobManager::SeedCache(Job& job) {
       sources.push_back(other.get());
   }
   if (sources.empty()) return;
-  std::sort(sources.begin(), sources.end(), [](const Job* a, const Job* b) {
-    return a->stored.sequence() < b->stored.sequence();
-  });
+  std::sort(sources.begin(), sources.end(),
+            [](const Job* a, const Job* b) { return a->stored.sequence() < b->stored.sequence(); });
   SeedSet seed;
   std::string from;
   for (const Job* src : sources) {

@@ -8,9 +8,9 @@
 // worker next: other workers' record batches (fan-out), JobClosed notices and, when the worker
 // holds no lease, its next tile lease, preceded by the job's spec and the job's records so far
 // the first time the worker works on that job (late join). A job starting after other jobs of
-// the same scene (a batch of frames) is first seeded with their records (cache_seed.h). Records and tile results come in
-// through AddRecords and CompleteTile; WorkerGone requeues the tiles of a worker whose stream
-// broke.
+// the same scene (a batch of frames) is first seeded with their records (cache_seed.h). Records and
+// tile results come in through AddRecords and CompleteTile; WorkerGone requeues the tiles of a
+// worker whose stream broke.
 #pragma once
 
 #include <chrono>
