@@ -11,6 +11,8 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <map>
+#include <memory>
 #include <sstream>
 
 #include "render_test_util.h"
@@ -30,17 +32,40 @@ double ReferenceError(const std::string& name) {
   return std::atof(s.c_str() + at + 26) / 16.0;
 }
 
+// The test scene at 1/4 resolution, its reference, and two path renders with different seeds,
+// made once per scene and shared by the tests below (they are the costly part).
+struct GoldenCase {
+  LoadedScene scene;
+  Image ref;
+  RenderOutput a, b;
+  double noise = 0;  // relMSE(a, b) / 2: expected relMSE of one render against the truth
+};
+constexpr int kPathSpp = 64;
+
+const GoldenCase& Case(const std::string& name) {
+  static std::map<std::string, std::unique_ptr<GoldenCase>> cases;  // test-only memo
+  std::unique_ptr<GoldenCase>& c = cases[name];
+  if (!c) {
+    c = std::make_unique<GoldenCase>();
+    c->scene = LoadQuarter(name);
+    c->ref = QuarterReference(name);
+    c->a = RenderWith(c->scene, "path", kPathSpp, 1);
+    c->b = RenderWith(c->scene, "path", kPathSpp, 2);
+    c->noise = CompareImages(c->a.image, c->b.image).relmse / 2;
+  }
+  return *c;
+}
+
 class GoldenImageTest : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(GoldenImageTest, PathMatchesReferenceWithinMeasuredNoise) {
   const std::string name = GetParam();
-  const LoadedScene s = LoadQuarter(name);
-  const Image ref = QuarterReference(name);
-  const int spp = 64;
-  const RenderOutput a = RenderWith(s, "path", spp, 1);
-  const RenderOutput b = RenderWith(s, "path", spp, 2);
+  const GoldenCase& g = Case(name);
+  const Image& ref = g.ref;
+  const RenderOutput& a = g.a;
+  const RenderOutput& b = g.b;
   EXPECT_EQ(a.stats.nonfinite_pixels, 0);
-  const double noise = CompareImages(a.image, b.image).relmse / 2;
+  const double noise = g.noise;
   const double err = CompareImages(a.image, ref).relmse;
   const double ref_err = ReferenceError(name);
   RecordProperty("noise", std::to_string(noise));
@@ -58,13 +83,10 @@ TEST_P(GoldenImageTest, PathMatchesReferenceWithinMeasuredNoise) {
 
 TEST_P(GoldenImageTest, IrrcacheBeatsPathAt256Spp) {
   const std::string name = GetParam();
-  const LoadedScene s = LoadQuarter(name);
-  const Image ref = QuarterReference(name);
-  const int spp = 64;
-  const RenderOutput a = RenderWith(s, "path", spp, 1);
-  const RenderOutput b = RenderWith(s, "path", spp, 2);
-  const double path256 = CompareImages(a.image, b.image).relmse / 2 * spp / 256.0;
-  const RenderOutput irr = RenderWith(s, "irrcache", 0, 3);
+  const GoldenCase& g = Case(name);
+  const Image& ref = g.ref;
+  const double path256 = g.noise * kPathSpp / 256.0;
+  const RenderOutput irr = RenderWith(g.scene, "irrcache", 0, 3);
   EXPECT_EQ(irr.stats.nonfinite_pixels, 0);
   EXPECT_GT(irr.stats.counters.records_computed, 0u);
   const double err = CompareImages(irr.image, ref).relmse;
