@@ -6,6 +6,19 @@
 namespace irfarm {
 namespace {
 constexpr int kMaxSpecularChain = 64;  // delta bounces before a camera path is dropped
+// Up to this many local lights, every light that can reach a point gets its own samples; with
+// more, DirectLight picks lights by their expected contribution (LightSampler::Sample).
+constexpr int kAllLightsMax = 16;
+
+Vec3 Ratio(const Vec3& s, const Vec3& u) {
+  return Vec3(u.x > 0 ? s.x / u.x : 0, u.y > 0 ? s.y / u.y : 0, u.z > 0 ? s.z / u.z : 0);
+}
+}  // namespace
+
+Vec3 DirectTerms::Resolve() const {
+  Vec3 d;
+  for (int j = 0; j < kMaxLights; ++j) d += analytic[j] * Ratio(shadowed[j], unshadowed[j]);
+  return d;
 }
 
 IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cache,
@@ -15,6 +28,94 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
   const int n = std::max(4, settings.record_rays);
   strata_t_ = std::max(1, int(std::lround(std::sqrt(n / kPi))));
   strata_p_ = std::max(1, int(std::lround(double(n) / strata_t_)));
+  const LightSampler& ls = scene.light_sampler();
+  int slots = 0;
+  for (int i = 0; i < ls.num_local(); ++i) {
+    const Light& l = ls.lights()[i];
+    const bool rect = l.type == LightType::kArea && l.shape == AreaShape::kRect;
+    ratio_slot_.push_back(rect && slots < DirectTerms::kMaxLights ? slots++ : -1);
+  }
+}
+
+Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
+                                     const Vec3& weight, const LightStrata& strata, Rng& rng,
+                                     RenderCounters& counters, DirectTerms* terms) const {
+  const LightSampler& ls = scene_.light_sampler();
+  const int nl = ls.num_local();
+  const int k = std::max(1, settings_.light_samples);
+  const float wo_side = Dot(wo, hit.ng);
+  Vec3 L;
+  // u2, u3 of light sample j: the pixel's stratified points, else independent.
+  auto uv = [&](int j, float* u2, float* u3) {
+    if (strata.sampler) {
+      strata.sampler->Get(strata.first + j, u2, u3);
+    } else {
+      *u2 = rng.Next();
+      *u3 = rng.Next();
+    }
+  };
+  // Contribution of a light sample before visibility (0 below the shading horizon), and
+  // whether a shadow ray finds it unblocked.
+  auto visible = [&](const LightSample& s) {
+    if (Dot(s.wi, hit.ng) * wo_side <= 0) return false;  // below the geometric surface
+    ++counters.shadow_rays;
+    return !scene_.Occluded(Scene::SpawnShadowRay(hit, s));
+  };
+  if (nl > kAllLightsMax) {
+    for (int j = 0; j < k; ++j) {
+      const float u1 = rng.Next();
+      float u2, u3;
+      uv(j, &u2, &u3);
+      LightSample s;
+      int skipped = 0;
+      const bool ok = scene_.SampleLight(hit.p, nf, u1, u2, u3, false, &s, &skipped);
+      counters.lights_skipped += uint64_t(skipped);
+      if (!ok) continue;
+      const float cos_i = Dot(s.wi, nf);
+      if (cos_i > 0 && visible(s)) L += weight * s.value * (cos_i / float(k));
+    }
+    return L;
+  }
+  for (int i = 0; i < nl; ++i) {
+    const int slot = ratio_slot_[i];
+    // The analytic irradiance doubles as the reachability test of rectangles.
+    const Vec3 analytic = slot >= 0 ? ls.AnalyticIrradiance(i, hit.p, nf) : Vec3();
+    if (slot >= 0 ? IsBlack(analytic) : ls.Weight(i, hit.p, nf) <= 0) {
+      ++counters.lights_skipped;  // cannot reach: no sample, no shadow ray
+      continue;
+    }
+    const bool delta = ls.lights()[i].IsDelta();
+    const int n = delta ? 1 : k;  // a delta light's one sample is exact
+    Vec3 shadowed, unshadowed;
+    for (int j = 0; j < n; ++j) {
+      const float u1 = rng.Next();
+      float u2, u3;
+      uv(j, &u2, &u3);
+      LightSample s;
+      if (!ls.SampleOne(i, hit.p, u1, u2, u3, &s)) continue;
+      const float cos_i = Dot(s.wi, nf);
+      if (cos_i <= 0) continue;
+      const Vec3 c = weight * s.value * (cos_i / float(n));
+      if (!IsFinite(c)) {
+        ++counters.nonfinite_samples;
+        continue;
+      }
+      unshadowed += c;
+      if (visible(s)) shadowed += c;
+    }
+    if (slot < 0) {
+      L += shadowed;
+      continue;
+    }
+    if (terms) {
+      terms->analytic[slot] += weight * analytic;
+      terms->shadowed[slot] += shadowed;
+      terms->unshadowed[slot] += unshadowed;
+    } else {
+      L += weight * analytic * Ratio(shadowed, unshadowed);
+    }
+  }
+  return L;
 }
 
 bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* L,
@@ -70,7 +171,10 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       ++counters.record_rays;
       float d = INFINITY;
       const Vec3 L = TracePath(scene_, ray, depth + 1, true, record_path, rng, counters, &d);
-      if (IsFinite(L)) sum += L;
+      if (IsFinite(L))
+        sum += L;
+      else
+        ++counters.nonfinite_samples;
       if (d > 0 && std::isfinite(d)) inv_dist_sum += 1.0 / d;
     }
   const int n = T * P;
@@ -117,7 +221,8 @@ Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int d
 }
 
 Vec3 IrrcacheIntegrator::Li(const Ray& ray, const LightStrata& strata, Rng& rng,
-                            RenderCounters& counters, IrrcacheShade* shade) const {
+                            RenderCounters& counters, IrrcacheShade* shade,
+                            DirectTerms* terms) const {
   Vec3 L, beta(1, 1, 1);
   SurfaceHit hit;
   Vec3 nf;
@@ -129,26 +234,8 @@ Vec3 IrrcacheIntegrator::Li(const Ray& ray, const LightStrata& strata, Rng& rng,
   const Vec3 albedo = mat.Albedo(hit.u, hit.v);
   const Vec3 wo = -ray.dir;
   // Direct light from local lights, always explicit.
-  if (max_depth < 0 || depth + 1 <= max_depth) {
-    const int k = std::max(1, settings_.light_samples);
-    for (int i = 0; i < k; ++i) {
-      LightSample ls;
-      const float u1 = rng.Next();
-      float u2, u3;
-      if (strata.sampler) {
-        strata.sampler->Get(strata.first + i, &u2, &u3);
-      } else {
-        u2 = rng.Next();
-        u3 = rng.Next();
-      }
-      if (!scene_.SampleLight(hit.p, u1, u2, u3, false, &ls)) continue;
-      const float cos_i = Dot(ls.wi, nf);
-      if (cos_i <= 0 || Dot(ls.wi, hit.ng) * Dot(wo, hit.ng) <= 0) continue;
-      ++counters.shadow_rays;
-      if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) continue;
-      L += beta * albedo * ls.value * (cos_i * kInvPi / float(k));
-    }
-  }
+  if (max_depth < 0 || depth + 1 <= max_depth)
+    L += DirectLight(hit, nf, wo, beta * albedo * kInvPi, strata, rng, counters, terms);
   // Indirect irradiance from the cache.
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;
