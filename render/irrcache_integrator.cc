@@ -33,7 +33,8 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
   for (int i = 0; i < ls.num_local(); ++i) {
     const Light& l = ls.lights()[i];
     const bool rect = l.type == LightType::kArea && l.shape == AreaShape::kRect;
-    ratio_slot_.push_back(rect && slots < DirectTerms::kMaxLights ? slots++ : -1);
+    const bool ratio = rect && settings.analytic_direct && slots < DirectTerms::kMaxLights;
+    ratio_slot_.push_back(ratio ? slots++ : -1);
   }
 }
 

@@ -28,9 +28,12 @@
 namespace irfarm {
 
 struct IrrcacheSettings {
-  float accuracy = 0.1f;         // Ward's a: records count when eps_i < a (RADIANCE rtrace -aa 0.1)
-  int record_rays = 1536;        // rays per record, T x P with P ~ pi T (measured: see README)
-  int light_samples = 1;         // direct-light samples per shading point and camera sample
+  float accuracy = 0.1f;   // Ward's a: records count when eps_i < a (RADIANCE rtrace -aa 0.1)
+  int record_rays = 1536;  // rays per record, T x P with P ~ pi T (measured: see README)
+  int light_samples = 1;   // direct-light samples per shading point and camera sample
+  // Rectangles' direct light as analytic unoccluded irradiance times the pixel's shadow ratio
+  // (DirectTerms); false: the plain Monte Carlo estimate (for comparison).
+  bool analytic_direct = true;
   float min_spacing_px = 1.5f;   // validity radius a*R_i >= this many pixel footprints at x
   float max_spacing_px = 16.0f;  // ... and <= this many (Tabellion & Lamorlette: ~20 px)
   // Final pass only: a lookup that finds nothing at accuracy a is retried at a * relaxed_factor

@@ -52,6 +52,11 @@ class LightSampler {
   // got weight 0 (no shadow ray is spent on them).
   bool Sample(const Vec3& p, const Vec3& n, float u1, float u2, float u3, bool include_env,
               LightSample* s, int* skipped = nullptr) const;
+  // Probability that Sample(p, n, ..., include_env = true) picks local light `index`, or the
+  // environment for index == num_local().
+  float SelectionProbability(const Vec3& p, const Vec3& n, int index) const {
+    return SelectPdf(p, n, index);
+  }
   // Solid-angle pdf, including selection, of Sample(p, n, ..., include_env = true) having
   // produced direction wi towards point q of area light `light`.
   float PdfArea(const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
