@@ -28,7 +28,10 @@ std::string StripExtension(const std::string& path) {
 }
 
 struct RenderArgs {
-  std::string scene, output = "out.exr", stats, record_map;
+  std::string scene, output = "out.exr", stats, record_map, sample_map;
+  std::string adaptive;  // "on", "off" or "" (the integrator's default)
+  int min_spp = 0;
+  double target_error = 0, time_limit = 0, sampling_error = 0;
   std::string integrator;
   int spp = 0, record_rays = 0, threads = 0, light_samples = 0;
   float accuracy = 0, min_spacing = 0, max_spacing = 0;
@@ -87,6 +90,15 @@ int RunRender(const RenderArgs& args) {
   s.seed = args.seed;
   s.overture = !args.no_overture;
   s.record_map = !args.record_map.empty();
+  s.sample_map = !args.sample_map.empty();
+  if (!args.adaptive.empty()) s.adaptive = args.adaptive == "on";
+  if (args.min_spp > 0) s.min_spp = args.min_spp;
+  if (args.sampling_error > 0) s.sampling_error = args.sampling_error;
+  if (args.time_limit > 0) s.time_limit = args.time_limit;
+  if (args.target_error > 0) {
+    s.target_error = args.target_error;
+    s.adaptive = true;
+  }
   s.progress = !args.quiet;
 
   std::unique_ptr<IrradianceCache> warm_cache;
@@ -116,6 +128,7 @@ int RunRender(const RenderArgs& args) {
   PhaseTimer write_timer("write");
   absl::Status status = WriteExr(out.image, args.output);
   if (status.ok()) status = WritePng(out.image, StripExtension(args.output) + ".png");
+  if (status.ok() && s.sample_map) status = WritePng(out.sample_map, args.sample_map, 1.0f);
   if (status.ok() && s.record_map) {
     status = StripExtension(args.record_map) + ".exr" == args.record_map
                  ? WriteExr(out.record_map, args.record_map)
@@ -209,6 +222,25 @@ int main(int argc, char** argv) {
   render->add_option("--seed", ra.seed, "random seed");
   render->add_option("--stats", ra.stats, "write the stats JSON here");
   render->add_option("--record-map", ra.record_map, "write an image marking computed records");
+  render->add_option("--sample-map", ra.sample_map,
+                     "write a PNG of the samples each pixel got (dark: few, white: --spp)");
+  render
+      ->add_option("--adaptive", ra.adaptive,
+                   "adaptive sampling on|off (default: on for irrcache, off for path)")
+      ->check(CLI::IsMember({"on", "off"}));
+  render->add_option("--min-spp", ra.min_spp, "adaptive: samples every pixel gets first (16)")
+      ->check(CLI::PositiveNumber);
+  render
+      ->add_option("--sampling-error", ra.sampling_error,
+                   "adaptive: the image's estimated sampling relMSE to stop at")
+      ->check(CLI::PositiveNumber);
+  render
+      ->add_option("--target-error", ra.target_error,
+                   "stop when the estimated relMSE (cache + sampling) reaches this; "
+                   "--spp is then the most a pixel may get")
+      ->check(CLI::PositiveNumber);
+  render->add_option("--time-limit", ra.time_limit, "stop adding samples after this many seconds")
+      ->check(CLI::PositiveNumber);
   render->add_option("-D", ra.defines, "name=value for the scene's <default>s");
   render->add_flag("-q,--quiet", ra.quiet, "no progress or summary on stderr");
   render->add_option("--cache-in", ra.cache_in, "warm-start from this cache snapshot file")

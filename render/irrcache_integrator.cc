@@ -36,6 +36,7 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
     const bool ratio = rect && settings.analytic_direct && slots < DirectTerms::kMaxLights;
     ratio_slot_.push_back(ratio ? slots++ : -1);
   }
+  ratio_slots_ = slots;
 }
 
 Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
@@ -147,13 +148,14 @@ bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters
 
 IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const Vec3& nf, int depth,
                                                    float pixel_spread, Rng& rng,
-                                                   RenderCounters& counters) const {
+                                                   RenderCounters& counters,
+                                                   Vec3* half_difference) const {
   const auto start = std::chrono::steady_clock::now();
   Vec3 s, t;
   MakeFrame(nf, &s, &t);
   // The geometric normal on the side of the facing normal: rays below it would pass through.
   const Vec3 ng_side = Dot(hit.ng, nf) >= 0 ? hit.ng : -hit.ng;
-  Vec3 sum;
+  Vec3 sum, half_sum[2];
   double inv_dist_sum = 0;
   const int T = strata_t_, P = strata_p_;
   // Russian roulette from the first bounce of each record ray (not from rr_depth): a record
@@ -172,10 +174,12 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       ++counters.record_rays;
       float d = INFINITY;
       const Vec3 L = TracePath(scene_, ray, depth + 1, true, record_path, rng, counters, &d);
-      if (IsFinite(L))
+      if (IsFinite(L)) {
         sum += L;
-      else
+        half_sum[(i + j) & 1] += L;  // a checkerboard of strata: two interleaved halves
+      } else {
         ++counters.nonfinite_samples;
+      }
       if (d > 0 && std::isfinite(d)) inv_dist_sum += 1.0 / d;
     }
   const int n = T * P;
@@ -183,6 +187,11 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   r.position = hit.p;
   r.normal = nf;
   r.irradiance = sum * (kPi / float(n));
+  if (half_difference) {
+    const int n0 = (n + 1) / 2, n1 = n / 2;
+    *half_difference =
+        half_sum[0] * (kPi / float(std::max(1, n0))) - half_sum[1] * (kPi / float(std::max(1, n1)));
+  }
   const float a = settings_.accuracy;
   // Harmonic mean distance, then clamps on the validity radius a*R in pixel footprints at x.
   const float harmonic = inv_dist_sum > 0 ? float(n / inv_dist_sum) : INFINITY;
@@ -245,6 +254,37 @@ Vec3 IrrcacheIntegrator::Li(const Ray& ray, const LightStrata& strata, Rng& rng,
     L += beta * albedo * E * kInvPi;
   }
   return L;
+}
+
+bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& counters,
+                                    double* error) const {
+  Vec3 beta(1, 1, 1), L;
+  SurfaceHit hit;
+  Vec3 nf;
+  int depth;
+  float distance;
+  if (!FindDiffuse(ray, rng, counters, &L, &beta, &hit, &nf, &depth, &distance)) return false;
+  const int max_depth = settings_.path.max_depth;
+  if (!(max_depth < 0 || depth + 2 <= max_depth)) return false;
+  Vec3 interp;
+  LookupInfo info;
+  if (!cache_->Lookup(hit.p, nf, settings_.accuracy, &interp, &info)) return false;
+  Vec3 half_diff;
+  const IrradianceRecord fresh = ComputeRecord(
+      hit, nf, depth, scene_.camera().PixelSpread(distance), rng, counters, &half_diff);
+  const Material& mat = scene_.material(hit.material);
+  const Vec3 w = beta * mat.Albedo(hit.u, hit.v) * kInvPi;
+  const Vec3 direct = DirectLight(hit, nf, -ray.dir, w, LightStrata{}, rng, counters, nullptr);
+  const Vec3 v = L + direct + w * interp;
+  double e = 0;
+  for (int c = 0; c < 3; ++c) {
+    const double d = double(w[c]) * (double(interp[c]) - double(fresh.irradiance[c]));
+    // Var(E_fresh) = E[(E_even - E_odd)^2] / 4 for two independent halves.
+    const double var = double(w[c]) * w[c] * double(half_diff[c]) * half_diff[c] / 4;
+    e += (d * d - var) / (double(v[c]) * v[c] + 0.01);
+  }
+  *error = e / 3;
+  return true;
 }
 
 bool IrrcacheIntegrator::Prime(const Ray& ray, Rng& rng, RenderCounters& counters) const {

@@ -94,10 +94,22 @@ class IrrcacheIntegrator {
   // a record there if none counts, and nothing else. Returns true when it computed one.
   bool Prime(const Ray& ray, Rng& rng, RenderCounters& counters) const;
 
+  // Cross-validation of the cache at the first diffuse surface seen along `ray`: the interpolated
+  // irradiance against a fresh record made there (not inserted), in units of the pixel's
+  // relMSE: ((w (E_interp - E_fresh))^2 - w^2 Var(E_fresh)) / (v^2 + 0.01) per channel,
+  // averaged, with w = throughput * albedo / pi, Var(E_fresh) from the difference of the fresh
+  // record's two interleaved halves of strata, and v the point's radiance (direct + indirect).
+  // Its mean over random pixels estimates the cache's share of the image's relMSE. False where
+  // there is nothing to check (no diffuse hit, or the lookup fails).
+  bool CacheError(const Ray& ray, Rng& rng, RenderCounters& counters, double* error) const;
+
   // Computes a new record at x (facing normal nf, geometric normal ng) and inserts it.
   IrradianceRecord ComputeRecord(const SurfaceHit& hit, const Vec3& nf, int depth,
-                                 float pixel_spread, Rng& rng, RenderCounters& counters) const;
+                                 float pixel_spread, Rng& rng, RenderCounters& counters,
+                                 Vec3* half_difference = nullptr) const;
   int strata_theta() const { return strata_t_; }
+  // DirectTerms slots in use (rectangle lights with the ratio estimator).
+  int ratio_slots() const { return ratio_slots_; }
   int strata_phi() const { return strata_p_; }
 
  private:
@@ -119,6 +131,7 @@ class IrrcacheIntegrator {
   IrrcacheSettings settings_;
   int strata_t_ = 1, strata_p_ = 1;
   std::vector<int> ratio_slot_;  // per local light: its DirectTerms slot, or -1
+  int ratio_slots_ = 0;
 };
 
 }  // namespace irfarm

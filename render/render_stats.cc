@@ -103,6 +103,15 @@ std::string RenderStats::ToJson() const {
     << ", \"hit_rate\": " << Num(c.lookups ? double(c.lookup_hits) / double(c.lookups) : 0)
     << ", \"records_per_hit\": "
     << Num(c.lookup_hits ? double(c.records_used) / double(c.lookup_hits) : 0) << "},\n";
+  o << "  \"sampling\": {\"spp_min\": " << spp_min << ", \"spp_mean\": " << Num(spp_mean)
+    << ", \"spp_max\": " << spp_max << ", \"pixels_stopped_early\": " << pixels_stopped_early
+    << ", \"adaptive_rounds\": " << adaptive_rounds
+    << ", \"nonfinite_samples\": " << c.nonfinite_samples << "},\n";
+  o << "  \"error_estimate\": {\"relmse\": "
+    << Num(estimated_sampling_relmse + std::max(0.0, estimated_cache_relmse))
+    << ", \"sampling_relmse\": " << Num(estimated_sampling_relmse)
+    << ", \"cache_relmse\": " << Num(estimated_cache_relmse)
+    << ", \"target_error\": " << Num(target_error) << "},\n";
   o << "  \"tiles\": {\"count\": " << tiles << ", \"size\": " << tile_size << "},\n";
   o << "  \"geometry\": {\"triangles\": " << triangles
     << ", \"degenerate_dropped\": " << degenerate_dropped << "},\n";

@@ -34,6 +34,15 @@ struct RenderStats {
   int tiles = 0, tile_size = 0;
   Vec3 mean_rgb;
   long nonfinite_pixels = 0;
+  // Sampling (final pass): samples per pixel, pixels that stopped before the maximum, and the
+  // image's own error estimates (relMSE as the benchmarks define it).
+  int spp_min = 0, spp_max = 0;
+  double spp_mean = 0;
+  long pixels_stopped_early = 0;
+  int adaptive_rounds = 0;
+  double estimated_sampling_relmse = 0;  // from the pixels' two half-images
+  double estimated_cache_relmse = -1;    // cross-validated records (target-error mode), -1: none
+  double target_error = 0;
   long triangles = 0, degenerate_dropped = 0;
   std::vector<std::string> warnings;
 

@@ -6,8 +6,10 @@
 #include <tbb/task_arena.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -15,12 +17,14 @@
 
 #include "absl/strings/numbers.h"
 #include "render/path_tracer.h"
+#include "render/pixel_sampler.h"
+#include "render/sample_film.h"
 
 namespace irfarm {
 namespace {
 
 // Distinct random streams for the passes that touch a pixel.
-enum : uint64_t { kStreamFinal = 1, kStreamOverture = 2 };
+enum : uint64_t { kStreamFinal = 1, kStreamOverture = 2, kStreamCacheCheck = 3 };
 
 class Progress {
  public:
@@ -67,6 +71,214 @@ std::vector<Tile> MakeTiles(const PixelRect& r, int size) {
   return tiles;
 }
 
+// --target-error: the starting accuracy. Calibrated on the shared scenes: at a = 0.1 the cache's
+// share of relMSE is about 7e-4 (cornell-box 7.5e-4, room-a 7e-4, sunlit-room 4e-4), and it
+// grows about as a^2; half of the error asked goes to the cache.
+double TargetAccuracy(const RenderSettings& s) {
+  return std::clamp(0.1 * std::sqrt(0.5 * s.target_error / 7e-4), 0.03, 0.4);
+}
+
+// Mean over kCacheChecks random pixels of IrrcacheIntegrator::CacheError, clamped at 0.
+double EstimateCacheError(const IrrcacheIntegrator& integrator, const Camera& cam, uint64_t seed,
+                          uint64_t iteration, const PixelRect& rect, tbb::task_arena& arena,
+                          tbb::enumerable_thread_specific<RenderCounters>& counters) {
+  constexpr int kCacheChecks = 256;
+  std::vector<double> errors(kCacheChecks, 0);
+  std::vector<uint8_t> ok(kCacheChecks, 0);
+  arena.execute([&] {
+    tbb::parallel_for(0, kCacheChecks, [&](int i) {
+      Rng rng(HashCombine(seed, uint64_t(i)), kStreamCacheCheck + 16 * iteration);
+      const float x = float(rect.x0) + rng.Next() * float(rect.width());
+      const float y = float(rect.y0) + rng.Next() * float(rect.height());
+      const Ray ray{cam.origin(), cam.Direction(x, y), INFINITY};
+      double e = 0;
+      ok[i] = integrator.CacheError(ray, rng, counters.local(), &e);
+      errors[i] = e;
+    });
+  });
+  double sum = 0;
+  int n = 0;
+  for (int i = 0; i < kCacheChecks; ++i) {
+    sum += errors[i];
+    n += ok[i];
+  }
+  // Pixels with nothing to check (sky, lights, black) have no cache error: they count as 0.
+  return std::max(0.0, sum / kCacheChecks) * (n > 0 ? 1.0 : 0.0);
+}
+
+// Per-pixel random streams and sample points of the final pass, kept across adaptive rounds.
+struct PixelStreams {
+  PixelStreams(uint64_t seed, int spp, int light_samples)
+      : rng(seed, kStreamFinal), film(spp, rng), lights(spp * light_samples, rng) {}
+  Rng rng;
+  PixelSampler film, lights;
+};
+
+// The final pass: every pixel of `rect` gets its samples (all of them, or with adaptive
+// sampling min_spp first and then rounds that double the samples of the pixels with the largest
+// estimated error); fills out->image, the sampling figures of out->stats and, if asked, the
+// sample map; marks pixels where records were computed.
+void FinalPass(const Scene& scene, const RenderSettings& settings,
+               const IrrcacheIntegrator& integrator, const PixelRect& rect, bool tty,
+               tbb::task_arena& arena, tbb::enumerable_thread_specific<RenderCounters>& counters,
+               std::vector<uint8_t>* marks, RenderOutput* out,
+               std::chrono::steady_clock::time_point start_time) {
+  const Camera& cam = scene.camera();
+  const int w = cam.width();
+  const int rw = rect.width(), rh = rect.height();
+  const size_t npix = size_t(rw) * rh;
+  const bool irrcache = settings.integrator == "irrcache";
+  const int light_samples = std::max(1, settings.irrcache.light_samples);
+  const int max_spp = std::max(1, settings.spp);
+  const bool adaptive = settings.adaptive && max_spp > 2;
+  const int min_spp = adaptive ? std::clamp(settings.min_spp, 2, max_spp) : max_spp;
+  const double goal = settings.target_error > 0 ? settings.target_error : settings.sampling_error;
+  const PathSettings& path = settings.irrcache.path;
+
+  std::vector<PixelStreams> streams;
+  streams.reserve(npix);
+  for (size_t p = 0; p < npix; ++p) {
+    const int x = rect.x0 + int(p % size_t(rw)), y = rect.y0 + int(p / size_t(rw));
+    streams.emplace_back(HashCombine(settings.seed, uint64_t(y) * w + x), max_spp, light_samples);
+  }
+  SampleFilm film(npix, irrcache ? integrator.ratio_slots() : 0);
+
+  // Samples [from, to) of pixel p.
+  auto render_pixel = [&](size_t p, int from, int to, RenderCounters& c) {
+    const int x = rect.x0 + int(p % size_t(rw)), y = rect.y0 + int(p / size_t(rw));
+    PixelStreams& ps = streams[p];
+    bool made = false;
+    for (int s = from; s < to; ++s) {
+      float fx, fy;
+      ps.film.Get(s, &fx, &fy);
+      const Ray ray{cam.origin(), cam.Direction(fx + float(x), fy + float(y)), INFINITY};
+      ++c.camera_rays;
+      Vec3 L;
+      DirectTerms terms;
+      if (irrcache) {
+        IrrcacheShade shade;
+        L = integrator.Li(ray, LightStrata{&ps.lights, s * light_samples}, ps.rng, c, &shade,
+                          &terms);
+        made |= shade.made_record;
+      } else {
+        L = TracePath(scene, ray, 1, false, path, ps.rng, c);
+      }
+      // A non-finite sample would poison the pixel: it is counted and left out.
+      if (!IsFinite(L)) {
+        ++c.nonfinite_samples;
+        L = Vec3();
+      }
+      film.Add(p, s, L, irrcache ? &terms : nullptr);
+    }
+    if (made && !marks->empty()) (*marks)[p] = 1;
+  };
+
+  // Round 0: every pixel, tile by tile.
+  const std::vector<Tile> tiles = MakeTiles(rect, settings.tile_size);
+  {
+    Progress progress(tty, int(tiles.size()), "render");
+    arena.execute([&] {
+      tbb::parallel_for(size_t(0), tiles.size(), [&](size_t ti) {
+        const Tile& tile = tiles[ti];
+        RenderCounters& c = counters.local();
+        for (int y = tile.y0; y < tile.y1; ++y)
+          for (int x = tile.x0; x < tile.x1; ++x)
+            render_pixel(size_t(y - rect.y0) * rw + size_t(x - rect.x0), 0, min_spp, c);
+        progress.Tick();
+      });
+    });
+  }
+
+  // Adaptive rounds.
+  std::vector<double> err(npix), smooth(npix);
+  double estimate = 0;
+  int rounds = 0;
+  for (;;) {
+    double sum = 0;
+    for (size_t p = 0; p < npix; ++p) sum += err[p] = film.RelativeError(p);
+    estimate = sum / double(npix);
+    if (!adaptive || estimate <= goal) break;
+    if (settings.time_limit > 0 &&
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count() >=
+            settings.time_limit)
+      break;
+    // Each pixel ranked by the mean estimate over its 3 x 3 neighbourhood: one pixel's two
+    // halves can agree by chance; its neighbours rarely all do.
+    std::vector<size_t> candidates;
+    for (int y = 0; y < rh; ++y)
+      for (int x = 0; x < rw; ++x) {
+        const size_t p = size_t(y) * rw + x;
+        if (film.count(p) >= max_spp) continue;
+        double acc = 0;
+        int n = 0;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            if (xx < 0 || yy < 0 || xx >= rw || yy >= rh) continue;
+            acc += err[size_t(yy) * rw + xx];
+            ++n;
+          }
+        smooth[p] = acc / n;
+        candidates.push_back(p);
+      }
+    if (candidates.empty()) break;
+    std::sort(candidates.begin(), candidates.end(),
+              [&](size_t a, size_t b) { return smooth[a] > smooth[b]; });
+    // Doubling a pixel's samples halves its error: take the worst pixels until that covers the
+    // excess over the goal (at least 1/16 of the candidates, so every round does real work).
+    const double excess = (estimate - goal) * double(npix);
+    double gain = 0;
+    size_t k = 0;
+    const size_t at_least = std::max<size_t>(1, candidates.size() / 16);
+    while (k < candidates.size() && (gain < excess || k < at_least)) {
+      gain += 0.5 * std::max(err[candidates[k]], smooth[candidates[k]]);
+      ++k;
+    }
+    candidates.resize(k);
+    std::sort(candidates.begin(), candidates.end());
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates.size(), 16),
+                        [&](const tbb::blocked_range<size_t>& r) {
+                          RenderCounters& c = counters.local();
+                          for (size_t i = r.begin(); i < r.end(); ++i) {
+                            const size_t p = candidates[i];
+                            const int n = film.count(p);
+                            render_pixel(p, n, std::min(2 * n, max_spp), c);
+                          }
+                        });
+    });
+    ++rounds;
+  }
+
+  RenderStats& st = out->stats;
+  st.adaptive_rounds = rounds;
+  st.estimated_sampling_relmse = estimate;
+  long early = 0;
+  double spp_sum = 0;
+  st.spp_min = max_spp;
+  st.spp_max = 0;
+  for (size_t p = 0; p < npix; ++p) {
+    out->image.pixels[p] = film.Value(p);
+    const int n = film.count(p);
+    early += n < max_spp;
+    spp_sum += n;
+    st.spp_min = std::min(st.spp_min, n);
+    st.spp_max = std::max(st.spp_max, n);
+  }
+  st.pixels_stopped_early = early;
+  st.spp_mean = spp_sum / double(std::max<size_t>(1, npix));
+  if (settings.sample_map) {
+    out->sample_map = Image(rw, rh);
+    const float scale = 1 / std::log2(float(max_spp) + 1);
+    for (size_t p = 0; p < npix; ++p) {
+      const float t = std::log2(float(film.count(p)) + 1) * scale;
+      // Dark blue (few samples) through red to yellow-white (the most).
+      out->sample_map.pixels[p] =
+          Vec3(std::min(1.0f, 2 * t), std::max(0.0f, 2 * t - 1), std::max(0.0f, 0.5f - t));
+    }
+  }
+}
+
 }  // namespace
 
 absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
@@ -106,14 +318,17 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
     if (values.count("spp")) spp = values["spp"];
   }
   s.spp = integrator == "path" ? desc.camera.spp : std::max(1, int(spp));
+  s.adaptive = integrator == "irrcache";
   return s;
 }
 
 CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& settings) {
   CacheSettings cs;
   cs.bounds = scene.bounds();
-  cs.max_accuracy =
-      std::min(1.0f, settings.irrcache.accuracy * std::max(1.0f, settings.irrcache.relaxed_factor));
+  const float a = settings.target_error > 0
+                      ? std::max(settings.irrcache.accuracy, float(TargetAccuracy(settings)))
+                      : settings.irrcache.accuracy;
+  cs.max_accuracy = std::min(1.0f, a * std::max(1.0f, settings.irrcache.relaxed_factor));
   return cs;
 }
 
@@ -124,6 +339,7 @@ RenderOutput Render(const Scene& scene, const RenderSettings& settings, Irradian
 
 RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, IrradianceCache* cache,
                         const PixelRect& rect) {
+  const auto start_time = std::chrono::steady_clock::now();
   RenderOutput out;
   const Camera& cam = scene.camera();
   const int w = cam.width();
@@ -142,12 +358,9 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
   tbb::enumerable_thread_specific<RenderCounters> counters;
   tbb::task_arena arena(threads);
   const std::vector<Tile> tiles = MakeTiles(rect, settings.tile_size);
-  const PathSettings& path = settings.irrcache.path;
   const bool tty = settings.progress && isatty(STDERR_FILENO);
-  const int light_samples = std::max(1, settings.irrcache.light_samples);
 
-  if (irrcache && settings.overture) {
-    PhaseTimer timer("overture");
+  auto overture = [&](const IrrcacheIntegrator& integrator, uint64_t iteration) {
     // Coarse-to-fine: pixel centres on grids of stride 32, 16, ..., 1. Early passes spread records
     // over the image; later ones only fill what is still uncovered.
     for (int stride = 32; stride >= 1; stride /= 2) {
@@ -161,7 +374,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
               const int x = rect.x0 + std::min(rw - 1, gx * stride + stride / 2);
               const int y = rect.y0 + std::min(rh - 1, gy * stride + stride / 2);
               Rng rng(HashCombine(settings.seed, uint64_t(y) * w + x),
-                      kStreamOverture + 8 * uint64_t(stride));
+                      kStreamOverture + 8 * uint64_t(stride) + 1024 * iteration);
               const Ray ray{cam.origin(), cam.Direction(x + 0.5f, y + 0.5f), INFINITY};
               ++c.camera_rays;
               if (integrator.Prime(ray, rng, c) && !marks.empty())
@@ -172,58 +385,48 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
         });
       });
     }
+  };
+
+  // --target-error: the cache's accuracy is chosen for the error asked, then lowered until the
+  // cross-validated cache error is at most half of it; the samples take the rest.
+  IrrcacheSettings ic = settings.irrcache;
+  double cache_error = -1;
+  if (irrcache) {
+    PhaseTimer timer("overture");
+    if (settings.target_error > 0) {
+      ic.accuracy = float(TargetAccuracy(settings));
+      for (int iteration = 0;; ++iteration) {
+        const IrrcacheIntegrator trial(scene, cache, ic);
+        if (settings.overture) overture(trial, uint64_t(iteration));
+        cache_error = EstimateCacheError(trial, cam, settings.seed, uint64_t(iteration), rect,
+                                         arena, counters);
+        const double elapsed =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+        if (cache_error <= 0.5 * settings.target_error || iteration >= 3 ||
+            (settings.time_limit > 0 && elapsed >= 0.5 * settings.time_limit))
+          break;
+        // Interpolation error grows about as a^2 (Ward's bound is linear in a).
+        ic.accuracy *=
+            float(std::clamp(std::sqrt(0.4 * settings.target_error / cache_error), 0.5, 0.9));
+      }
+    } else if (settings.overture) {
+      overture(integrator, 0);
+    }
     out.stats.phases.push_back(timer.Stop());
     for (const RenderCounters& c : counters) out.stats.records_overture += c.records_computed;
   }
+  const IrrcacheIntegrator final_integrator(scene, cache, ic);
+  out.stats.estimated_cache_relmse = cache_error;
+  RenderSettings final_settings = settings;
+  final_settings.irrcache = ic;
+  if (settings.target_error > 0)
+    final_settings.target_error =
+        std::max(settings.target_error - std::max(0.0, cache_error), 0.25 * settings.target_error);
 
   {
     PhaseTimer timer("render");
-    Progress progress(tty, int(tiles.size()), "render");
-    arena.execute([&] {
-      tbb::parallel_for(size_t(0), tiles.size(), [&](size_t ti) {
-        const Tile& tile = tiles[ti];
-        RenderCounters& c = counters.local();
-        for (int y = tile.y0; y < tile.y1; ++y)
-          for (int x = tile.x0; x < tile.x1; ++x) {
-            Rng rng(HashCombine(settings.seed, uint64_t(y) * w + x), kStreamFinal);
-            // Even and odd samples are kept apart (two interleaved half-images) so that their
-            // difference estimates the pixel's error; the pixel is their joint estimate.
-            Vec3 sum[2];
-            DirectTerms terms[2];
-            bool made = false;
-            const PixelSampler film(settings.spp, rng);
-            const PixelSampler lights(settings.spp * light_samples, rng);
-            for (int s = 0; s < settings.spp; ++s) {
-              float fx, fy;
-              film.Get(s, &fx, &fy);
-              fx += float(x);
-              fy += float(y);
-              const Ray ray{cam.origin(), cam.Direction(fx, fy), INFINITY};
-              ++c.camera_rays;
-              Vec3 L;
-              if (irrcache) {
-                IrrcacheShade shade;
-                L = integrator.Li(ray, LightStrata{&lights, s * light_samples}, rng, c, &shade,
-                                  &terms[s & 1]);
-                made |= shade.made_record;
-              } else {
-                L = TracePath(scene, ray, 1, false, path, rng, c);
-              }
-              // A non-finite sample would poison the pixel: it is counted and left out.
-              if (IsFinite(L))
-                sum[s & 1] += L;
-              else
-                ++c.nonfinite_samples;
-            }
-            DirectTerms all = terms[0];
-            all.Add(terms[1]);
-            out.image.at(x - rect.x0, y - rect.y0) =
-                (sum[0] + sum[1] + all.Resolve()) / float(settings.spp);
-            if (made && !marks.empty()) marks[size_t(y - rect.y0) * rw + (x - rect.x0)] = 1;
-          }
-        progress.Tick();
-      });
-    });
+    FinalPass(scene, final_settings, final_integrator, rect, tty, arena, counters, &marks, &out,
+              start_time);
     out.stats.phases.push_back(timer.Stop());
   }
 
@@ -233,12 +436,13 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
   st.width = rw;
   st.height = rh;
   st.spp = settings.spp;
+  st.target_error = settings.target_error;
   st.threads = threads;
   st.seed = settings.seed;
   st.tiles = int(tiles.size());
   st.tile_size = settings.tile_size;
   if (irrcache) {
-    st.accuracy = settings.irrcache.accuracy;
+    st.accuracy = ic.accuracy;
     st.record_rays = integrator.strata_theta() * integrator.strata_phi();
     st.strata_theta = integrator.strata_theta();
     st.strata_phi = integrator.strata_phi();

@@ -20,13 +20,25 @@ namespace irfarm {
 
 struct RenderSettings {
   std::string integrator = "irrcache";  // "path" or "irrcache"
-  int spp = 64;
+  int spp = 64;     // samples per pixel; with adaptive sampling the most a pixel gets
   int threads = 0;  // 0 = all cores
   uint64_t seed = 0;
   int tile_size = 16;
-  bool overture = true;       // irrcache: fill the cache before the final pass
-  bool record_map = false;    // also produce an image marking where records were computed
-  bool progress = false;      // progress line on stderr
+  bool overture = true;     // irrcache: fill the cache before the final pass
+  bool record_map = false;  // also produce an image marking where records were computed
+  bool progress = false;    // progress line on stderr
+  // Adaptive sampling of the final pass: every pixel gets min_spp samples; then rounds double
+  // the samples of the pixels with the largest estimated error (from their two interleaved
+  // half-images, SampleFilm) until the image's estimated sampling error (relMSE) is at most
+  // sampling_error, every pixel has spp samples, or time_limit is reached.
+  bool adaptive = false;
+  int min_spp = 16;
+  double sampling_error = 1e-4;
+  // > 0: --target-error, the image's total relMSE to reach (cache + sampling); overrides
+  // sampling_error and the cache's accuracy (see TargetErrorPlan in renderer.cc).
+  double target_error = 0;
+  double time_limit = 0;      // seconds (wall) from the start of the render; 0 = none
+  bool sample_map = false;    // also produce an image of the samples each pixel got
   IrrcacheSettings irrcache;  // its `path` member is used by both integrators
 };
 
@@ -44,6 +56,7 @@ CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& setting
 struct RenderOutput {
   Image image;
   Image record_map;  // when requested: the image darkened, record positions in red
+  Image sample_map;  // when requested: samples per pixel, 0 (black) to spp (white), log scale
   RenderStats stats;
 };
 

@@ -9,8 +9,8 @@
 //   PolygonProjectedSolidAngle: Lambert's formula for the cosine-weighted solid angle of a
 //     polygon clipped to the hemisphere above the surface; a uniform emitter of radiance L
 //     gives irradiance E = L * PolygonProjectedSolidAngle.
-// The geometry is done in double: the angles are differences of numbers near pi, and a lamp far
-// away subtends a solid angle well below float precision of those numbers.
+// The triangle and polygon geometry is done in double: the angles are differences of numbers
+// near pi, and a lamp far away subtends a solid angle well below float precision of those.
 #pragma once
 
 #include "cache/math.h"
@@ -20,15 +20,16 @@ namespace irfarm {
 class SphericalRect {
  public:
   // Rectangle corner + edges ex, ey (orthogonal), seen from o. False when o is (numerically) in
-  // the rectangle's plane or the solid angle is too small to sample this way.
+  // the rectangle's plane or the solid angle is too small to sample this way (below 1e-3 sr:
+  // callers then sample by area).
   bool Init(const Vec3& o, const Vec3& corner, const Vec3& ex, const Vec3& ey);
-  double solid_angle() const { return S_; }
+  float solid_angle() const { return S_; }
   // A point on the rectangle, uniform in solid angle for (u, v) uniform in [0,1)^2.
   Vec3 Sample(float u, float v) const;
 
  private:
   Vec3 o_, x_, y_, z_;
-  double x0_, y0_, x1_, y1_, z0_, b0_, b1_, k_, S_ = 0;
+  float x0_, y0_, x1_, y1_, z0_, b0_, b1_, k_, S_ = 0;
 };
 
 class SphericalTriangle {

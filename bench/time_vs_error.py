@@ -1,0 +1,196 @@
+#!/usr/bin/env python3
+"""Error against time, side by side in one run, for every scene folder given.
+
+For each scene (default: every folder of ../shared/scenes with a reference.exr and a
+mitsuba-curve.json), this renders with the `irfarm` CLI:
+  - irfarm path over an spp ladder (default 16, 64, 256),
+  - irfarm irrcache at its defaults and over a ladder of settings: --target-error values and
+    fixed-spp runs,
+  - optionally an older irfarm binary at its defaults (--baseline-bin: "today's" figures),
+and reads Mitsuba 3's own curve from mitsuba-curve.json (its seconds are from another day and
+machine; only ratios measured in this run are sound, and the table says which is which).
+Each render's time is the wall time of its overture + render phases (stats JSON); its error is
+relMSE = mean((x - ref)^2 / (ref^2 + 0.01)) against the scene's reference (`irfarm compare`).
+
+It writes OUT/<scene>.json (every run), OUT/<scene>.png (log-log error against time, when
+matplotlib is installed) and OUT/summary.md: per scene, irrcache's default run, the time path and
+Mitsuba need for the same relMSE, read off their measured curves by log-log interpolation between
+the two measured points around it (never extrapolated: a relMSE outside a curve's measured range
+is reported as '> t_max' or '< t_min'), and the ratios.
+
+  python3 bench/time_vs_error.py --irfarm build/irfarm --out bench-out [--scenes room-a,...]
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+
+
+def run(cmd):
+    return subprocess.run(cmd, check=True, capture_output=True, text=True)
+
+
+def render(irfarm, scene_dir, args, tmp, tag):
+    out = os.path.join(tmp, tag + ".exr")
+    stats = os.path.join(tmp, tag + ".json")
+    run([irfarm, "render", os.path.join(scene_dir, "scene.xml"), "-o", out, "--stats", stats,
+         "-q", "--seed", "7"] + args)
+    with open(stats) as f:
+        st = json.load(f)
+    cmp = json.loads(run([irfarm, "compare", out, os.path.join(scene_dir, "reference.exr")])
+                     .stdout)
+    secs = st["seconds"].get("overture", 0) + st["seconds"].get("render", 0)
+    est = st.get("error_estimate", {}).get("relmse")
+    spp = st.get("sampling", {}).get("spp_mean", st.get("spp"))
+    return {"seconds": secs, "relmse": cmp["relmse"], "estimate": est, "spp_mean": spp,
+            "records": st["records"]["computed"], "args": args,
+            "nonfinite_samples": st.get("sampling", {}).get("nonfinite_samples")}
+
+
+def time_for(curve, relmse):
+    """Seconds a curve [(seconds, relmse)] needs for `relmse`, by log-log interpolation between
+    its measured neighbours; (value, '') inside, (bound, '>' or '<') outside its range."""
+    pts = sorted(curve, key=lambda p: p[0])
+    errs = [p[1] for p in pts]
+    if relmse > max(errs):
+        return min(p[0] for p in pts), "<"
+    if relmse < min(errs):
+        return max(p[0] for p in pts), ">"
+    for (t0, e0), (t1, e1) in zip(pts, pts[1:]):
+        lo, hi = min(e0, e1), max(e0, e1)
+        if lo <= relmse <= hi and e0 != e1:
+            f = (math.log(relmse) - math.log(e0)) / (math.log(e1) - math.log(e0))
+            return math.exp(math.log(t0) + f * (math.log(t1) - math.log(t0))), ""
+    return pts[0][0], ""
+
+
+def mitsuba_curve(scene_dir):
+    path = os.path.join(scene_dir, "mitsuba-curve.json")
+    if not os.path.exists(path):
+        return []
+    with open(path) as f:
+        d = json.load(f)
+    pts = d.get("points", d)
+    return [(p.get("seconds_median", p.get("seconds")), p["relmse_mean"], p["spp"]) for p in pts]
+
+
+def plot(scene, runs, mitsuba, path):
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    groups = {}
+    for r in runs:
+        groups.setdefault(r["method"], []).append(r)
+    styles = {"path": "o-", "irrcache": "s-", "irrcache-target": "^-", "baseline": "x"}
+    for name, rs in groups.items():
+        rs = sorted(rs, key=lambda r: r["seconds"])
+        ax.plot([r["seconds"] for r in rs], [r["relmse"] for r in rs], styles.get(name, "o-"),
+                label="irfarm " + name)
+    if mitsuba:
+        ax.plot([m[0] for m in mitsuba], [m[1] for m in mitsuba], "d--",
+                label="Mitsuba 3 (its curve file)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("wall seconds (2 cores)")
+    ax.set_ylabel("relMSE vs reference")
+    ax.set_title(scene)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return True
+
+
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--irfarm", default=os.path.join(here, "..", "build", "irfarm"))
+    ap.add_argument("--baseline-bin", help="an older irfarm binary to run at its defaults")
+    ap.add_argument("--scenes-dir", default=os.path.join(here, "..", "..", "shared", "scenes"))
+    ap.add_argument("--scenes", help="comma-separated names (default: all with a reference)")
+    ap.add_argument("--path-spp", default="16,64,256")
+    ap.add_argument("--targets", default="4e-3,1e-3")
+    ap.add_argument("--irrcache-spp", default="16,64", help="fixed-spp irrcache runs")
+    ap.add_argument("--out", default="bench-out")
+    a = ap.parse_args()
+
+    names = a.scenes.split(",") if a.scenes else sorted(
+        n for n in os.listdir(a.scenes_dir)
+        if os.path.exists(os.path.join(a.scenes_dir, n, "reference.exr"))
+        and os.path.exists(os.path.join(a.scenes_dir, n, "mitsuba-curve.json")))
+    os.makedirs(a.out, exist_ok=True)
+    summary = ["| scene | irrcache default: relMSE, s | path time at that relMSE | "
+               "Mitsuba time at that relMSE (its curve) | Mitsuba 256 spp relMSE | "
+               "vs path | vs Mitsuba | baseline default: relMSE, s | target 4e-3 / 1e-3: "
+               "measured (estimate) |",
+               "|---|---|---|---|---|---|---|---|---|"]
+    tmp = tempfile.mkdtemp(prefix="irfarm-bench-")
+    for name in names:
+        d = os.path.join(a.scenes_dir, name)
+        runs = []
+
+        def add(method, r):
+            r["method"] = method
+            runs.append(r)
+            print(f"  {name:14s} {method:16s} {' '.join(r['args']):32s} {r['seconds']:8.2f} s "
+                  f"relMSE {r['relmse']:.3e}" +
+                  (f" est {r['estimate']:.2e}" if r.get("estimate") else ""), flush=True)
+
+        try:
+            add("irrcache", render(a.irfarm, d, [], tmp, name + "-irr"))
+            for spp in a.irrcache_spp.split(","):
+                add("irrcache", render(a.irfarm, d, ["--spp", spp, "--adaptive", "off"], tmp,
+                                       name + "-irr" + spp))
+            for t in a.targets.split(","):
+                add("irrcache-target", render(a.irfarm, d, ["--target-error", t], tmp,
+                                              name + "-t" + t))
+            for spp in a.path_spp.split(","):
+                add("path", render(a.irfarm, d, ["--integrator", "path", "--spp", spp], tmp,
+                                   name + "-path" + spp))
+            if a.baseline_bin:
+                add("baseline", render(a.baseline_bin, d, [], tmp, name + "-base"))
+        except subprocess.CalledProcessError as e:
+            print(f"{name}: {e.stderr.strip()}", file=sys.stderr)
+            continue
+        mit = mitsuba_curve(d)
+        default = runs[0]
+        path_curve = [(r["seconds"], r["relmse"]) for r in runs if r["method"] == "path"]
+        t_path, path_flag = time_for(path_curve, default["relmse"])
+        t_mit, mit_flag = time_for([(m[0], m[1]) for m in mit], default["relmse"]) if mit else (
+            float("nan"), "")
+        mit256 = next((m[1] for m in mit if m[2] == 256), float("nan"))
+        base = next((r for r in runs if r["method"] == "baseline"), None)
+        targets = [r for r in runs if r["method"] == "irrcache-target"]
+        summary.append(
+            f"| {name} | {default['relmse']:.2e}, {default['seconds']:.2f} s | "
+            f"{path_flag}{t_path:.2f} s | {mit_flag}{t_mit:.2f} s | {mit256:.2e} | "
+            f"{path_flag}{t_path / default['seconds']:.1f}x | "
+            f"{mit_flag}{t_mit / default['seconds']:.1f}x | " +
+            (f"{base['relmse']:.2e}, {base['seconds']:.2f} s" if base else "-") + " | " +
+            " / ".join(f"{r['relmse']:.2e} ({r['estimate']:.2e})" for r in targets) + " |")
+        with open(os.path.join(a.out, name + ".json"), "w") as f:
+            json.dump({"scene": name, "runs": runs,
+                       "mitsuba_curve": [{"seconds": m[0], "relmse": m[1], "spp": m[2]}
+                                         for m in mit],
+                       "equal_error": {"irrcache_default_relmse": default["relmse"],
+                                       "irrcache_default_seconds": default["seconds"],
+                                       "path_seconds": t_path, "path_flag": path_flag,
+                                       "mitsuba_seconds": t_mit, "mitsuba_flag": mit_flag}},
+                      f, indent=1)
+        plot(name, runs, mit, os.path.join(a.out, name + ".png"))
+    text = "\n".join(summary) + "\n"
+    with open(os.path.join(a.out, "summary.md"), "w") as f:
+        f.write(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,59 @@
+#include "render/sample_film.h"
+
+namespace irfarm {
+namespace {
+Vec3 Ratio(const Vec3& s, const Vec3& u) {
+  return Vec3(u.x > 0 ? s.x / u.x : 0, u.y > 0 ? s.y / u.y : 0, u.z > 0 ? s.z / u.z : 0);
+}
+}  // namespace
+
+SampleFilm::SampleFilm(size_t pixels, int slots)
+    : slots_(slots),
+      stride_(1 + 3 * size_t(slots)),
+      data_(pixels * 2 * stride_),
+      count_(pixels, 0) {}
+
+void SampleFilm::Add(size_t p, int index, const Vec3& L, const DirectTerms* terms) {
+  Vec3* h = Half(p, index & 1);
+  h[0] += L;
+  if (terms)
+    for (int j = 0; j < slots_; ++j) {
+      h[1 + 3 * j] += terms->analytic[j];
+      h[2 + 3 * j] += terms->shadowed[j];
+      h[3 + 3 * j] += terms->unshadowed[j];
+    }
+  ++count_[p];
+}
+
+// Sum of the radiance and of A_j * S_j / U_j over the halves given (b may be null), over n.
+Vec3 SampleFilm::Resolve(const Vec3* a, const Vec3* b, int n) const {
+  if (n <= 0) return Vec3();
+  Vec3 v = b ? a[0] + b[0] : a[0];
+  for (int j = 0; j < slots_; ++j) {
+    const Vec3 A = b ? a[1 + 3 * j] + b[1 + 3 * j] : a[1 + 3 * j];
+    const Vec3 S = b ? a[2 + 3 * j] + b[2 + 3 * j] : a[2 + 3 * j];
+    const Vec3 U = b ? a[3 + 3 * j] + b[3 + 3 * j] : a[3 + 3 * j];
+    v += A * Ratio(S, U);
+  }
+  return v / float(n);
+}
+
+Vec3 SampleFilm::Value(size_t p) const { return Resolve(Half(p, 0), Half(p, 1), count_[p]); }
+
+Vec3 SampleFilm::HalfValue(size_t p, int h) const {
+  const int n = count_[p];
+  return Resolve(Half(p, h), nullptr, h == 0 ? (n + 1) / 2 : n / 2);
+}
+
+double SampleFilm::RelativeError(size_t p) const {
+  if (count_[p] < 2) return 0;
+  const Vec3 v = Value(p), a = HalfValue(p, 0), b = HalfValue(p, 1);
+  double e = 0;
+  for (int c = 0; c < 3; ++c) {
+    const double d = double(a[c]) - double(b[c]);
+    e += d * d / 4 / (double(v[c]) * v[c] + 0.01);
+  }
+  return e / 3;
+}
+
+}  // namespace irfarm

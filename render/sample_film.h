@@ -1,0 +1,42 @@
+// Per-pixel sample sums of the final pass, kept as two interleaved half-images (even and odd
+// samples) so that each pixel's error can be estimated from the difference of its halves:
+// for independent halves h0, h1 of n/2 samples each, E[(h0 - h1)^2] / 4 = Var(mean of all n).
+// Besides the radiance sums, each half keeps the ratio estimator's three sums per rectangle light
+// (DirectTerms, only the slots the scene uses), resolved per half and for the whole pixel.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include "render/irrcache_integrator.h"
+
+namespace irfarm {
+
+class SampleFilm {
+ public:
+  SampleFilm(size_t pixels, int slots);
+
+  // Adds sample number `index` of pixel p (its half is index & 1): radiance L and, with slots,
+  // its direct terms.
+  void Add(size_t p, int index, const Vec3& L, const DirectTerms* terms);
+  int count(size_t p) const { return count_[p]; }
+  // The pixel's estimate from all its samples, and from half h (0 even, 1 odd) alone.
+  Vec3 Value(size_t p) const;
+  Vec3 HalfValue(size_t p, int h) const;
+  // Estimated squared error of Value(p), relative as relMSE weighs it:
+  // mean over channels of ((h0 - h1)^2 / 4) / (v^2 + 0.01). 0 with fewer than 2 samples.
+  double RelativeError(size_t p) const;
+
+ private:
+  // Layout per pixel and half: [sum, A_0, S_0, U_0, ..., A_{k-1}, S_{k-1}, U_{k-1}].
+  Vec3* Half(size_t p, int h) { return &data_[(p * 2 + size_t(h)) * stride_]; }
+  const Vec3* Half(size_t p, int h) const { return &data_[(p * 2 + size_t(h)) * stride_]; }
+  Vec3 Resolve(const Vec3* a, const Vec3* b, int n) const;
+
+  int slots_;
+  size_t stride_;
+  std::vector<Vec3> data_;
+  std::vector<int> count_;
+};
+
+}  // namespace irfarm
