@@ -2,7 +2,8 @@
 # Large-input requests against a real coordinator process: a 100000^2 film, a 2^31-1 pixel wide
 # film and 300 -D defines are refused with INVALID_ARGUMENT, each in under 2 s, create no job,
 # and leave the coordinator's RSS within 10% of what it was after one warm-up round of the same
-# requests (the bug was +230 MiB kept after a cancelled 100000^2 job).
+# requests (the bug was +230 MiB kept after a cancelled 100000^2 job). Also: without tokens the
+# coordinator refuses to listen on 0.0.0.0.
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/cornell-box/scene.xml
 ADDR=127.0.0.1:$(free_port)
@@ -33,4 +34,13 @@ R1=$(rss)
 echo "MEASURED coordinator RSS after warm-up ${R0} KiB, after 3 more rounds ${R1} KiB"
 check "coordinator RSS within 10%" "$R1 <= 1.1 * $R0"
 check "no job was created" "'$("$BIN/irfarm" status --coordinator "$ADDR")' == ''"
+
+
+# Without tokens the coordinator refuses a non-loopback address (unless --insecure).
+PORT=$(free_port)
+if timeout 10 "$BIN/irfarm-coordinator" --listen "0.0.0.0:$PORT" >"$WORK/open.log" 2>&1; then
+  fail "coordinator listened on 0.0.0.0 without tokens"
+fi
+grep -q "refusing to listen" "$WORK/open.log" || fail "no refusal message: $(cat "$WORK/open.log")"
+echo "ok: refuses 0.0.0.0 without tokens"
 echo PASS
