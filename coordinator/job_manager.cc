@@ -1,14 +1,16 @@
 // JobManager: jobs, tiles, record merge and fan-out, worker mailboxes (see job_manager.h).
 #include "coordinator/job_manager.h"
 
+#include <limits.h>
 #include <spdlog/spdlog.h>
+#include <stdlib.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "cache/snapshot.h"
@@ -187,6 +189,8 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     if (!main.ok()) return main.status();
     if (name.empty()) name = bundle.main_file().empty() ? "scene.xml" : bundle.main_file();
   } else if (request.scene().has_path()) {
+    absl::Status st = CheckScenePath(request.scene().path(), caller);
+    if (!st.ok()) return st;
     desc = LoadJobScene(request.scene().path(), request.settings());
     if (name.empty()) name = request.scene().path();
   }
@@ -274,6 +278,25 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   jobs_[j->id()] = std::move(job);
   Changed();
   return view;
+}
+
+absl::Status JobManager::CheckScenePath(const std::string& path, const Caller& caller) const {
+  if (options_.scene_path_root.empty()) {
+    if (caller.admin) return absl::OkStatus();
+  } else {
+    // Canonical paths, so that neither ".." nor a symlink leaves the root.
+    char root[PATH_MAX], real[PATH_MAX];
+    if (realpath(options_.scene_path_root.c_str(), root) != nullptr &&
+        realpath(path.c_str(), real) != nullptr) {
+      const std::string r = std::string(root) + "/", p = real;
+      if (p.compare(0, r.size(), r) == 0) return absl::OkStatus();
+    }
+  }
+  // The same answer whether the file exists or not.
+  return absl::PermissionDeniedError("scene paths on the coordinator are not allowed here" +
+                                     std::string(options_.scene_path_root.empty()
+                                                     ? " (upload the scene as a bundle)"
+                                                     : " outside the scene path root"));
 }
 
 absl::StatusOr<JobManager::Job*> JobManager::Find(const std::string& id,

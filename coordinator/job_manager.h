@@ -76,6 +76,11 @@ struct JobManagerOptions {
   int max_violations = 16;  // invalid messages before the coordinator ends a worker's session
   size_t sync_batch_records = 16384;  // records per batch when catching up a late joiner
   JobLimits limits;
+  // Scenes given by path (SceneSource.path, read from the coordinator's file system): allowed
+  // under this directory; with none, only for admin callers (which, without authentication, is
+  // everyone: the loopback development setup). Others get PERMISSION_DENIED, whether the file
+  // exists or not.
+  std::string scene_path_root;
 };
 
 // Who calls the job API: the name of its client token, and whether it may see every job.
@@ -172,6 +177,8 @@ class JobManager {
   bool IsFinal(const Job& job) const;
   // The job `id` if `caller` may see it, else NOT_FOUND (the same answer as for no such job).
   absl::StatusOr<Job*> Find(const std::string& id, const Caller& caller) const;
+  // PERMISSION_DENIED unless `caller` may load the coordinator-side scene file `path`.
+  absl::Status CheckScenePath(const std::string& path, const Caller& caller) const;
   // Counts an invalid message of `worker`, queues a Rejected notice; returns
   // PERMISSION_DENIED(reason).
   absl::Status Violation(uint32_t worker_id, Worker& worker, const std::string& reason);

@@ -62,6 +62,8 @@ int main(int argc, char** argv) {
   app.add_option("--tls-client-ca", tls_client_ca,
                  "require client certificates signed by this CA (PEM): mutual TLS");
   app.add_flag("--insecure", insecure, "allow a non-loopback address without tokens");
+  app.add_option("--scene-path-root", options.scene_path_root,
+                 "allow jobs whose scene is a path under this directory (default: admins only)");
   app.add_option("--max-upload-mib", max_upload_mib, "largest SubmitJob request (default 64)");
   app.add_option("--lease-seconds", lease_seconds, "tile lease deadline (default 120)");
   app.add_option("--heartbeat-seconds", heartbeat_seconds,

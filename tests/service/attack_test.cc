@@ -478,6 +478,20 @@ TEST_F(AttackTest, HijackedLeasesNanPixelsAndForgedStatsAreRefused) {
     EXPECT_LT(w.records_computed(), 1000000000000ull);
     EXPECT_GE(w.render_seconds(), 0);
   }
+  // The finished job released its uploaded bundle (in the store too).
+  absl::StatusOr<std::vector<v1::StoredJob>> stored = store_.LoadJobs();
+  ASSERT_TRUE(stored.ok());
+  size_t bundle_bytes = 0, jobs_seen = 0;
+  for (const v1::StoredJob& sj : *stored) {
+    if (sj.job().id() != a) continue;
+    ++jobs_seen;
+    ASSERT_TRUE(sj.scene().has_bundle());
+    EXPECT_GT(sj.scene().bundle().files_size(), 0);
+    for (const v1::BundleFile& file : sj.scene().bundle().files())
+      bundle_bytes += file.content().size();
+  }
+  EXPECT_EQ(jobs_seen, 1u);
+  EXPECT_EQ(bundle_bytes, 0u);
   const ImageError e = ImageOf(kAlice, a);
   std::printf("MEASURED hijacked job relMSE %g (tolerance %g)\n", e.relmse, tol);
   EXPECT_EQ(e.nonfinite, 0);
@@ -634,6 +648,25 @@ TEST_F(AttackTest, AccessControl) {
   EXPECT_EQ(job.state(), v1::JOB_STATE_QUEUED);
   EXPECT_EQ(job.owner(), "alice");
   EXPECT_EQ(Cluster().auth_failures(), 3u * 4u + 2u);
+}
+
+// Why 8: a client (not admin) naming a coordinator-side file gets PERMISSION_DENIED whether it
+// exists (and is XML) or not, so nothing about the coordinator's files leaks; an admin may.
+TEST_F(AttackTest, ScenePathsAreForClientsNotAllowed) {
+  StartServer();
+  std::string answers[2];
+  const std::string paths[2] = {kScene, "/nonexistent/scene.xml"};
+  for (int i = 0; i < 2; ++i) {
+    v1::SubmitJobRequest req = Request();
+    req.mutable_scene()->set_path(paths[i]);
+    const grpc::Status st = Submit(kAlice, req);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
+    answers[i] = st.error_message();
+  }
+  EXPECT_EQ(answers[0], answers[1]);
+  v1::SubmitJobRequest req = Request();
+  req.mutable_scene()->set_path(kScene);
+  EXPECT_TRUE(Submit(kAdmin, req).ok());
 }
 
 // Why 7: requests asking too much are refused up front, quickly, and leave nothing behind.
