@@ -205,8 +205,8 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
       int64_t(w) * h > lim.max_film_pixels)
     return absl::InvalidArgumentError(
         "film " + std::to_string(w) + "x" + std::to_string(h) +
-        " is outside the limits (sides 1.." + std::to_string(lim.max_film_side) + ", at most " + std::to_string(lim.max_film_pixels) +
-        " pixels)");
+        " is outside the limits (sides 1.." + std::to_string(lim.max_film_side) + ", at most " +
+        std::to_string(lim.max_film_pixels) + " pixels)");
   const int64_t tile = JobTileSize(request.settings());
   const int64_t tiles = ((w + tile - 1) / tile) * ((h + tile - 1) / tile);
   if (tiles > lim.max_tiles)
