@@ -523,10 +523,11 @@ bool JobManager::Quarantined(const Worker& worker, SteadyTime now) const {
   return it != health_.end() && it->second.quarantined_until > now;
 }
 
-bool JobManager::OtherEligibleWorker(uint32_t worker_id, SteadyTime now) const {
+std::vector<uint32_t> JobManager::OtherEligibleWorkers(uint32_t worker_id, SteadyTime now) const {
+  std::vector<uint32_t> out;
   for (const auto& [id, w] : workers_)
-    if (id != worker_id && !w.silent && !w.draining && !Quarantined(w, now)) return true;
-  return false;
+    if (id != worker_id && !w.silent && !w.draining && !Quarantined(w, now)) out.push_back(id);
+  return out;
 }
 
 absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& records) {
@@ -766,22 +767,31 @@ void JobManager::SeedCache(Job& job) {
 
 void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
                            std::vector<v1::CoordinatorMessage>* out) {
-  Job* best = nullptr;
-  for (auto& [id, job] : jobs_) {
-    if (IsFinal(*job) || !job->tiles->has_pending()) continue;
-    if (best == nullptr || job->stored.job().priority() > best->stored.job().priority() ||
-        (job->stored.job().priority() == best->stored.job().priority() &&
-         job->stored.sequence() < best->stored.sequence()))
-      best = job.get();
+  // Jobs with pending tiles, highest priority first, then in submission order; the first that
+  // has a tile for this worker (one that did not fail on it, while others could take those).
+  std::vector<Job*> candidates;
+  for (auto& [id, job] : jobs_)
+    if (!IsFinal(*job) && job->tiles->has_pending()) candidates.push_back(job.get());
+  std::sort(candidates.begin(), candidates.end(), [](const Job* a, const Job* b) {
+    if (a->stored.job().priority() != b->stored.job().priority())
+      return a->stored.job().priority() > b->stored.job().priority();
+    return a->stored.sequence() < b->stored.sequence();
+  });
+  const SteadyTime now = std::chrono::steady_clock::now();
+  const std::vector<uint32_t> others = OtherEligibleWorkers(worker_id, now);
+  Job* chosen = nullptr;
+  std::optional<TileLeaseInfo> lease;
+  for (Job* candidate : candidates) {
+    lease = candidate->tiles->Lease(worker_id, now, options_.lease_time, others);
+    if (lease) {
+      chosen = candidate;
+      break;
+    }
   }
-  if (best == nullptr) return;
-  Job& job = *best;
+  if (chosen == nullptr) return;
+  Job& job = *chosen;
   const std::string& id = job.stored.job().id();
   if (!job.has_started) SeedCache(job);
-  const SteadyTime now = std::chrono::steady_clock::now();
-  std::optional<TileLeaseInfo> lease = job.tiles->Lease(worker_id, now, options_.lease_time,
-                                                        OtherEligibleWorker(worker_id, now));
-  if (!lease) return;
   if (!job.workers.count(worker_id)) {
     v1::CoordinatorMessage spec;
     spec.mutable_job_spec()->set_job_id(id);

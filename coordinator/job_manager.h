@@ -189,8 +189,8 @@ class JobManager {
   void ReleaseLease(Worker& worker, uint64_t lease_id);
   void TileFailedOn(const Worker& worker);
   bool Quarantined(const Worker& worker, SteadyTime now) const;
-  // A worker other than `worker_id` that could take a lease now.
-  bool OtherEligibleWorker(uint32_t worker_id, SteadyTime now) const;
+  // The workers other than `worker_id` that could take a lease now.
+  std::vector<uint32_t> OtherEligibleWorkers(uint32_t worker_id, SteadyTime now) const;
   void TryAssign(uint32_t worker_id, Worker& worker, std::vector<v1::CoordinatorMessage>* out);
   void FinishJob(Job& job, v1::JobState state, const std::string& error);
   // When `job` starts: merges the records of earlier jobs of the same sensor-free scene and

@@ -39,10 +39,13 @@ TileScheduler::TileScheduler(int width, int height, int tile_size, const TileRet
 
 std::optional<TileLeaseInfo> TileScheduler::Lease(uint32_t worker, SteadyTime now,
                                                   std::chrono::milliseconds lease_time,
-                                                  bool avoid_failed) {
+                                                  const std::vector<uint32_t>& others) {
   auto chosen = pending_.end();
   for (auto it = pending_.begin(); it != pending_.end(); ++it) {
-    if (avoid_failed && failed_on_[size_t(*it)].count(worker)) continue;
+    const std::set<uint32_t>& failed = failed_on_[size_t(*it)];
+    if (failed.count(worker) &&
+        std::any_of(others.begin(), others.end(), [&](uint32_t o) { return !failed.count(o); }))
+      continue;  // a worker it has not failed on will take it
     if (chosen == pending_.end()) chosen = it;  // the first eligible, if none is far
     bool far = true;
     for (const TileLeaseInfo& l : leases_) {

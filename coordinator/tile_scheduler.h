@@ -50,11 +50,12 @@ class TileScheduler {
   bool is_done(int tile) const { return state_[size_t(tile)] == State::kDone; }
 
   // Leases a pending tile to `worker`, preferring one at least two tiles away from every tile
-  // leased now (so concurrent workers compute fewer overlapping records). When
-  // `avoid_failed` (other workers could take them), tiles that failed on `worker` are skipped.
-  // nullopt when none is pending (for this worker).
+  // leased now (so concurrent workers compute fewer overlapping records). A tile that failed on
+  // `worker` is skipped while one of `others` (the other workers that could take a lease) has
+  // not failed it. nullopt when no tile is pending for this worker.
   std::optional<TileLeaseInfo> Lease(uint32_t worker, SteadyTime now,
-                                     std::chrono::milliseconds lease_time, bool avoid_failed);
+                                     std::chrono::milliseconds lease_time,
+                                     const std::vector<uint32_t>& others = {});
 
   // The current lease `lease_id` of `tile`, or nullptr (expired and re-leased, done, or never).
   const TileLeaseInfo* Current(int tile, uint64_t lease_id) const;
