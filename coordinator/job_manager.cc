@@ -585,7 +585,15 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
       if (other == worker) continue;
       auto owit = workers_.find(other);
       if (owit == workers_.end()) continue;
-      owit->second.outbox.push_back(m);
+      Worker& ow = owit->second;
+      // A worker that does not keep up (or does not read) gets no more fan-out past the bound:
+      // the records are an optimisation, it computes its own instead.
+      if (ow.outbox_bytes + bytes > options_.limits.max_outbox_bytes) {
+        ++ow.batches_dropped;
+        continue;
+      }
+      ow.outbox.push_back(m);
+      ow.outbox_bytes += bytes;
       v1::WorkerJobStats& os = job.worker_stats[other];
       os.set_worker_id(other);
       os.set_bytes_received(os.bytes_received() + bytes);
@@ -726,6 +734,8 @@ v1::GetClusterResponse JobManager::Cluster() const {
       }
     }
     i->set_violations(w.violations);
+    i->set_outbox_bytes(w.outbox_bytes);
+    i->set_batches_dropped(w.batches_dropped);
     i->set_seconds_since_heard(std::chrono::duration<double>(now - w.last_heard).count());
     i->set_silent(w.silent);
   }
@@ -862,6 +872,8 @@ std::vector<v1::CoordinatorMessage> JobManager::Poll(uint32_t worker,
     if (it == workers_.end()) return out;
     Worker& w = it->second;
     while (!w.outbox.empty()) {
+      if (w.outbox.front().has_records())
+        w.outbox_bytes -= std::min(w.outbox_bytes, BatchBytes(w.outbox.front().records().batch()));
       out.push_back(std::move(w.outbox.front()));
       w.outbox.pop_front();
     }

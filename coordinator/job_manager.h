@@ -63,6 +63,7 @@ struct JobLimits {
   size_t max_define_bytes = 4096;                 // name + value of one -D
   int max_batch_records = 1 << 16;                // records per worker message
   int max_live_jobs_per_client = 64;              // queued + running jobs of one client
+  size_t max_outbox_bytes = size_t(64) << 20;     // record fan-out queued for one worker
 };
 
 struct JobManagerOptions {
@@ -161,6 +162,8 @@ class JobManager {
     SteadyTime last_heard;
     bool silent = false;  // no message for 3 heartbeat periods: leases taken, gets none
     uint32_t violations = 0;
+    size_t outbox_bytes = 0;       // record payload queued in outbox
+    uint64_t batches_dropped = 0;  // fan-out batches not queued: outbox over max_outbox_bytes
   };
   // Failure history of a worker name (survives reconnects, so a broken worker that reconnects
   // stays quarantined).

@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
   CLI::App app{"irfarm-coordinator: job API and tile/record coordination for irfarm workers"};
   std::string listen = "127.0.0.1:50051", redis;
   double max_upload_mib = 64, lease_seconds = 120, heartbeat_seconds = 1, quarantine_seconds = 30;
+  double max_outbox_mib = 64;
   irfarm::JobManagerOptions options;
   irfarm::JobLimits& lim = options.limits;
   std::string client_tokens, worker_tokens, admin_tokens, tls_cert, tls_key, tls_client_ca;
@@ -87,6 +88,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-define-bytes", lim.max_define_bytes, "bytes of one -D (4096)");
   app.add_option("--max-batch-records", lim.max_batch_records,
                  "records per worker message (65536)");
+  app.add_option("--max-outbox-mib", max_outbox_mib,
+                 "record fan-out queued per worker before batches are dropped (64)");
   app.add_option("--max-live-jobs", lim.max_live_jobs_per_client,
                  "queued + running jobs per client (64)");
   CLI11_PARSE(app, argc, argv);
@@ -152,6 +155,7 @@ int main(int argc, char** argv) {
     store = std::move(*r);
   }
   options.max_upload_bytes = size_t(max_upload_mib * 1024 * 1024);
+  lim.max_outbox_bytes = size_t(max_outbox_mib * 1024 * 1024);
   options.lease_time = std::chrono::milliseconds(int64_t(lease_seconds * 1000));
   options.heartbeat =
       std::chrono::milliseconds(std::max<int64_t>(50, int64_t(heartbeat_seconds * 1000)));

@@ -172,6 +172,7 @@ class AttackTest : public ::testing::Test {
     options.max_upload_bytes = size_t(8) << 20;
     options.max_violations = kMaxViolations;
     options.limits.max_live_jobs_per_client = 4;
+    options.limits.max_outbox_bytes = size_t(1) << 20;
     manager_ = std::move(*JobManager::Create(options, &store_));
     auth_ = std::make_unique<Authenticator>(
         std::vector<NamedToken>{{"alice", kAlice}, {"bob", kBob}},
@@ -719,6 +720,51 @@ TEST_F(AttackTest, ResourceLimits) {
   std::vector<IrradianceRecord> flood(size_t(1 << 16) + 1, Record(Vec3(0, 0, 0), 0.1f, 1));
   ASSERT_TRUE(f.Send(Records("job-1", flood)));
   EXPECT_NE(f.NextRejection().find("over the limit"), std::string::npos);
+}
+
+// Part 5: a worker that stops reading its stream does not make the coordinator queue record
+// fan-out for it without bound (1 MiB here): the batches past the bound are dropped and counted,
+// and the records are still merged.
+TEST_F(AttackTest, OutboxOfAWorkerThatDoesNotReadIsBounded) {
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  FakeWorker sleepy(channel_, kWorker, "sleepy");
+  ASSERT_TRUE(sleepy.NextLease().has_value());  // then never reads again
+  FakeWorker chatty(channel_, kWorker, "chatty");
+  ASSERT_TRUE(chatty.NextLease().has_value());
+  const int kBatches = 60, kPerBatch = 4000;  // 10.6 MB of payload
+  for (int b = 0; b < kBatches; ++b) {
+    std::vector<IrradianceRecord> recs;
+    for (int i = 0; i < kPerBatch; ++i) {
+      const int k = b * kPerBatch + i;
+      const Vec3 p(-0.9f + 1.8f * float(k % 97) / 97, -0.9f + 1.8f * float(k % 89) / 89,
+                   -0.9f + 1.8f * float(k % 83) / 83);
+      recs.push_back(Record(p, 0.05f, 0.3f));
+    }
+    ASSERT_TRUE(chatty.Send(Records(a, recs)));
+  }
+  v1::Job job;
+  for (int i = 0; i < 400; ++i) {
+    ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+    if (job.records_merged() >= uint64_t(kBatches) * kPerBatch) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(job.records_merged(), uint64_t(kBatches) * kPerBatch);
+  const v1::GetClusterResponse cluster = Cluster();
+  bool seen = false;
+  for (const v1::WorkerInfo& w : cluster.workers()) {
+    if (w.name() != "sleepy") continue;
+    seen = true;
+    std::printf("MEASURED sleepy worker: outbox %llu bytes, %llu batches dropped\n",
+                static_cast<unsigned long long>(w.outbox_bytes()),
+                static_cast<unsigned long long>(w.batches_dropped()));
+    EXPECT_LE(w.outbox_bytes(), 1u << 20);
+    EXPECT_GT(w.batches_dropped(), 0u);
+  }
+  EXPECT_TRUE(seen);
+  sleepy.Cancel();
+  chatty.Cancel();
 }
 
 // TLS and mutual TLS with certificates made now by openssl: a client with the CA and (for mTLS)
