@@ -243,7 +243,14 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   }
 
   std::lock_guard<std::mutex> lock(mu_);
+  // A store that lost its data (Redis FLUSHALL, a restart without persistence) counts from 1
+  // again: skip numbers of jobs this coordinator still holds rather than replace one.
   absl::StatusOr<uint64_t> number = store_->NextJobNumber();
+  for (int skipped = 0; number.ok() && jobs_.count("job-" + std::to_string(*number)); ++skipped) {
+    if (skipped == 0)
+      spdlog::warn("job store counter went back to {}: skipping ids in use", *number);
+    number = store_->NextJobNumber();
+  }
   if (!number.ok()) return Unavailable(number.status());
   auto job = std::make_unique<Job>();
   v1::StoredJob& s = job->stored;
