@@ -6,7 +6,7 @@ namespace irfarm {
 GlobalCache::GlobalCache(const CacheSettings& settings, const RecordBounds& bounds)
     : bounds_(bounds), cache_(std::make_unique<IrradianceCache>(settings)) {}
 
-std::vector<IrradianceRecord> GlobalCache::Merge(const std::vector<IrradianceRecord>& records,
+std::vector<IrradianceRecord> GlobalCache::Check(const std::vector<IrradianceRecord>& records,
                                                  const char** problem) {
   std::vector<IrradianceRecord> accepted;
   if (!cache_) {  // released: the job is over
@@ -21,10 +21,23 @@ std::vector<IrradianceRecord> GlobalCache::Merge(const std::vector<IrradianceRec
       ++rejected_;
       continue;
     }
-    cache_->Insert(r);
-    records_.push_back(r);
     accepted.push_back(r);
   }
+  return accepted;
+}
+
+void GlobalCache::Insert(const std::vector<IrradianceRecord>& valid) {
+  if (!cache_) return;
+  for (const IrradianceRecord& r : valid) {
+    cache_->Insert(r);
+    records_.push_back(r);
+  }
+}
+
+std::vector<IrradianceRecord> GlobalCache::Merge(const std::vector<IrradianceRecord>& records,
+                                                 const char** problem) {
+  std::vector<IrradianceRecord> accepted = Check(records, problem);
+  Insert(accepted);
   return accepted;
 }
 

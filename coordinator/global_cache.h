@@ -23,6 +23,12 @@ class GlobalCache {
   // `problem` is given, sets it to why the first of them was refused (else leaves it).
   std::vector<IrradianceRecord> Merge(const std::vector<IrradianceRecord>& records,
                                       const char** problem = nullptr);
+  // Merge in two steps, so that a caller can store the records before they count: Check
+  // returns the valid records (counting and explaining the others like Merge) and Insert adds
+  // records Check returned.
+  std::vector<IrradianceRecord> Check(const std::vector<IrradianceRecord>& records,
+                                      const char** problem = nullptr);
+  void Insert(const std::vector<IrradianceRecord>& valid);
   // Drops the lookup octree (a finished job takes no more records; the record list stays for
   // snapshots and seeding).
   void ReleaseIndex() { cache_.reset(); }

@@ -573,7 +573,7 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
   ws.set_records_sent(ws.records_sent() + decoded->size());
   ws.set_bytes_sent(ws.bytes_sent() + BatchBytes(records.batch()));
   const char* problem = nullptr;
-  const std::vector<IrradianceRecord> accepted = job.cache->Merge(*decoded, &problem);
+  const std::vector<IrradianceRecord> accepted = job.cache->Check(*decoded, &problem);
   absl::Status result = absl::OkStatus();
   if (problem != nullptr)
     result = Violation(worker, w,
@@ -581,8 +581,11 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
                            std::to_string(decoded->size()) + " records for job " +
                            records.job_id() + " refused (first: " + problem + ")");
   if (accepted.empty()) return result;
+  // Stored first, merged only then: memory and store never disagree (a store failure drops
+  // the batch; records are an optimisation, workers compute their own).
   absl::Status st = store_->AppendRecords(job.stored.job().id(), accepted);
   if (!st.ok()) return Unavailable(st);
+  job.cache->Insert(accepted);
   if (job.stored.job().settings().share_records()) {
     v1::CoordinatorMessage m;
     m.mutable_records()->set_job_id(records.job_id());
