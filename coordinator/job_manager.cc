@@ -502,13 +502,9 @@ absl::Status JobManager::NotHolder(uint32_t worker_id, Worker* worker, uint64_t 
   const bool held = std::any_of(worker->past_leases.begin(), worker->past_leases.end(),
                                 [&](const auto& l) { return l.first == lease_id; });
   if (!held) return Violation(worker_id, *worker, what + " for a lease this worker does not hold");
-  v1::CoordinatorMessage m;
-  m.mutable_rejected()->set_reason(what + ": the lease expired (tile re-leased or done)");
-  m.mutable_rejected()->set_violations(worker->violations);
-  m.mutable_rejected()->set_limit(uint32_t(options_.max_violations));
-  worker->outbox.push_back(std::move(m));
-  Changed();
-  return absl::FailedPreconditionError(what + ": stale lease");
+  // Harmless and not answered (an answer per stale message would let a worker that does not
+  // read grow its outbox without bound).
+  return absl::FailedPreconditionError(what + ": the lease expired (tile re-leased or done)");
 }
 
 void JobManager::ReleaseLease(Worker& worker, uint64_t lease_id) {
@@ -516,6 +512,12 @@ void JobManager::ReleaseLease(Worker& worker, uint64_t lease_id) {
 }
 
 void JobManager::TileFailedOn(const Worker& worker) {
+  constexpr size_t kMaxHealthEntries = 4096;  // names with failures (a bound against renaming)
+  if (health_.size() >= kMaxHealthEntries && !health_.count(worker.name)) {
+    const SteadyTime now = std::chrono::steady_clock::now();
+    for (auto it = health_.begin(); it != health_.end();)
+      it = it->second.quarantined_until <= now ? health_.erase(it) : std::next(it);
+  }
   WorkerHealth& h = health_[worker.name];
   if (++h.consecutive_failures >= options_.quarantine_after) {
     h.consecutive_failures = 0;

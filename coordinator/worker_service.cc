@@ -65,7 +65,11 @@ grpc::Status WorkerServiceImpl::Session(
       default:
         break;  // heartbeats only prove the stream is alive
     }
-    if (!st.ok()) spdlog::warn("worker {}: {}", id, st.ToString());
+    if (absl::IsFailedPrecondition(st)) {
+      spdlog::debug("worker {}: {}", id, st.ToString());  // stale, harmless
+    } else if (!st.ok()) {
+      spdlog::warn("worker {}: {}", id, st.ToString());
+    }
     if (manager_->Expelled(id)) {
       reason = "disconnected: too many invalid messages";
       result = grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
