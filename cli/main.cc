@@ -249,12 +249,21 @@ int main(int argc, char** argv) {
   // Service subcommands: each talks to a coordinator.
   const std::string default_coordinator = irfarm::DefaultCoordinator();
   irfarm::SubmitArgs sa;
-  sa.coordinator = default_coordinator;
+  sa.coordinator.address = default_coordinator;
+  irfarm::ServiceConnection conn{default_coordinator, {}};
+  // --coordinator and the credentials (--token-file or $IRFARM_TOKEN, TLS) of a subcommand.
+  const auto add_connection = [](CLI::App* sub, irfarm::ServiceConnection* c) {
+    sub->add_option("--coordinator", c->address, "coordinator address");
+    sub->add_option("--token-file", c->auth.token_file, "client token file ($IRFARM_TOKEN)");
+    sub->add_option("--tls-ca", c->auth.tls_ca, "use TLS, trusting this CA (PEM)");
+    sub->add_option("--tls-cert", c->auth.tls_cert, "client certificate (mutual TLS, PEM)");
+    sub->add_option("--tls-key", c->auth.tls_key, "client key (mutual TLS, PEM)");
+  };
   CLI::App* submit = app.add_subcommand("submit", "submit scenes as jobs to a coordinator");
   submit->add_option("scenes", sa.scenes, "scene.xml files (a batch, queued by priority)")
       ->required()
       ->check(CLI::ExistingFile);
-  submit->add_option("--coordinator", sa.coordinator, "coordinator address");
+  add_connection(submit, &sa.coordinator);
   submit->add_option("--priority", sa.priority, "higher runs first (0-100, default 50)");
   submit->add_flag("--wait", sa.wait, "follow progress until the jobs end");
   submit->add_option("-o,--output", sa.output, "with --wait: write the image(s) here");
@@ -273,23 +282,24 @@ int main(int argc, char** argv) {
   submit->add_option("-D", sa.defines, "name=value for the scene's <default>s");
   submit->add_flag("-q,--quiet", sa.quiet, "no progress on stderr");
 
-  std::string coordinator = default_coordinator, job_id, job_out;
-  bool status_json = false;
+  std::string job_id, job_out;
+  bool status_json = false, status_workers = false;
   CLI::App* status = app.add_subcommand("status", "show jobs (all, or one) with progress");
   status->add_option("job", job_id, "job id");
-  status->add_option("--coordinator", coordinator, "coordinator address");
+  add_connection(status, &conn);
   status->add_flag("--json", status_json, "print each job as JSON (with per-worker stats)");
+  status->add_flag("--workers", status_workers, "show the workers (quarantine) and counters");
   CLI::App* cancel = app.add_subcommand("cancel", "cancel a job");
   cancel->add_option("job", job_id, "job id")->required();
-  cancel->add_option("--coordinator", coordinator, "coordinator address");
+  add_connection(cancel, &conn);
   CLI::App* fetch = app.add_subcommand("fetch", "download a finished job's EXR");
   fetch->add_option("job", job_id, "job id")->required();
   fetch->add_option("-o,--output", job_out, "output EXR")->required();
-  fetch->add_option("--coordinator", coordinator, "coordinator address");
+  add_connection(fetch, &conn);
   CLI::App* snapshot = app.add_subcommand("snapshot", "export a job's irradiance cache to a file");
   snapshot->add_option("job", job_id, "job id")->required();
   snapshot->add_option("-o,--output", job_out, "snapshot file")->required();
-  snapshot->add_option("--coordinator", coordinator, "coordinator address");
+  add_connection(snapshot, &conn);
 
   std::string cmp_test, cmp_ref;
   CLI::App* compare = app.add_subcommand("compare", "error metrics of an EXR against a reference");
@@ -309,9 +319,9 @@ int main(int argc, char** argv) {
   if (compare->parsed()) return irfarm::RunCompare(cmp_test, cmp_ref);
   if (downsample->parsed()) return irfarm::RunDownsample(ds_in, ds_out, ds_factor);
   if (submit->parsed()) return irfarm::RunSubmit(sa);
-  if (status->parsed()) return irfarm::RunStatus(coordinator, job_id, status_json);
-  if (cancel->parsed()) return irfarm::RunCancel(coordinator, job_id);
-  if (fetch->parsed()) return irfarm::RunFetch(coordinator, job_id, job_out);
-  if (snapshot->parsed()) return irfarm::RunSnapshot(coordinator, job_id, job_out);
+  if (status->parsed()) return irfarm::RunStatus(conn, job_id, status_json, status_workers);
+  if (cancel->parsed()) return irfarm::RunCancel(conn, job_id);
+  if (fetch->parsed()) return irfarm::RunFetch(conn, job_id, job_out);
+  if (snapshot->parsed()) return irfarm::RunSnapshot(conn, job_id, job_out);
   return 2;
 }

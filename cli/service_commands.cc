@@ -19,16 +19,32 @@ namespace {
 
 constexpr int kRpcSeconds = 60;  // deadline of unary calls
 
-std::unique_ptr<v1::JobService::Stub> Connect(const std::string& address) {
+// A stub and the token its calls carry.
+struct Client {
+  std::unique_ptr<v1::JobService::Stub> stub;
+  std::string token;
+  absl::Status status;  // why there is no stub
+};
+
+Client Connect(const ServiceConnection& c) {
+  Client client;
+  absl::StatusOr<std::string> token = LoadClientToken(c.auth);
+  absl::StatusOr<std::shared_ptr<grpc::ChannelCredentials>> creds = MakeChannelCredentials(c.auth);
+  if (!token.ok() || !creds.ok()) {
+    client.status = !token.ok() ? token.status() : creds.status();
+    return client;
+  }
+  client.token = *token;
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(-1);
   args.SetMaxSendMessageSize(-1);
-  return v1::JobService::NewStub(
-      grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args));
+  client.stub = v1::JobService::NewStub(grpc::CreateCustomChannel(c.address, *creds, args));
+  return client;
 }
 
-void SetDeadline(grpc::ClientContext* c) {
+void SetDeadline(grpc::ClientContext* c, const Client& client) {
   c->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(kRpcSeconds));
+  AddToken(c, client.token);
 }
 
 int Fail(const grpc::Status& st) {
@@ -65,9 +81,10 @@ bool IsFinal(v1::JobState s) {
 
 // Streams a file-like response (GetResult / ExportCache) into `path` via a temporary name.
 template <typename Response, typename Call>
-int StreamToFile(Call call, const std::string& path) {
+int StreamToFile(Call call, const std::string& path, const std::string& token) {
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(600));
+  AddToken(&context, token);
   std::string bytes;
   Response r;
   auto reader = call(&context);
@@ -93,7 +110,9 @@ std::string DefaultCoordinator() {
 }
 
 int RunSubmit(const SubmitArgs& args) {
-  auto stub = Connect(args.coordinator);
+  Client client = Connect(args.coordinator);
+  if (!client.stub) return Fail(client.status);
+  auto& stub = client.stub;
   std::string snapshot;
   if (!args.cache_in.empty()) {
     std::ifstream in(args.cache_in, std::ios::binary);
@@ -135,7 +154,7 @@ int RunSubmit(const SubmitArgs& args) {
     req.set_name(scene);
     req.set_cache_snapshot(snapshot);
     grpc::ClientContext context;
-    SetDeadline(&context);
+    SetDeadline(&context, client);
     v1::SubmitJobResponse resp;
     const grpc::Status st = stub->SubmitJob(&context, req, &resp);
     if (!st.ok()) return Fail(st);
@@ -147,6 +166,7 @@ int RunSubmit(const SubmitArgs& args) {
   const bool tty = !args.quiet && isatty(STDERR_FILENO);
   for (size_t i = 0; i < ids.size(); ++i) {
     grpc::ClientContext context;
+    AddToken(&context, client.token);
     v1::WatchJobRequest req;
     req.set_job_id(ids[i]);
     auto reader = stub->WatchJob(&context, req);
@@ -178,11 +198,41 @@ int RunSubmit(const SubmitArgs& args) {
   return 0;
 }
 
-int RunStatus(const std::string& coordinator, const std::string& job_id, bool json) {
-  auto stub = Connect(coordinator);
+int RunStatus(const ServiceConnection& coordinator, const std::string& job_id, bool json,
+              bool workers) {
+  Client client = Connect(coordinator);
+  if (!client.stub) return Fail(client.status);
+  auto& stub = client.stub;
   std::vector<v1::Job> jobs;
   grpc::ClientContext context;
-  SetDeadline(&context);
+  SetDeadline(&context, client);
+  if (workers) {
+    v1::GetClusterResponse resp;
+    const grpc::Status st = stub->GetCluster(&context, v1::GetClusterRequest(), &resp);
+    if (!st.ok()) return Fail(st);
+    if (json) {
+      std::string text;
+      google::protobuf::util::JsonPrintOptions o;
+      o.always_print_primitive_fields = true;
+      (void)google::protobuf::util::MessageToJsonString(resp, &text, o);
+      std::printf("%s\n", text.c_str());
+      return 0;
+    }
+    for (const v1::WorkerInfo& w : resp.workers()) {
+      const std::string left =
+          w.quarantined() ? " (" + std::to_string(int(w.quarantine_seconds_left())) + " s left)"
+                          : "";
+      std::printf("worker %-4u %-24s %-9s %-14s failures %u  violations %u  heard %.1f s ago%s\n",
+                  w.id(), w.name().c_str(), w.has_lease() ? "leased" : "idle",
+                  w.quarantined() ? "QUARANTINED" : w.silent() ? "SILENT" : "ok",
+                  w.consecutive_failures(), w.violations(), w.seconds_since_heard(), left.c_str());
+    }
+    std::printf("auth failures %llu, invalid worker messages %llu, workers disconnected %llu\n",
+                static_cast<unsigned long long>(resp.auth_failures()),
+                static_cast<unsigned long long>(resp.worker_violations()),
+                static_cast<unsigned long long>(resp.workers_disconnected()));
+    return 0;
+  }
   if (job_id.empty()) {
     v1::ListJobsResponse resp;
     const grpc::Status st = stub->ListJobs(&context, v1::ListJobsRequest(), &resp);
@@ -217,10 +267,12 @@ int RunStatus(const std::string& coordinator, const std::string& job_id, bool js
   return 0;
 }
 
-int RunCancel(const std::string& coordinator, const std::string& job_id) {
-  auto stub = Connect(coordinator);
+int RunCancel(const ServiceConnection& coordinator, const std::string& job_id) {
+  Client client = Connect(coordinator);
+  if (!client.stub) return Fail(client.status);
+  auto& stub = client.stub;
   grpc::ClientContext context;
-  SetDeadline(&context);
+  SetDeadline(&context, client);
   v1::CancelJobRequest req;
   req.set_job_id(job_id);
   v1::CancelJobResponse resp;
@@ -230,21 +282,26 @@ int RunCancel(const std::string& coordinator, const std::string& job_id) {
   return 0;
 }
 
-int RunFetch(const std::string& coordinator, const std::string& job_id, const std::string& output) {
-  auto stub = Connect(coordinator);
+int RunFetch(const ServiceConnection& coordinator, const std::string& job_id,
+             const std::string& output) {
+  Client client = Connect(coordinator);
+  if (!client.stub) return Fail(client.status);
   v1::GetResultRequest req;
   req.set_job_id(job_id);
   return StreamToFile<v1::GetResultResponse>(
-      [&](grpc::ClientContext* c) { return stub->GetResult(c, req); }, output);
+      [&](grpc::ClientContext* c) { return client.stub->GetResult(c, req); }, output,
+      client.token);
 }
 
-int RunSnapshot(const std::string& coordinator, const std::string& job_id,
+int RunSnapshot(const ServiceConnection& coordinator, const std::string& job_id,
                 const std::string& output) {
-  auto stub = Connect(coordinator);
+  Client client = Connect(coordinator);
+  if (!client.stub) return Fail(client.status);
   v1::ExportCacheRequest req;
   req.set_job_id(job_id);
   return StreamToFile<v1::ExportCacheResponse>(
-      [&](grpc::ClientContext* c) { return stub->ExportCache(c, req); }, output);
+      [&](grpc::ClientContext* c) { return client.stub->ExportCache(c, req); }, output,
+      client.token);
 }
 
 }  // namespace irfarm

@@ -1,19 +1,28 @@
 // The `irfarm` subcommands that talk to a coordinator: submit, status, cancel, fetch, snapshot.
 // Each returns the process exit code (0 ok, 1 failed, 2 bad usage) and prints errors as
-// "error: CODE: message" on stderr.
+// "error: CODE: message" on stderr. Every call carries the client's token and goes over TLS when
+// asked (service/client_auth.h).
 #pragma once
 
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "service/client_auth.h"
+
 namespace irfarm {
 
 // --coordinator, else $IRFARM_COORDINATOR, else 127.0.0.1:50051.
 std::string DefaultCoordinator();
 
+// Where the coordinator is and how to authenticate to it.
+struct ServiceConnection {
+  std::string address;
+  ClientAuthOptions auth;
+};
+
 struct SubmitArgs {
-  std::string coordinator;
+  ServiceConnection coordinator;
   std::vector<std::string> scenes;
   int priority = 50;
   bool wait = false, quiet = false;
@@ -27,10 +36,13 @@ struct SubmitArgs {
 };
 
 int RunSubmit(const SubmitArgs& args);
-int RunStatus(const std::string& coordinator, const std::string& job_id, bool json);
-int RunCancel(const std::string& coordinator, const std::string& job_id);
-int RunFetch(const std::string& coordinator, const std::string& job_id, const std::string& output);
-int RunSnapshot(const std::string& coordinator, const std::string& job_id,
+// With `workers`: the connected workers (quarantine, violations) and the security counters.
+int RunStatus(const ServiceConnection& coordinator, const std::string& job_id, bool json,
+              bool workers = false);
+int RunCancel(const ServiceConnection& coordinator, const std::string& job_id);
+int RunFetch(const ServiceConnection& coordinator, const std::string& job_id,
+             const std::string& output);
+int RunSnapshot(const ServiceConnection& coordinator, const std::string& job_id,
                 const std::string& output);
 
 }  // namespace irfarm

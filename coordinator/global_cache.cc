@@ -3,21 +3,41 @@
 
 namespace irfarm {
 
-GlobalCache::GlobalCache(const CacheSettings& settings)
-    : cache_(std::make_unique<IrradianceCache>(settings)) {}
+GlobalCache::GlobalCache(const CacheSettings& settings, const RecordBounds& bounds)
+    : bounds_(bounds), cache_(std::make_unique<IrradianceCache>(settings)) {}
 
-std::vector<IrradianceRecord> GlobalCache::Merge(const std::vector<IrradianceRecord>& records) {
+std::vector<IrradianceRecord> GlobalCache::Check(const std::vector<IrradianceRecord>& records,
+                                                 const char** problem) {
   std::vector<IrradianceRecord> accepted;
+  if (!cache_) {  // released: the job is over
+    rejected_ += records.size();
+    if (problem && !records.empty()) *problem = "the job is finished";
+    return accepted;
+  }
   accepted.reserve(records.size());
   for (const IrradianceRecord& r : records) {
-    if (!IsValidRecord(r)) {
+    if (const char* why = RecordProblem(bounds_, r)) {
+      if (problem && !*problem) *problem = why;
       ++rejected_;
       continue;
     }
-    cache_->Insert(r);
-    records_.push_back(r);
     accepted.push_back(r);
   }
+  return accepted;
+}
+
+void GlobalCache::Insert(const std::vector<IrradianceRecord>& valid) {
+  if (!cache_) return;
+  for (const IrradianceRecord& r : valid) {
+    cache_->Insert(r);
+    records_.push_back(r);
+  }
+}
+
+std::vector<IrradianceRecord> GlobalCache::Merge(const std::vector<IrradianceRecord>& records,
+                                                 const char** problem) {
+  std::vector<IrradianceRecord> accepted = Check(records, problem);
+  Insert(accepted);
   return accepted;
 }
 

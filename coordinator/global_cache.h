@@ -1,6 +1,7 @@
 // GlobalCache: the merged irradiance cache of one job on the coordinator. Every record a worker
-// publishes is validated (IsValidRecord: finite values, unit normal, R > 0, E >= 0) before it is
-// merged; invalid ones are dropped and counted, the rest of the batch is kept. Keeps the records
+// publishes is validated (IsValidRecord: finite values, unit normal, R > 0, E >= 0, and within the
+// scene's RecordBounds, record_bounds.h) before it is merged; invalid ones are dropped and
+// counted, the rest of the batch is kept. Keeps the records
 // in arrival order too, for late-joining workers, snapshots and the store. Not thread-safe:
 // JobManager serialises access.
 #pragma once
@@ -10,23 +11,36 @@
 #include <vector>
 
 #include "cache/irradiance_cache.h"
+#include "coordinator/record_bounds.h"
 
 namespace irfarm {
 
 class GlobalCache {
  public:
-  explicit GlobalCache(const CacheSettings& settings);
+  GlobalCache(const CacheSettings& settings, const RecordBounds& bounds);
 
-  // Merges the valid records of `records`; returns them (in order). Counts the others.
-  std::vector<IrradianceRecord> Merge(const std::vector<IrradianceRecord>& records);
+  // Merges the valid records of `records`; returns them (in order). Counts the others and, when
+  // `problem` is given, sets it to why the first of them was refused (else leaves it).
+  std::vector<IrradianceRecord> Merge(const std::vector<IrradianceRecord>& records,
+                                      const char** problem = nullptr);
+  // Merge in two steps, so that a caller can store the records before they count: Check
+  // returns the valid records (counting and explaining the others like Merge) and Insert adds
+  // records Check returned.
+  std::vector<IrradianceRecord> Check(const std::vector<IrradianceRecord>& records,
+                                      const char** problem = nullptr);
+  void Insert(const std::vector<IrradianceRecord>& valid);
+  // Drops the lookup octree (a finished job takes no more records; the record list stays for
+  // snapshots and seeding).
+  void ReleaseIndex() { cache_.reset(); }
 
   const std::vector<IrradianceRecord>& records() const { return records_; }
   size_t size() const { return records_.size(); }
   size_t rejected() const { return rejected_; }
-  const IrradianceCache& octree() const { return *cache_; }
+  const RecordBounds& bounds() const { return bounds_; }
 
  private:
-  std::unique_ptr<IrradianceCache> cache_;
+  RecordBounds bounds_;
+  std::unique_ptr<IrradianceCache> cache_;  // null after ReleaseIndex
   std::vector<IrradianceRecord> records_;
   size_t rejected_ = 0;
 };

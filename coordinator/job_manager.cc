@@ -1,11 +1,16 @@
 // JobManager: jobs, tiles, record merge and fan-out, worker mailboxes (see job_manager.h).
 #include "coordinator/job_manager.h"
 
+#include <limits.h>
+#include <spdlog/spdlog.h>
+#include <stdlib.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "cache/snapshot.h"
@@ -19,22 +24,6 @@
 namespace irfarm {
 namespace {
 
-Bounds3 DescBounds(const SceneDesc& desc) {
-  Bounds3 b;
-  for (const ShapeDesc& s : desc.shapes) {
-    if (s.type == ShapeType::kSphere) {
-      b.Extend(s.center - Vec3(s.radius));
-      b.Extend(s.center + Vec3(s.radius));
-    }
-    for (const Vec3& p : s.mesh.positions) b.Extend(p);
-  }
-  if (b.Empty()) {
-    b.Extend(Vec3(-1));
-    b.Extend(Vec3(1));
-  }
-  return b;
-}
-
 CacheSettings CacheSettingsOf(const v1::StoredJob& stored) {
   CacheSettings cs;
   if (stored.cache_bounds_size() == 6) {
@@ -43,6 +32,38 @@ CacheSettings CacheSettingsOf(const v1::StoredJob& stored) {
   }
   cs.max_accuracy = stored.max_accuracy() > 0 ? stored.max_accuracy() : 0.2f;
   return cs;
+}
+
+// The bounds a stored job's records must satisfy (record_bounds.h); jobs stored before the
+// radius and irradiance bounds existed get the box only.
+RecordBounds RecordBoundsOf(const v1::StoredJob& stored) {
+  RecordBounds b;
+  if (stored.cache_bounds_size() == 6) {
+    const Vec3 lo(stored.cache_bounds(0), stored.cache_bounds(1), stored.cache_bounds(2));
+    const Vec3 hi(stored.cache_bounds(3), stored.cache_bounds(4), stored.cache_bounds(5));
+    const Vec3 d = hi - lo;
+    const float margin = 0.01f * std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+    b.box.lo = lo - Vec3(margin);
+    b.box.hi = hi + Vec3(margin);
+  } else {
+    b.box.lo = Vec3(-std::numeric_limits<float>::max());
+    b.box.hi = Vec3(std::numeric_limits<float>::max());
+  }
+  if (stored.record_max_radius() > 0) b.max_radius = stored.record_max_radius();
+  if (stored.record_max_irradiance() > 0) b.max_irradiance = stored.record_max_irradiance();
+  return b;
+}
+
+// Printable, bounded text of something a peer sent, for messages and logs: control bytes
+// (newlines, ANSI escapes, NUL) become '?', and at most `max` bytes are kept.
+std::string Printable(const std::string& s, size_t max = 200) {
+  std::string out;
+  for (size_t i = 0; i < s.size() && i < max; ++i) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    out += (c < 0x20 || c == 0x7f) ? '?' : char(c);
+  }
+  if (s.size() > max) out += "...";
+  return out;
 }
 
 bool FinalState(v1::JobState s) {
@@ -71,8 +92,8 @@ absl::Status JobManager::Resume() {
     job->stored = s;
     const v1::Job& j = s.job();
     job->tiles = std::make_unique<TileScheduler>(j.width(), j.height(), JobTileSize(j.settings()),
-                                                 options_.max_tile_attempts);
-    job->cache = std::make_unique<GlobalCache>(CacheSettingsOf(s));
+                                                 options_.tile_retry);
+    job->cache = std::make_unique<GlobalCache>(CacheSettingsOf(s), RecordBoundsOf(s));
     absl::StatusOr<std::map<int, std::string>> tiles = store_->LoadTiles(j.id());
     if (!tiles.ok()) return Unavailable(tiles.status());
     for (auto& [tile, pixels] : *tiles) {
@@ -87,6 +108,7 @@ absl::Status JobManager::Resume() {
     job->cache->Merge(*records);  // validated again on the way in
     if (FinalState(j.state())) {
       job->tiles->Clear();
+      job->cache->ReleaseIndex();
     } else if (j.state() == v1::JOB_STATE_RUNNING) {
       job->stored.mutable_job()->set_state(v1::JOB_STATE_QUEUED);  // no lease survives
     }
@@ -117,11 +139,39 @@ void JobManager::Changed() {
   changed_cv_.notify_all();
 }
 
-absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request) {
+absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
+                                           const Caller& caller) {
+  const JobLimits& lim = options_.limits;
   if (request.ByteSizeLong() > options_.max_upload_bytes)
     return absl::ResourceExhaustedError("upload of " + std::to_string(request.ByteSizeLong()) +
                                         " bytes is over the limit of " +
                                         std::to_string(options_.max_upload_bytes) + " bytes");
+  // Cheap checks first: nothing is loaded for a request that asks too much.
+  if (request.settings().defines_size() > lim.max_defines)
+    return absl::InvalidArgumentError(std::to_string(request.settings().defines_size()) +
+                                      " defines, over the limit of " +
+                                      std::to_string(lim.max_defines));
+  for (const auto& [key, value] : request.settings().defines())
+    if (key.size() + value.size() > lim.max_define_bytes)
+      return absl::InvalidArgumentError("define '" + Printable(key, 64) + "' is " +
+                                        std::to_string(key.size() + value.size()) +
+                                        " bytes, over the limit of " +
+                                        std::to_string(lim.max_define_bytes));
+  if (request.settings().record_rays() > lim.max_record_rays)
+    return absl::InvalidArgumentError("record_rays " +
+                                      std::to_string(request.settings().record_rays()) +
+                                      " is over the limit of " +
+                                      std::to_string(lim.max_record_rays));
+  if (!caller.admin) {
+    std::lock_guard<std::mutex> lock(mu_);
+    int live = 0;
+    for (const auto& [id, job] : jobs_)
+      if (!IsFinal(*job) && job->stored.job().owner() == caller.name) ++live;
+    if (live >= lim.max_live_jobs_per_client)
+      return absl::ResourceExhaustedError("client '" + caller.name + "' has " +
+                                          std::to_string(live) + " live jobs, the limit is " +
+                                          std::to_string(lim.max_live_jobs_per_client));
+  }
   // Load the scene now, so that a bad scene is refused with the loader's file:line message.
   absl::StatusOr<SceneDesc> desc = absl::InvalidArgumentError("no scene given");
   std::string name = request.name();
@@ -139,13 +189,44 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request) 
     if (!main.ok()) return main.status();
     if (name.empty()) name = bundle.main_file().empty() ? "scene.xml" : bundle.main_file();
   } else if (request.scene().has_path()) {
+    absl::Status st = CheckScenePath(request.scene().path(), caller);
+    if (!st.ok()) return st;
     desc = LoadJobScene(request.scene().path(), request.settings());
     if (name.empty()) name = request.scene().path();
   }
   if (!desc.ok()) return desc.status();
+  if (name.size() > lim.max_name_bytes)
+    return absl::InvalidArgumentError("job name is " + std::to_string(name.size()) +
+                                      " bytes, over the limit of " +
+                                      std::to_string(lim.max_name_bytes));
+  // The film, before anything is sized by it (a 2^31-pixel-wide film must not get to the tiles).
+  const int w = desc->camera.width, h = desc->camera.height;
+  if (w < 1 || h < 1 || w > lim.max_film_side || h > lim.max_film_side ||
+      int64_t(w) * h > lim.max_film_pixels)
+    return absl::InvalidArgumentError(
+        "film " + std::to_string(w) + "x" + std::to_string(h) +
+        " is outside the limits (sides 1.." + std::to_string(lim.max_film_side) + ", at most " +
+        std::to_string(lim.max_film_pixels) + " pixels)");
+  const int64_t tile = JobTileSize(request.settings());
+  const int64_t tiles = ((w + tile - 1) / tile) * ((h + tile - 1) / tile);
+  if (tiles > lim.max_tiles)
+    return absl::InvalidArgumentError(std::to_string(tiles) + " tiles of " +
+                                      std::to_string(tile) + " px is over the limit of " +
+                                      std::to_string(lim.max_tiles) + " tiles per job");
   absl::StatusOr<RenderSettings> settings = MakeRenderSettings(*desc, request.settings(), 0);
   if (!settings.ok()) return settings.status();
+  if (double(settings->spp) * double(w) * double(h) > double(lim.max_samples))
+    return absl::InvalidArgumentError(std::to_string(settings->spp) + " spp x " +
+                                      std::to_string(int64_t(w) * h) +
+                                      " pixels is over the limit of " +
+                                      std::to_string(lim.max_samples) + " samples per job");
+  if (settings->irrcache.record_rays > lim.max_record_rays)
+    return absl::InvalidArgumentError("record_rays " +
+                                      std::to_string(settings->irrcache.record_rays) +
+                                      " (from the scene) is over the limit of " +
+                                      std::to_string(lim.max_record_rays));
   const uint64_t scene_hash = SceneHash(*desc);
+  const RecordBounds record_bounds = RecordBoundsForScene(*desc);
   std::vector<IrradianceRecord> imported;
   if (!request.cache_snapshot().empty()) {
     absl::StatusOr<Snapshot> snap = ParseSnapshot(request.cache_snapshot(), "cache snapshot");
@@ -153,32 +234,46 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request) 
     absl::Status st = CheckSnapshotScene(*snap, scene_hash, "cache snapshot");
     if (!st.ok()) return st;
     imported = std::move(snap->records);
+    // The same checks as a worker's records: a snapshot is as untrusted as a worker.
+    for (size_t i = 0; i < imported.size(); ++i)
+      if (const char* why = RecordProblem(record_bounds, imported[i]))
+        return absl::InvalidArgumentError("cache snapshot: record " + std::to_string(i) + ": " +
+                                          why);
     for (IrradianceRecord& r : imported) r.origin = kSnapshotOrigin;
   }
 
   std::lock_guard<std::mutex> lock(mu_);
+  // A store that lost its data (Redis FLUSHALL, a restart without persistence) counts from 1
+  // again: skip numbers of jobs this coordinator still holds rather than replace one.
   absl::StatusOr<uint64_t> number = store_->NextJobNumber();
+  for (int skipped = 0; number.ok() && jobs_.count("job-" + std::to_string(*number)); ++skipped) {
+    if (skipped == 0)
+      spdlog::warn("job store counter went back to {}: skipping ids in use", *number);
+    number = store_->NextJobNumber();
+  }
   if (!number.ok()) return Unavailable(number.status());
   auto job = std::make_unique<Job>();
   v1::StoredJob& s = job->stored;
   v1::Job* j = s.mutable_job();
   j->set_id("job-" + std::to_string(*number));
   j->set_name(name);
+  j->set_owner(caller.name);
   j->set_state(v1::JOB_STATE_QUEUED);
   j->set_priority(request.priority());
-  j->set_width(desc->camera.width);
-  j->set_height(desc->camera.height);
+  j->set_width(w);
+  j->set_height(h);
   *j->mutable_settings() = request.settings();
   j->set_scene_hash(scene_hash);
   j->set_records_imported(imported.size());
   *s.mutable_scene() = request.scene();
   s.set_sequence(next_sequence_++);
-  const Bounds3 b = DescBounds(*desc);
+  const Bounds3 b = SceneShapeBounds(*desc);
   for (float f : {b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z}) s.add_cache_bounds(f);
   s.set_max_accuracy(settings->irrcache.accuracy);
-  job->tiles = std::make_unique<TileScheduler>(
-      j->width(), j->height(), JobTileSize(request.settings()), options_.max_tile_attempts);
-  job->cache = std::make_unique<GlobalCache>(CacheSettingsOf(s));
+  s.set_record_max_radius(record_bounds.max_radius);
+  s.set_record_max_irradiance(record_bounds.max_irradiance);
+  job->tiles = std::make_unique<TileScheduler>(w, h, int(tile), options_.tile_retry);
+  job->cache = std::make_unique<GlobalCache>(CacheSettingsOf(s), RecordBoundsOf(s));
   absl::Status st = store_->PutJob(s);
   if (!st.ok()) return Unavailable(st);
   if (!imported.empty()) {
@@ -192,17 +287,45 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request) 
   return view;
 }
 
-absl::StatusOr<v1::Job> JobManager::GetJob(const std::string& id) const {
-  std::lock_guard<std::mutex> lock(mu_);
-  auto it = jobs_.find(id);
-  if (it == jobs_.end()) return absl::NotFoundError("no job '" + id + "'");
-  return View(*it->second);
+absl::Status JobManager::CheckScenePath(const std::string& path, const Caller& caller) const {
+  if (options_.scene_path_root.empty()) {
+    if (caller.admin) return absl::OkStatus();
+  } else {
+    // Canonical paths, so that neither ".." nor a symlink leaves the root.
+    char root[PATH_MAX], real[PATH_MAX];
+    if (realpath(options_.scene_path_root.c_str(), root) != nullptr &&
+        realpath(path.c_str(), real) != nullptr) {
+      const std::string r = std::string(root) + "/", p = real;
+      if (p.compare(0, r.size(), r) == 0) return absl::OkStatus();
+    }
+  }
+  // The same answer whether the file exists or not.
+  return absl::PermissionDeniedError("scene paths on the coordinator are not allowed here" +
+                                     std::string(options_.scene_path_root.empty()
+                                                     ? " (upload the scene as a bundle)"
+                                                     : " outside the scene path root"));
 }
 
-std::vector<v1::Job> JobManager::ListJobs() const {
+absl::StatusOr<JobManager::Job*> JobManager::Find(const std::string& id,
+                                                  const Caller& caller) const {
+  auto it = jobs_.find(id);
+  if (it == jobs_.end() || (!caller.admin && it->second->stored.job().owner() != caller.name))
+    return absl::NotFoundError("no job '" + Printable(id, 64) + "'");
+  return it->second.get();
+}
+
+absl::StatusOr<v1::Job> JobManager::GetJob(const std::string& id, const Caller& caller) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  absl::StatusOr<Job*> job = Find(id, caller);
+  if (!job.ok()) return job.status();
+  return View(**job);
+}
+
+std::vector<v1::Job> JobManager::ListJobs(const Caller& caller) const {
   std::lock_guard<std::mutex> lock(mu_);
   std::vector<v1::Job> out;
-  for (const auto& [id, job] : jobs_) out.push_back(View(*job));
+  for (const auto& [id, job] : jobs_)
+    if (caller.admin || job->stored.job().owner() == caller.name) out.push_back(View(*job));
   std::sort(out.begin(), out.end(), [](const v1::Job& a, const v1::Job& b) {
     return a.id().size() != b.id().size() ? a.id().size() < b.id().size() : a.id() < b.id();
   });
@@ -215,6 +338,13 @@ void JobManager::FinishJob(Job& job, v1::JobState state, const std::string& erro
   j->set_error(error);
   job.finished = std::chrono::steady_clock::now();
   job.tiles->Clear();
+  // Release what only a running job needs: the octree (records stay for snapshots and seeding),
+  // the uploaded bundle (here and in the store), and the pixels of an image nobody can fetch.
+  job.cache->ReleaseIndex();
+  if (job.stored.scene().has_bundle())
+    for (v1::BundleFile& f : *job.stored.mutable_scene()->mutable_bundle()->mutable_files())
+      std::string().swap(*f.mutable_content());
+  if (state != v1::JOB_STATE_SUCCEEDED) std::map<int, std::string>().swap(job.pixels);
   (void)store_->PutJob(job.stored);  // if this fails the job resumes after a restart
   for (uint32_t w : job.workers) {
     auto it = workers_.find(w);
@@ -228,11 +358,11 @@ void JobManager::FinishJob(Job& job, v1::JobState state, const std::string& erro
   Changed();
 }
 
-absl::StatusOr<v1::Job> JobManager::Cancel(const std::string& id) {
+absl::StatusOr<v1::Job> JobManager::Cancel(const std::string& id, const Caller& caller) {
   std::lock_guard<std::mutex> lock(mu_);
-  auto it = jobs_.find(id);
-  if (it == jobs_.end()) return absl::NotFoundError("no job '" + id + "'");
-  Job& job = *it->second;
+  absl::StatusOr<Job*> found = Find(id, caller);
+  if (!found.ok()) return found.status();
+  Job& job = **found;
   if (IsFinal(job))
     return absl::FailedPreconditionError("job '" + id + "' is already " +
                                          v1::JobState_Name(job.stored.job().state()));
@@ -240,13 +370,14 @@ absl::StatusOr<v1::Job> JobManager::Cancel(const std::string& id) {
   return View(job);
 }
 
-absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id) const {
+absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
+                                                  const Caller& caller) const {
   Image image;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    auto it = jobs_.find(id);
-    if (it == jobs_.end()) return absl::NotFoundError("no job '" + id + "'");
-    const Job& job = *it->second;
+    absl::StatusOr<Job*> found = Find(id, caller);
+    if (!found.ok()) return found.status();
+    const Job& job = **found;
     if (job.stored.job().state() != v1::JOB_STATE_SUCCEEDED)
       return absl::FailedPreconditionError("job '" + id + "' has no image: it is " +
                                            v1::JobState_Name(job.stored.job().state()));
@@ -278,14 +409,15 @@ absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id) const {
   return bytes;
 }
 
-absl::StatusOr<std::string> JobManager::ExportSnapshot(const std::string& id) const {
+absl::StatusOr<std::string> JobManager::ExportSnapshot(const std::string& id,
+                                                       const Caller& caller) const {
   Snapshot snap;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    auto it = jobs_.find(id);
-    if (it == jobs_.end()) return absl::NotFoundError("no job '" + id + "'");
-    snap.scene_hash = it->second->stored.job().scene_hash();
-    snap.records = it->second->cache->records();
+    absl::StatusOr<Job*> found = Find(id, caller);
+    if (!found.ok()) return found.status();
+    snap.scene_hash = (*found)->stored.job().scene_hash();
+    snap.records = (*found)->cache->records();
   }
   return SerializeSnapshot(snap);
 }
@@ -296,10 +428,14 @@ uint64_t JobManager::WaitForChange(uint64_t seen, std::chrono::milliseconds time
   return version_;
 }
 
-uint32_t JobManager::RegisterWorker(const std::string& name) {
+uint32_t JobManager::RegisterWorker(const std::string& name, const std::string& peer) {
   std::lock_guard<std::mutex> lock(mu_);
   const uint32_t id = next_worker_++;
-  workers_[id].name = name;
+  Worker& w = workers_[id];
+  w.name = Printable(name, options_.limits.max_name_bytes);
+  w.peer = peer;
+  w.last_heard = std::chrono::steady_clock::now();
+  Changed();
   return id;
 }
 
@@ -311,9 +447,15 @@ void JobManager::WorkerGone(uint32_t worker, const std::string& reason) {
     job->workers.erase(worker);
     if (IsFinal(*job)) continue;
     absl::Status st = job->tiles->ReleaseWorker(
-        worker, "worker " + std::to_string(worker) + " (" + wit->second.name + ") " + reason);
+        worker, "worker " + std::to_string(worker) + " (" + wit->second.name + ") " + reason,
+        /*count_failure=*/true);
     if (!st.ok()) FinishJob(*job, v1::JOB_STATE_FAILED, std::string(st.message()));
   }
+  // Forget the health of a name with nothing against it (bounded by live workers then).
+  auto h = health_.find(wit->second.name);
+  if (h != health_.end() && h->second.consecutive_failures == 0 &&
+      h->second.quarantined_until <= std::chrono::steady_clock::now())
+    health_.erase(h);
   workers_.erase(wit);
   Changed();
 }
@@ -324,76 +466,228 @@ void JobManager::Drain(uint32_t worker) {
   if (it != workers_.end()) it->second.draining = true;
 }
 
-absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& records) {
-  absl::StatusOr<std::vector<IrradianceRecord>> decoded = DecodeRecords(records.batch());
-  if (!decoded.ok()) return decoded.status();
-  for (IrradianceRecord& r : *decoded) r.origin = worker;  // a worker speaks for itself only
+void JobManager::Heard(uint32_t worker) {
   std::lock_guard<std::mutex> lock(mu_);
+  auto it = workers_.find(worker);
+  if (it == workers_.end()) return;
+  it->second.last_heard = std::chrono::steady_clock::now();
+  if (it->second.silent) {
+    it->second.silent = false;
+    Changed();  // it may get a lease again
+  }
+}
+
+bool JobManager::Expelled(uint32_t worker) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = workers_.find(worker);
+  return it != workers_.end() && int(it->second.violations) > options_.max_violations;
+}
+
+absl::Status JobManager::Violation(uint32_t worker_id, Worker& worker, const std::string& reason) {
+  ++worker.violations;
+  ++violations_total_;
+  if (int(worker.violations) == options_.max_violations + 1) ++expelled_total_;
+  v1::CoordinatorMessage m;
+  m.mutable_rejected()->set_reason(reason);
+  m.mutable_rejected()->set_violations(worker.violations);
+  m.mutable_rejected()->set_limit(uint32_t(options_.max_violations));
+  worker.outbox.push_back(std::move(m));
+  Changed();
+  return absl::PermissionDeniedError("worker " + std::to_string(worker_id) + ": " + reason);
+}
+
+absl::Status JobManager::NotHolder(uint32_t worker_id, Worker* worker, uint64_t lease_id,
+                                   const std::string& what) {
+  if (worker == nullptr) return absl::NotFoundError("no worker " + std::to_string(worker_id));
+  const bool held = std::any_of(worker->past_leases.begin(), worker->past_leases.end(),
+                                [&](const auto& l) { return l.first == lease_id; });
+  if (!held) return Violation(worker_id, *worker, what + " for a lease this worker does not hold");
+  // Harmless and not answered (an answer per stale message would let a worker that does not
+  // read grow its outbox without bound).
+  return absl::FailedPreconditionError(what + ": the lease expired (tile re-leased or done)");
+}
+
+void JobManager::ReleaseLease(Worker& worker, uint64_t lease_id) {
+  if (worker.has_lease && worker.lease_id == lease_id) worker.has_lease = false;
+}
+
+void JobManager::TileFailedOn(const Worker& worker) {
+  constexpr size_t kMaxHealthEntries = 4096;  // names with failures (a bound against renaming)
+  if (health_.size() >= kMaxHealthEntries && !health_.count(worker.name)) {
+    const SteadyTime now = std::chrono::steady_clock::now();
+    for (auto it = health_.begin(); it != health_.end();)
+      it = it->second.quarantined_until <= now ? health_.erase(it) : std::next(it);
+  }
+  WorkerHealth& h = health_[worker.name];
+  if (++h.consecutive_failures >= options_.quarantine_after) {
+    h.consecutive_failures = 0;
+    h.quarantined_until = std::chrono::steady_clock::now() + options_.quarantine_time;
+    spdlog::warn("worker '{}' quarantined for {} s: {} failed tiles in a row", worker.name,
+                 options_.quarantine_time.count() / 1000.0, options_.quarantine_after);
+  }
+}
+
+bool JobManager::Quarantined(const Worker& worker, SteadyTime now) const {
+  auto it = health_.find(worker.name);
+  return it != health_.end() && it->second.quarantined_until > now;
+}
+
+std::vector<uint32_t> JobManager::OtherEligibleWorkers(uint32_t worker_id, SteadyTime now) const {
+  std::vector<uint32_t> out;
+  for (const auto& [id, w] : workers_)
+    if (id != worker_id && !w.silent && !w.draining && !Quarantined(w, now)) out.push_back(id);
+  return out;
+}
+
+absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& records) {
+  if (records.batch().origins_size() > options_.limits.max_batch_records) {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto wit = workers_.find(worker);
+    if (wit == workers_.end()) return absl::NotFoundError("no worker");
+    return Violation(worker, wit->second,
+                     std::to_string(records.batch().origins_size()) +
+                         " records in one message, over the limit of " +
+                         std::to_string(options_.limits.max_batch_records));
+  }
+  absl::StatusOr<std::vector<IrradianceRecord>> decoded = DecodeRecords(records.batch());
+  std::lock_guard<std::mutex> lock(mu_);
+  auto wit = workers_.find(worker);
+  if (wit == workers_.end()) return absl::NotFoundError("no worker");
+  Worker& w = wit->second;
+  if (!decoded.ok()) return Violation(worker, w, std::string(decoded.status().message()));
+  for (IrradianceRecord& r : *decoded) r.origin = worker;  // a worker speaks for itself only
   auto it = jobs_.find(records.job_id());
-  if (it == jobs_.end()) return absl::NotFoundError("no job '" + records.job_id() + "'");
+  const bool holds = w.has_lease && w.lease_job == records.job_id();
+  if (it == jobs_.end() || IsFinal(*it->second) || !holds) {
+    // Records of a job it held a lease of, arriving after the job ended or the lease expired,
+    // are harmless: dropped, not counted against the worker.
+    for (const auto& [lease, job_id] : w.past_leases)
+      if (job_id == records.job_id())
+        return absl::FailedPreconditionError("records for job " + job_id +
+                                             " after its lease or the job ended: dropped");
+    return Violation(worker, w,
+                     "records for job '" + Printable(records.job_id(), 64) +
+                         "', which this worker holds no lease of");
+  }
   Job& job = *it->second;
   v1::WorkerJobStats& ws = job.worker_stats[worker];
   ws.set_worker_id(worker);
   ws.set_records_sent(ws.records_sent() + decoded->size());
   ws.set_bytes_sent(ws.bytes_sent() + BatchBytes(records.batch()));
-  const std::vector<IrradianceRecord> accepted = job.cache->Merge(*decoded);
-  if (accepted.empty()) return absl::OkStatus();
+  const char* problem = nullptr;
+  const std::vector<IrradianceRecord> accepted = job.cache->Check(*decoded, &problem);
+  absl::Status result = absl::OkStatus();
+  if (problem != nullptr)
+    result = Violation(worker, w,
+                       std::to_string(decoded->size() - accepted.size()) + " of " +
+                           std::to_string(decoded->size()) + " records for job " +
+                           records.job_id() + " refused (first: " + problem + ")");
+  if (accepted.empty()) return result;
+  // Stored first, merged only then: memory and store never disagree (a store failure drops
+  // the batch; records are an optimisation, workers compute their own).
   absl::Status st = store_->AppendRecords(job.stored.job().id(), accepted);
   if (!st.ok()) return Unavailable(st);
-  if (job.stored.job().settings().share_records() && !IsFinal(job)) {
+  job.cache->Insert(accepted);
+  if (job.stored.job().settings().share_records()) {
     v1::CoordinatorMessage m;
     m.mutable_records()->set_job_id(records.job_id());
     PackRecords(accepted, worker, m.mutable_records()->mutable_batch());
     const size_t bytes = BatchBytes(m.records().batch());
     for (uint32_t other : job.workers) {
       if (other == worker) continue;
-      auto wit = workers_.find(other);
-      if (wit == workers_.end()) continue;
-      wit->second.outbox.push_back(m);
+      auto owit = workers_.find(other);
+      if (owit == workers_.end()) continue;
+      Worker& ow = owit->second;
+      // A worker that does not keep up (or does not read) gets no more fan-out past the bound:
+      // the records are an optimisation, it computes its own instead.
+      if (ow.outbox_bytes + bytes > options_.limits.max_outbox_bytes) {
+        ++ow.batches_dropped;
+        continue;
+      }
+      ow.outbox.push_back(m);
+      ow.outbox_bytes += bytes;
       v1::WorkerJobStats& os = job.worker_stats[other];
       os.set_worker_id(other);
       os.set_bytes_received(os.bytes_received() + bytes);
     }
   }
   Changed();
-  return absl::OkStatus();
+  return result;
 }
 
 absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& result) {
   std::lock_guard<std::mutex> lock(mu_);
   auto wit = workers_.find(worker);
-  if (wit != workers_.end() && wit->second.lease_id == result.lease_id() &&
-      wit->second.lease_job == result.job_id())
-    wit->second.has_lease = false;
-  Changed();
+  if (wit == workers_.end()) return absl::NotFoundError("no worker " + std::to_string(worker));
+  Worker& w = wit->second;
+  ReleaseLease(w, result.lease_id());  // its lease is over, whether the result counts or not
   auto it = jobs_.find(result.job_id());
-  if (it == jobs_.end()) return absl::NotFoundError("no job '" + result.job_id() + "'");
-  Job& job = *it->second;
   const int tile = result.tile_index();
-  if (tile < 0 || tile >= job.tiles->num_tiles())
-    return absl::InvalidArgumentError("no tile " + std::to_string(tile));
-  if (!job.tiles->IsCurrent(tile, result.lease_id()))
-    return absl::FailedPreconditionError("stale result for tile " + std::to_string(tile));
+  const TileLeaseInfo* lease =
+      it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
+              tile >= it->second->tiles->num_tiles()
+          ? nullptr
+          : it->second->tiles->Current(tile, result.lease_id());
+  if (lease == nullptr || lease->worker != worker)
+    return NotHolder(worker, &w, result.lease_id(), "tile result");
+  Job& job = *it->second;
+  const SteadyTime lease_start = lease->start;
+  Changed();
+  // The result of the lease this worker holds: check it before it counts.
   const PixelRect& r = job.tiles->rect(tile);
-  if (result.pixels_size() != r.width() * r.height() * 3)
-    return absl::InvalidArgumentError("tile " + std::to_string(tile) + " has " +
-                                      std::to_string(result.pixels_size()) + " floats, expected " +
-                                      std::to_string(r.width() * r.height() * 3));
+  const int64_t pixels = int64_t(r.width()) * r.height();
+  std::string bad;
+  if (result.pixels_size() != pixels * 3) {
+    bad = "tile " + std::to_string(tile) + " has " + std::to_string(result.pixels_size()) +
+          " floats, expected " + std::to_string(pixels * 3);
+  } else {
+    for (int i = 0; i < result.pixels_size(); ++i) {
+      const float v = result.pixels(i);
+      if (!std::isfinite(v) || v < 0) {
+        bad = "tile " + std::to_string(tile) + " pixel value " + std::to_string(i) +
+              " is not finite and non-negative";
+        break;
+      }
+    }
+  }
+  const v1::TileStats& ts = result.stats();
+  if (bad.empty()) {
+    // Sane stats: no counter above 1e6 per pixel and sample (an irradiance lookup or record per
+    // path vertex is at most a few hundred), hits within lookups, remote within used, and render
+    // time within the time since the lease was given (plus 1 s for clock granularity).
+    const double spp = std::max(1, job.stored.job().settings().spp());
+    const double cap = 1e6 * double(pixels) * std::max(spp, 1024.0);
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - lease_start).count();
+    if (double(ts.records_computed()) > cap || double(ts.lookups()) > cap ||
+        double(ts.records_used()) > cap || ts.lookup_hits() > ts.lookups() ||
+        ts.remote_records_used() > ts.records_used() ||
+        ts.records_received() > job.cache->size() + 1 || !std::isfinite(ts.wall_seconds()) ||
+        ts.wall_seconds() < 0 || ts.wall_seconds() > elapsed + 1.0)
+      bad = "tile " + std::to_string(tile) + " stats out of bounds";
+  }
+  if (!bad.empty()) {
+    TileFailedOn(w);
+    absl::Status st = job.tiles->Requeue(tile, result.lease_id(), "worker " +
+                                         std::to_string(worker) + " sent an invalid result");
+    if (!st.ok()) FinishJob(job, v1::JOB_STATE_FAILED, std::string(st.message()));
+    return Violation(worker, w, bad);
+  }
   std::string bytes(reinterpret_cast<const char*>(result.pixels().data()),
                     size_t(result.pixels_size()) * sizeof(float));
   absl::Status st = store_->PutTile(job.stored.job().id(), tile, bytes);
   if (!st.ok()) {
     // Not stored, so not done: the tile is rendered again.
-    (void)job.tiles->Requeue(tile, result.lease_id(), "job store failed");
+    (void)job.tiles->Requeue(tile, result.lease_id(), "job store failed", false);
     return Unavailable(st);
   }
   st = job.tiles->Complete(tile, result.lease_id());
   if (!st.ok()) return st;
+  health_[w.name].consecutive_failures = 0;
   job.pixels[tile] = std::move(bytes);
   v1::WorkerJobStats& ws = job.worker_stats[worker];
-  const v1::TileStats& ts = result.stats();
   ws.set_worker_id(worker);
-  if (wit != workers_.end()) ws.set_worker_name(wit->second.name);
+  ws.set_worker_name(w.name);
   ws.set_tiles(ws.tiles() + 1);
   ws.set_records_computed(ws.records_computed() + ts.records_computed());
   ws.set_records_received(ws.records_received() + ts.records_received());
@@ -409,18 +703,57 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
 absl::Status JobManager::FailTile(uint32_t worker, const v1::TileFailed& failed) {
   std::lock_guard<std::mutex> lock(mu_);
   auto wit = workers_.find(worker);
-  if (wit != workers_.end() && wit->second.lease_id == failed.lease_id()) {
-    wit->second.has_lease = false;
-  }
-  Changed();
+  if (wit == workers_.end()) return absl::NotFoundError("no worker " + std::to_string(worker));
+  Worker& w = wit->second;
+  ReleaseLease(w, failed.lease_id());
   auto it = jobs_.find(failed.job_id());
-  if (it == jobs_.end()) return absl::NotFoundError("no job '" + failed.job_id() + "'");
+  const int tile = failed.tile_index();
+  const TileLeaseInfo* lease =
+      it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
+              tile >= it->second->tiles->num_tiles()
+          ? nullptr
+          : it->second->tiles->Current(tile, failed.lease_id());
+  if (lease == nullptr || lease->worker != worker)
+    return NotHolder(worker, &w, failed.lease_id(), "tile failure");
   Job& job = *it->second;
-  if (IsFinal(job)) return absl::OkStatus();
-  absl::Status st = job.tiles->Requeue(failed.tile_index(), failed.lease_id(),
-                                       "worker " + std::to_string(worker) + ": " + failed.reason());
+  TileFailedOn(w);
+  absl::Status st = job.tiles->Requeue(
+      tile, failed.lease_id(),
+      "worker " + std::to_string(worker) + " (" + w.name + "): " + Printable(failed.reason()));
   if (!st.ok()) FinishJob(job, v1::JOB_STATE_FAILED, std::string(st.message()));
+  Changed();
   return absl::OkStatus();
+}
+
+v1::GetClusterResponse JobManager::Cluster() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  v1::GetClusterResponse out;
+  const SteadyTime now = std::chrono::steady_clock::now();
+  for (const auto& [id, w] : workers_) {
+    v1::WorkerInfo* i = out.add_workers();
+    i->set_id(id);
+    i->set_name(w.name);
+    i->set_peer(w.peer);
+    i->set_has_lease(w.has_lease);
+    if (w.has_lease) i->set_lease_job(w.lease_job);
+    auto h = health_.find(w.name);
+    if (h != health_.end()) {
+      i->set_consecutive_failures(uint32_t(h->second.consecutive_failures));
+      if (h->second.quarantined_until > now) {
+        i->set_quarantined(true);
+        i->set_quarantine_seconds_left(
+            std::chrono::duration<double>(h->second.quarantined_until - now).count());
+      }
+    }
+    i->set_violations(w.violations);
+    i->set_outbox_bytes(w.outbox_bytes);
+    i->set_batches_dropped(w.batches_dropped);
+    i->set_seconds_since_heard(std::chrono::duration<double>(now - w.last_heard).count());
+    i->set_silent(w.silent);
+  }
+  out.set_worker_violations(violations_total_);
+  out.set_workers_disconnected(expelled_total_);
+  return out;
 }
 
 void JobManager::SeedCache(Job& job) {
@@ -456,21 +789,31 @@ void JobManager::SeedCache(Job& job) {
 
 void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
                            std::vector<v1::CoordinatorMessage>* out) {
-  Job* best = nullptr;
-  for (auto& [id, job] : jobs_) {
-    if (IsFinal(*job) || !job->tiles->has_pending()) continue;
-    if (best == nullptr || job->stored.job().priority() > best->stored.job().priority() ||
-        (job->stored.job().priority() == best->stored.job().priority() &&
-         job->stored.sequence() < best->stored.sequence()))
-      best = job.get();
+  // Jobs with pending tiles, highest priority first, then in submission order; the first that
+  // has a tile for this worker (one that did not fail on it, while others could take those).
+  std::vector<Job*> candidates;
+  for (auto& [id, job] : jobs_)
+    if (!IsFinal(*job) && job->tiles->has_pending()) candidates.push_back(job.get());
+  std::sort(candidates.begin(), candidates.end(), [](const Job* a, const Job* b) {
+    if (a->stored.job().priority() != b->stored.job().priority())
+      return a->stored.job().priority() > b->stored.job().priority();
+    return a->stored.sequence() < b->stored.sequence();
+  });
+  const SteadyTime now = std::chrono::steady_clock::now();
+  const std::vector<uint32_t> others = OtherEligibleWorkers(worker_id, now);
+  Job* chosen = nullptr;
+  std::optional<TileLeaseInfo> lease;
+  for (Job* candidate : candidates) {
+    lease = candidate->tiles->Lease(worker_id, now, options_.lease_time, others);
+    if (lease) {
+      chosen = candidate;
+      break;
+    }
   }
-  if (best == nullptr) return;
-  Job& job = *best;
+  if (chosen == nullptr) return;
+  Job& job = *chosen;
   const std::string& id = job.stored.job().id();
   if (!job.has_started) SeedCache(job);
-  std::optional<TileLeaseInfo> lease =
-      job.tiles->Lease(worker_id, std::chrono::steady_clock::now(), options_.lease_time);
-  if (!lease) return;
   if (!job.workers.count(worker_id)) {
     v1::CoordinatorMessage spec;
     spec.mutable_job_spec()->set_job_id(id);
@@ -526,6 +869,8 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   worker.has_lease = true;
   worker.lease_job = id;
   worker.lease_id = lease->lease_id;
+  worker.past_leases.emplace_back(lease->lease_id, id);
+  if (worker.past_leases.size() > kPastLeases) worker.past_leases.pop_front();
   Changed();
 }
 
@@ -539,10 +884,14 @@ std::vector<v1::CoordinatorMessage> JobManager::Poll(uint32_t worker,
     if (it == workers_.end()) return out;
     Worker& w = it->second;
     while (!w.outbox.empty()) {
+      if (w.outbox.front().has_records())
+        w.outbox_bytes -= std::min(w.outbox_bytes, BatchBytes(w.outbox.front().records().batch()));
       out.push_back(std::move(w.outbox.front()));
       w.outbox.pop_front();
     }
-    if (!w.has_lease && !w.draining) TryAssign(worker, w, &out);
+    if (!w.has_lease && !w.draining && !w.silent &&
+        !Quarantined(w, std::chrono::steady_clock::now()))
+      TryAssign(worker, w, &out);
     if (!out.empty()) return out;
     const uint64_t seen = version_;
     if (!changed_cv_.wait_until(lock, deadline, [&] { return version_ != seen; })) return out;
@@ -552,6 +901,20 @@ std::vector<v1::CoordinatorMessage> JobManager::Poll(uint32_t worker,
 void JobManager::ExpireLeases() {
   std::lock_guard<std::mutex> lock(mu_);
   const SteadyTime now = std::chrono::steady_clock::now();
+  // A worker silent for 3 heartbeat periods (hung, SIGSTOPped, cut off) loses its leases now
+  // rather than at the lease deadline. Not a failure of the tile: the tile did nothing wrong.
+  for (auto& [wid, w] : workers_) {
+    if (w.silent || now - w.last_heard <= 3 * options_.heartbeat) continue;
+    w.silent = true;
+    w.has_lease = false;
+    spdlog::warn("worker {} ({}) silent for {:.1f} s: its leases go to other workers", wid,
+                 w.name, std::chrono::duration<double>(now - w.last_heard).count());
+    for (auto& [id, job] : jobs_)
+      if (!IsFinal(*job))
+        (void)job->tiles->ReleaseWorker(wid, "worker " + std::to_string(wid) + " went silent",
+                                        /*count_failure=*/false);
+    Changed();
+  }
   for (auto& [id, job] : jobs_) {
     if (IsFinal(*job)) continue;
     absl::Status st = job->tiles->ExpireLeases(now);

@@ -5,12 +5,24 @@
 // resumes every unfinished job. Thread-safe: one mutex guards all state.
 //
 // Worker protocol, as seen from here: RegisterWorker gives an id; Poll returns what to send the
-// worker next: other workers' record batches (fan-out), JobClosed notices and, when the worker
-// holds no lease, its next tile lease, preceded by the job's spec and the job's records so far
-// the first time the worker works on that job (late join). A job starting after other jobs of
-// the same scene (a batch of frames) is first seeded with their records (cache_seed.h). Records and
-// tile results come in through AddRecords and CompleteTile; WorkerGone requeues the tiles of a
-// worker whose stream broke.
+// worker next: other workers' record batches (fan-out), JobClosed notices, Rejected notices and,
+// when the worker holds no lease, its next tile lease, preceded by the job's spec and the job's
+// records so far the first time the worker works on that job (late join). A job starting after
+// other jobs of the same scene (a batch of frames) is first seeded with their records
+// (cache_seed.h). Records and tile results come in through AddRecords and CompleteTile;
+// WorkerGone requeues the tiles of a worker whose stream broke.
+//
+// Nothing a worker sends is trusted (issue 10): a tile result or TileFailed counts only from the
+// session holding that (random) lease; pixels must be finite and non-negative and stats sane;
+// records are merged only for a job the worker holds a lease of, while the job runs, and only
+// within the scene's RecordBounds. Every invalid message is counted, answered with a Rejected
+// message and, past max_violations, ends the session (Expelled). A tile that failed is leased to
+// other workers first; a worker failing quarantine_after tiles in a row gets no leases for
+// quarantine_time; a worker silent for 3 heartbeat periods loses its leases (not counted as a
+// failure of the tile) until it is heard from again.
+//
+// Jobs belong to the client that submitted them (Caller): a non-admin caller sees and acts on
+// its own jobs only; others' jobs are NOT_FOUND to it. JobLimits bound what one request may ask.
 #pragma once
 
 #include <chrono>
@@ -26,6 +38,7 @@
 
 #include "absl/status/statusor.h"
 #include "coordinator/global_cache.h"
+#include "coordinator/record_bounds.h"
 #include "coordinator/job_store.h"
 #include "coordinator/tile_scheduler.h"
 #include "irfarm/v1/jobs.pb.h"
@@ -36,11 +49,46 @@ namespace irfarm {
 // `origin` stamped on records imported from a snapshot (worker ids count up from 1).
 constexpr uint32_t kSnapshotOrigin = 0xffffffffu;
 
+// What one request may ask for; each has a coordinator flag (coordinator/main.cc). Requests over
+// a limit get INVALID_ARGUMENT (a single request asking too much) or RESOURCE_EXHAUSTED (too
+// many live jobs, too large an upload).
+struct JobLimits {
+  int max_film_side = 32768;                      // pixels along either axis
+  int64_t max_film_pixels = int64_t(1) << 26;     // 67 M pixels (8192 x 8192)
+  int max_tiles = 1 << 16;                        // tiles per job
+  int64_t max_samples = int64_t(1) << 36;         // spp x pixels (6.9e10: 8192^2 at 1024 spp)
+  int max_record_rays = 1 << 16;                  // hemisphere rays per irradiance record
+  size_t max_name_bytes = 1024;                   // job name, worker name
+  int max_defines = 256;                          // -D overrides per job
+  size_t max_define_bytes = 4096;                 // name + value of one -D
+  int max_batch_records = 1 << 16;                // records per worker message
+  int max_live_jobs_per_client = 64;              // queued + running jobs of one client
+  size_t max_outbox_bytes = size_t(64) << 20;     // record fan-out queued for one worker
+};
+
 struct JobManagerOptions {
   size_t max_upload_bytes = size_t(64) << 20;  // SubmitJob requests above this are refused
-  int max_tile_attempts = 3;                   // a tile failing this often fails its job
+  TileRetryPolicy tile_retry;                  // when a failing tile fails its job
   std::chrono::milliseconds lease_time{120000};
+  // Workers send a heartbeat this often; one silent for 3 periods loses its leases.
+  std::chrono::milliseconds heartbeat{1000};
+  int quarantine_after = 3;                     // failed tiles in a row
+  std::chrono::milliseconds quarantine_time{30000};
+  int max_violations = 16;  // invalid messages before the coordinator ends a worker's session
   size_t sync_batch_records = 16384;  // records per batch when catching up a late joiner
+  JobLimits limits;
+  // Scenes given by path (SceneSource.path, read from the coordinator's file system): allowed
+  // under this directory; with none, only for admin callers (which, without authentication, is
+  // everyone: the loopback development setup). Others get PERMISSION_DENIED, whether the file
+  // exists or not.
+  std::string scene_path_root;
+};
+
+// Who calls the job API: the name of its client token, and whether it may see every job.
+// Without authentication every caller is Caller{} (anonymous admin).
+struct Caller {
+  std::string name;
+  bool admin = true;
 };
 
 class JobManager {
@@ -52,29 +100,43 @@ class JobManager {
   // "path:line: ..." message; a bundle path leaving the bundle; bad settings), RESOURCE_EXHAUSTED
   // (upload over max_upload_bytes), FAILED_PRECONDITION (snapshot of another scene; result of an
   // unfinished job), UNAVAILABLE (the store failed). A refused request changes nothing.
-  absl::StatusOr<v1::Job> Submit(const v1::SubmitJobRequest& request);
-  absl::StatusOr<v1::Job> GetJob(const std::string& id) const;
-  std::vector<v1::Job> ListJobs() const;
-  absl::StatusOr<v1::Job> Cancel(const std::string& id);
+  absl::StatusOr<v1::Job> Submit(const v1::SubmitJobRequest& request,
+                                 const Caller& caller = Caller());
+  absl::StatusOr<v1::Job> GetJob(const std::string& id, const Caller& caller = Caller()) const;
+  std::vector<v1::Job> ListJobs(const Caller& caller = Caller()) const;
+  absl::StatusOr<v1::Job> Cancel(const std::string& id, const Caller& caller = Caller());
   // The finished image as EXR file bytes.
-  absl::StatusOr<std::string> ResultExr(const std::string& id) const;
+  absl::StatusOr<std::string> ResultExr(const std::string& id,
+                                        const Caller& caller = Caller()) const;
   // The job's merged records as snapshot file bytes (cache/snapshot.h).
-  absl::StatusOr<std::string> ExportSnapshot(const std::string& id) const;
+  absl::StatusOr<std::string> ExportSnapshot(const std::string& id,
+                                             const Caller& caller = Caller()) const;
+  // Connected workers and the worker-side counters (auth_failures is the caller's to fill).
+  v1::GetClusterResponse Cluster() const;
   // Waits until anything changes after `seen` (a value returned before) or the timeout passes;
   // returns the current change counter.
   uint64_t WaitForChange(uint64_t seen, std::chrono::milliseconds timeout) const;
 
-  // --- Worker side.
-  uint32_t RegisterWorker(const std::string& name);
+  // --- Worker side. The message handlers return OK, FAILED_PRECONDITION for a harmless stale
+  // message (a result for a lease this worker lost, records for a job that just ended),
+  // UNAVAILABLE when the store failed, or PERMISSION_DENIED / INVALID_ARGUMENT for an invalid
+  // message (counted against the worker and answered with a Rejected message).
+  uint32_t RegisterWorker(const std::string& name, const std::string& peer = "");
   void WorkerGone(uint32_t worker, const std::string& reason);
   // The worker will finish its tile and leave: give it no new lease.
   void Drain(uint32_t worker);
+  // Any message from the worker (heartbeats included) proves it alive.
+  void Heard(uint32_t worker);
   absl::Status AddRecords(uint32_t worker, const v1::JobRecords& records);
   absl::Status CompleteTile(uint32_t worker, const v1::TileResult& result);
   absl::Status FailTile(uint32_t worker, const v1::TileFailed& failed);
+  // True when the worker sent more than max_violations invalid messages: end its session.
+  bool Expelled(uint32_t worker) const;
   std::vector<v1::CoordinatorMessage> Poll(uint32_t worker, std::chrono::milliseconds timeout);
-  // Requeues tiles whose lease deadline passed (call periodically).
+  // Requeues tiles whose lease deadline passed and the leases of workers silent for 3 heartbeat
+  // periods (call periodically, well within a heartbeat period).
   void ExpireLeases();
+  const JobManagerOptions& options() const { return options_; }
 
  private:
   struct Job {
@@ -88,19 +150,50 @@ class JobManager {
     bool has_started = false;
   };
   struct Worker {
-    std::string name;
+    std::string name, peer;
     std::deque<v1::CoordinatorMessage> outbox;
     std::set<std::string> jobs;
     bool has_lease = false, draining = false;
     std::string lease_job;
     uint64_t lease_id = 0;
+    // The last kPastLeases leases it was given (lease id, job id): a late message about one of
+    // them is stale, not invalid.
+    std::deque<std::pair<uint64_t, std::string>> past_leases;
+    SteadyTime last_heard;
+    bool silent = false;  // no message for 3 heartbeat periods: leases taken, gets none
+    uint32_t violations = 0;
+    size_t outbox_bytes = 0;       // record payload queued in outbox
+    uint64_t batches_dropped = 0;  // fan-out batches not queued: outbox over max_outbox_bytes
   };
+  // Failure history of a worker name (survives reconnects, so a broken worker that reconnects
+  // stays quarantined).
+  struct WorkerHealth {
+    int consecutive_failures = 0;
+    SteadyTime quarantined_until;
+  };
+  static constexpr size_t kPastLeases = 64;
 
   JobManager(const JobManagerOptions& options, JobStore* store)
       : options_(options), store_(store) {}
   absl::Status Resume();
   v1::Job View(const Job& job) const;
   bool IsFinal(const Job& job) const;
+  // The job `id` if `caller` may see it, else NOT_FOUND (the same answer as for no such job).
+  absl::StatusOr<Job*> Find(const std::string& id, const Caller& caller) const;
+  // PERMISSION_DENIED unless `caller` may load the coordinator-side scene file `path`.
+  absl::Status CheckScenePath(const std::string& path, const Caller& caller) const;
+  // Counts an invalid message of `worker`, queues a Rejected notice; returns
+  // PERMISSION_DENIED(reason).
+  absl::Status Violation(uint32_t worker_id, Worker& worker, const std::string& reason);
+  // A result or failure for `lease_id` of a tile that is not (or no longer) this worker's:
+  // harmless when the worker held that lease before (it expired), else a violation.
+  absl::Status NotHolder(uint32_t worker_id, Worker* worker, uint64_t lease_id,
+                         const std::string& what);
+  void ReleaseLease(Worker& worker, uint64_t lease_id);
+  void TileFailedOn(const Worker& worker);
+  bool Quarantined(const Worker& worker, SteadyTime now) const;
+  // The workers other than `worker_id` that could take a lease now.
+  std::vector<uint32_t> OtherEligibleWorkers(uint32_t worker_id, SteadyTime now) const;
   void TryAssign(uint32_t worker_id, Worker& worker, std::vector<v1::CoordinatorMessage>* out);
   void FinishJob(Job& job, v1::JobState state, const std::string& error);
   // When `job` starts: merges the records of earlier jobs of the same sensor-free scene and
@@ -117,6 +210,8 @@ class JobManager {
   uint32_t next_worker_ = 1;
   std::map<std::string, std::unique_ptr<Job>> jobs_;
   std::map<uint32_t, Worker> workers_;
+  std::map<std::string, WorkerHealth> health_;  // by worker name
+  uint64_t violations_total_ = 0, expelled_total_ = 0;
 };
 
 }  // namespace irfarm

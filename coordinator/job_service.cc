@@ -28,41 +28,58 @@ bool IsFinal(v1::JobState s) {
 
 }  // namespace
 
-grpc::Status JobServiceImpl::SubmitJob(grpc::ServerContext*, const v1::SubmitJobRequest* request,
+absl::StatusOr<Caller> JobServiceImpl::Authenticate(const grpc::ServerContext* context) {
+  if (auth_ == nullptr) return Caller();
+  return auth_->Client(*context);
+}
+
+#define IRFARM_AUTHENTICATE(caller)                                      \
+  absl::StatusOr<Caller> caller##_or = Authenticate(context);           \
+  if (!caller##_or.ok()) return ToGrpcStatus(caller##_or.status());     \
+  const Caller& caller = *caller##_or
+
+grpc::Status JobServiceImpl::SubmitJob(grpc::ServerContext* context,
+                                       const v1::SubmitJobRequest* request,
                                        v1::SubmitJobResponse* response) {
-  absl::StatusOr<v1::Job> job = manager_->Submit(*request);
+  IRFARM_AUTHENTICATE(caller);
+  absl::StatusOr<v1::Job> job = manager_->Submit(*request, caller);
   if (!job.ok()) return ToGrpcStatus(job.status());
   *response->mutable_job() = *job;
   return grpc::Status::OK;
 }
 
-grpc::Status JobServiceImpl::GetJob(grpc::ServerContext*, const v1::GetJobRequest* request,
+grpc::Status JobServiceImpl::GetJob(grpc::ServerContext* context, const v1::GetJobRequest* request,
                                     v1::GetJobResponse* response) {
-  absl::StatusOr<v1::Job> job = manager_->GetJob(request->job_id());
+  IRFARM_AUTHENTICATE(caller);
+  absl::StatusOr<v1::Job> job = manager_->GetJob(request->job_id(), caller);
   if (!job.ok()) return ToGrpcStatus(job.status());
   *response->mutable_job() = *job;
   return grpc::Status::OK;
 }
 
-grpc::Status JobServiceImpl::ListJobs(grpc::ServerContext*, const v1::ListJobsRequest*,
+grpc::Status JobServiceImpl::ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest*,
                                       v1::ListJobsResponse* response) {
-  for (v1::Job& job : manager_->ListJobs()) *response->add_jobs() = std::move(job);
+  IRFARM_AUTHENTICATE(caller);
+  for (v1::Job& job : manager_->ListJobs(caller)) *response->add_jobs() = std::move(job);
   return grpc::Status::OK;
 }
 
 grpc::Status JobServiceImpl::WatchJob(grpc::ServerContext* context,
                                       const v1::WatchJobRequest* request,
                                       grpc::ServerWriter<v1::WatchJobResponse>* writer) {
+  IRFARM_AUTHENTICATE(caller);
   uint64_t version = 0;
   std::string last;
   while (!context->IsCancelled()) {
-    absl::StatusOr<v1::Job> job = manager_->GetJob(request->job_id());
+    absl::StatusOr<v1::Job> job = manager_->GetJob(request->job_id(), caller);
     if (!job.ok()) return ToGrpcStatus(job.status());
     job->clear_elapsed_seconds();  // only send when something else changed
     std::string now = job->SerializeAsString();
     if (now != last) {
       v1::WatchJobResponse r;
-      *r.mutable_job() = *manager_->GetJob(request->job_id());
+      *r.mutable_job() = *job;
+      r.mutable_job()->set_elapsed_seconds(
+          manager_->GetJob(request->job_id(), caller).value_or(*job).elapsed_seconds());
       if (!writer->Write(r)) break;
       last = std::move(now);
     }
@@ -72,23 +89,37 @@ grpc::Status JobServiceImpl::WatchJob(grpc::ServerContext* context,
   return grpc::Status::OK;
 }
 
-grpc::Status JobServiceImpl::CancelJob(grpc::ServerContext*, const v1::CancelJobRequest* request,
+grpc::Status JobServiceImpl::CancelJob(grpc::ServerContext* context,
+                                       const v1::CancelJobRequest* request,
                                        v1::CancelJobResponse* response) {
-  absl::StatusOr<v1::Job> job = manager_->Cancel(request->job_id());
+  IRFARM_AUTHENTICATE(caller);
+  absl::StatusOr<v1::Job> job = manager_->Cancel(request->job_id(), caller);
   if (!job.ok()) return ToGrpcStatus(job.status());
   *response->mutable_job() = *job;
   return grpc::Status::OK;
 }
 
-grpc::Status JobServiceImpl::GetResult(grpc::ServerContext*, const v1::GetResultRequest* request,
+grpc::Status JobServiceImpl::GetResult(grpc::ServerContext* context,
+                                       const v1::GetResultRequest* request,
                                        grpc::ServerWriter<v1::GetResultResponse>* writer) {
-  return StreamBytes(manager_->ResultExr(request->job_id()), writer);
+  IRFARM_AUTHENTICATE(caller);
+  return StreamBytes(manager_->ResultExr(request->job_id(), caller), writer);
 }
 
-grpc::Status JobServiceImpl::ExportCache(grpc::ServerContext*,
+grpc::Status JobServiceImpl::ExportCache(grpc::ServerContext* context,
                                          const v1::ExportCacheRequest* request,
                                          grpc::ServerWriter<v1::ExportCacheResponse>* writer) {
-  return StreamBytes(manager_->ExportSnapshot(request->job_id()), writer);
+  IRFARM_AUTHENTICATE(caller);
+  return StreamBytes(manager_->ExportSnapshot(request->job_id(), caller), writer);
+}
+
+grpc::Status JobServiceImpl::GetCluster(grpc::ServerContext* context, const v1::GetClusterRequest*,
+                                        v1::GetClusterResponse* response) {
+  IRFARM_AUTHENTICATE(caller);
+  (void)caller;
+  *response = manager_->Cluster();
+  if (auth_ != nullptr) response->set_auth_failures(auth_->failures());
+  return grpc::Status::OK;
 }
 
 }  // namespace irfarm

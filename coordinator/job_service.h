@@ -1,7 +1,9 @@
-// JobServiceImpl: the gRPC JobService. Translates requests into JobManager calls and statuses
-// back (service/grpc_status.h); no logic of its own.
+// JobServiceImpl: the gRPC JobService. Authenticates each call (auth.h: UNAUTHENTICATED without
+// a client token, when tokens are configured), then translates requests into JobManager calls
+// for that caller and statuses back (service/grpc_status.h); no logic of its own.
 #pragma once
 
+#include "coordinator/auth.h"
 #include "coordinator/job_manager.h"
 #include "irfarm/v1/jobs.grpc.pb.h"
 
@@ -9,7 +11,9 @@ namespace irfarm {
 
 class JobServiceImpl final : public v1::JobService::Service {
  public:
-  explicit JobServiceImpl(JobManager* manager) : manager_(manager) {}
+  // `auth` may be null: every call is then an anonymous admin.
+  explicit JobServiceImpl(JobManager* manager, Authenticator* auth = nullptr)
+      : manager_(manager), auth_(auth) {}
 
   grpc::Status SubmitJob(grpc::ServerContext* context, const v1::SubmitJobRequest* request,
                          v1::SubmitJobResponse* response) override;
@@ -25,9 +29,14 @@ class JobServiceImpl final : public v1::JobService::Service {
                          grpc::ServerWriter<v1::GetResultResponse>* writer) override;
   grpc::Status ExportCache(grpc::ServerContext* context, const v1::ExportCacheRequest* request,
                            grpc::ServerWriter<v1::ExportCacheResponse>* writer) override;
+  grpc::Status GetCluster(grpc::ServerContext* context, const v1::GetClusterRequest* request,
+                          v1::GetClusterResponse* response) override;
 
  private:
+  absl::StatusOr<Caller> Authenticate(const grpc::ServerContext* context);
+
   JobManager* manager_;
+  Authenticator* auth_;
 };
 
 }  // namespace irfarm

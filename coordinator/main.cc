@@ -1,13 +1,21 @@
 // irfarm-coordinator: serves JobService (clients) and WorkerService (workers) on one address,
 // with an in-memory job store, or Redis with --redis HOST:PORT (jobs survive a restart).
-// SIGINT/SIGTERM shut it down gracefully (in-flight calls get a 5 s deadline).
+// Credentials: --client-token-file / --worker-token-file / --admin-token-file (coordinator/
+// auth.h), TLS with --tls-cert/--tls-key and client certificates with --tls-client-ca. Without
+// tokens it listens on a loopback address only, unless --insecure. The request limits
+// (JobLimits) each have a flag. SIGINT/SIGTERM shut it down gracefully (in-flight calls get a
+// 5 s deadline).
 #include <grpcpp/grpcpp.h>
 #include <signal.h>
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
+#include <fstream>
 #include <memory>
+#include <sstream>
 #include <thread>
+
+#include "coordinator/auth.h"
 
 #include "coordinator/in_memory_job_store.h"
 #include "coordinator/job_manager.h"
@@ -15,17 +23,117 @@
 #include "coordinator/redis_job_store.h"
 #include "coordinator/worker_service.h"
 
+namespace {
+
+// True for 127.0.0.0/8, ::1 and localhost (with a port, unix: sockets too).
+bool IsLoopback(const std::string& address) {
+  if (address.rfind("unix:", 0) == 0) return true;
+  std::string host = address.substr(0, address.rfind(':'));
+  if (host.size() >= 2 && host.front() == '[') host = host.substr(1, host.size() - 2);
+  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+}
+
+bool ReadFile(const std::string& path, std::string* out) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return false;
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  *out = ss.str();
+  return true;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   CLI::App app{"irfarm-coordinator: job API and tile/record coordination for irfarm workers"};
   std::string listen = "127.0.0.1:50051", redis;
-  double max_upload_mib = 64, lease_seconds = 120;
-  int max_attempts = 3;
+  double max_upload_mib = 64, lease_seconds = 120, heartbeat_seconds = 1, quarantine_seconds = 30;
+  double max_outbox_mib = 64;
+  irfarm::JobManagerOptions options;
+  irfarm::JobLimits& lim = options.limits;
+  std::string client_tokens, worker_tokens, admin_tokens, tls_cert, tls_key, tls_client_ca;
+  bool insecure = false;
   app.add_option("--listen", listen, "address to serve on (default 127.0.0.1:50051)");
   app.add_option("--redis", redis, "HOST:PORT of a Redis server to keep jobs in");
+  app.add_option("--client-token-file", client_tokens, "client tokens ('[NAME] TOKEN' lines)");
+  app.add_option("--worker-token-file", worker_tokens, "worker tokens, one a line");
+  app.add_option("--admin-token-file", admin_tokens, "admin tokens (see every client's jobs)");
+  app.add_option("--tls-cert", tls_cert, "server certificate chain (PEM); needs --tls-key");
+  app.add_option("--tls-key", tls_key, "server private key (PEM)");
+  app.add_option("--tls-client-ca", tls_client_ca,
+                 "require client certificates signed by this CA (PEM): mutual TLS");
+  app.add_flag("--insecure", insecure, "allow a non-loopback address without tokens");
+  app.add_option("--scene-path-root", options.scene_path_root,
+                 "allow jobs whose scene is a path under this directory (default: admins only)");
   app.add_option("--max-upload-mib", max_upload_mib, "largest SubmitJob request (default 64)");
   app.add_option("--lease-seconds", lease_seconds, "tile lease deadline (default 120)");
-  app.add_option("--max-tile-attempts", max_attempts, "failed attempts before a job fails (3)");
+  app.add_option("--heartbeat-seconds", heartbeat_seconds,
+                 "worker heartbeat period; 3 missed periods take its leases (default 1)");
+  app.add_option("--tile-failure-workers", options.tile_retry.failure_workers,
+                 "a tile failing on this many distinct workers fails its job (default 3)");
+  app.add_option("--max-tile-attempts", options.tile_retry.max_attempts,
+                 "... or failing this many times in all (default 10)");
+  app.add_option("--quarantine-after", options.quarantine_after,
+                 "failed tiles in a row that quarantine a worker (default 3)");
+  app.add_option("--quarantine-seconds", quarantine_seconds, "quarantine length (default 30)");
+  app.add_option("--max-violations", options.max_violations,
+                 "invalid messages before a worker is disconnected (default 16)");
+  app.add_option("--max-film-side", lim.max_film_side, "film width/height limit (32768)");
+  app.add_option("--max-film-pixels", lim.max_film_pixels, "film pixel limit (67108864)");
+  app.add_option("--max-tiles", lim.max_tiles, "tiles per job (65536)");
+  app.add_option("--max-samples", lim.max_samples, "spp x pixels per job (68719476736)");
+  app.add_option("--max-record-rays", lim.max_record_rays, "rays per record (65536)");
+  app.add_option("--max-name-bytes", lim.max_name_bytes, "job and worker name length (1024)");
+  app.add_option("--max-defines", lim.max_defines, "-D overrides per job (256)");
+  app.add_option("--max-define-bytes", lim.max_define_bytes, "bytes of one -D (4096)");
+  app.add_option("--max-batch-records", lim.max_batch_records,
+                 "records per worker message (65536)");
+  app.add_option("--max-outbox-mib", max_outbox_mib,
+                 "record fan-out queued per worker before batches are dropped (64)");
+  app.add_option("--max-live-jobs", lim.max_live_jobs_per_client,
+                 "queued + running jobs per client (64)");
   CLI11_PARSE(app, argc, argv);
+
+  std::vector<irfarm::NamedToken> tokens[3];
+  const std::string* files[3] = {&client_tokens, &worker_tokens, &admin_tokens};
+  const char* prefixes[3] = {"client-", "worker-", "admin-"};
+  for (int i = 0; i < 3; ++i) {
+    if (files[i]->empty()) continue;
+    absl::StatusOr<std::vector<irfarm::NamedToken>> t =
+        irfarm::ReadTokenFile(*files[i], prefixes[i]);
+    if (!t.ok()) {
+      spdlog::error("{}", t.status().ToString());
+      return 1;
+    }
+    tokens[i] = std::move(*t);
+  }
+  irfarm::Authenticator auth(tokens[0], tokens[1], tokens[2]);
+  if (!IsLoopback(listen) && (auth.clients_open() || auth.workers_open()) && !insecure) {
+    spdlog::error(
+        "refusing to listen on {} without client and worker tokens (--client-token-file, "
+        "--worker-token-file); pass --insecure to do it anyway",
+        listen);
+    return 1;
+  }
+  std::shared_ptr<grpc::ServerCredentials> credentials = grpc::InsecureServerCredentials();
+  if (!tls_cert.empty() || !tls_key.empty()) {
+    grpc::SslServerCredentialsOptions ssl(
+        tls_client_ca.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                              : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+    grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
+    if (!ReadFile(tls_cert, &pair.cert_chain) || !ReadFile(tls_key, &pair.private_key) ||
+        (!tls_client_ca.empty() && !ReadFile(tls_client_ca, &ssl.pem_root_certs))) {
+      spdlog::error("cannot read --tls-cert, --tls-key or --tls-client-ca");
+      return 1;
+    }
+    ssl.pem_key_cert_pairs.push_back(pair);
+    credentials = grpc::SslServerCredentials(ssl);
+  } else if (!tls_client_ca.empty()) {
+    spdlog::error("--tls-client-ca needs --tls-cert and --tls-key");
+    return 1;
+  } else if (!IsLoopback(listen)) {
+    spdlog::warn("listening on {} without TLS: tokens travel in clear text", listen);
+  }
 
   // Signals are taken by a dedicated thread with sigwait: no handler, no global state.
   sigset_t signals;
@@ -46,21 +154,23 @@ int main(int argc, char** argv) {
     }
     store = std::move(*r);
   }
-  irfarm::JobManagerOptions options;
   options.max_upload_bytes = size_t(max_upload_mib * 1024 * 1024);
+  lim.max_outbox_bytes = size_t(max_outbox_mib * 1024 * 1024);
   options.lease_time = std::chrono::milliseconds(int64_t(lease_seconds * 1000));
-  options.max_tile_attempts = max_attempts;
+  options.heartbeat =
+      std::chrono::milliseconds(std::max<int64_t>(50, int64_t(heartbeat_seconds * 1000)));
+  options.quarantine_time = std::chrono::milliseconds(int64_t(quarantine_seconds * 1000));
   absl::StatusOr<std::unique_ptr<irfarm::JobManager>> manager =
       irfarm::JobManager::Create(options, store.get());
   if (!manager.ok()) {
     spdlog::error("{}", manager.status().ToString());
     return 1;
   }
-  irfarm::JobServiceImpl job_service(manager->get());
-  irfarm::WorkerServiceImpl worker_service(manager->get());
+  irfarm::JobServiceImpl job_service(manager->get(), &auth);
+  irfarm::WorkerServiceImpl worker_service(manager->get(), &auth);
   grpc::ServerBuilder builder;
   int port = 0;
-  builder.AddListeningPort(listen, grpc::InsecureServerCredentials(), &port);
+  builder.AddListeningPort(listen, credentials, &port);
   builder.SetMaxReceiveMessageSize(int(options.max_upload_bytes + (size_t(1) << 20)));
   builder.RegisterService(&job_service);
   builder.RegisterService(&worker_service);
@@ -69,8 +179,11 @@ int main(int argc, char** argv) {
     spdlog::error("cannot listen on {}", listen);
     return 1;
   }
-  spdlog::info("irfarm-coordinator listening on {} (store: {})", listen,
-               redis.empty() ? "memory" : "redis " + redis);
+  spdlog::info("irfarm-coordinator listening on {} (store: {}; {}; client tokens: {}, worker "
+               "tokens: {})",
+               listen, redis.empty() ? "memory" : "redis " + redis,
+               tls_cert.empty() ? "no TLS" : tls_client_ca.empty() ? "TLS" : "mutual TLS",
+               tokens[0].size() + tokens[2].size(), tokens[1].size());
 
   std::atomic<bool> stop{false};
   std::thread expiry([&] {

@@ -1,29 +1,52 @@
 // TileScheduler: tiles, leases, deadlines and retries of one job (see tile_scheduler.h).
 #include "coordinator/tile_scheduler.h"
 
+#include <sys/random.h>
+
 #include <algorithm>
 #include <cstdlib>
+#include <random>
 
 namespace irfarm {
 
-TileScheduler::TileScheduler(int width, int height, int tile_size, int max_attempts)
-    : max_attempts_(std::max(1, max_attempts)) {
+uint64_t RandomLeaseId() {
+  uint64_t id = 0;
+  while (id == 0) {
+    if (getrandom(&id, sizeof id, 0) != ssize_t(sizeof id)) {
+      std::random_device rd;  // fallback: also backed by the kernel on Linux
+      id = (uint64_t(rd()) << 32) ^ rd();
+    }
+  }
+  return id;
+}
+
+TileScheduler::TileScheduler(int width, int height, int tile_size, const TileRetryPolicy& policy)
+    : policy_(policy) {
+  policy_.failure_workers = std::max(1, policy_.failure_workers);
+  policy_.max_attempts = std::max(1, policy_.max_attempts);
   tile_size = std::max(1, tile_size);
   tiles_x_ = (width + tile_size - 1) / tile_size;
   for (int y = 0; y < height; y += tile_size)
     for (int x = 0; x < width; x += tile_size)
       rects_.push_back(
           PixelRect{x, y, std::min(width, x + tile_size), std::min(height, y + tile_size)});
+  num_tiles_ = int(rects_.size());
   state_.assign(rects_.size(), State::kPending);
   failures_.assign(rects_.size(), 0);
+  failed_on_.resize(rects_.size());
   for (int i = 0; i < num_tiles(); ++i) pending_.push_back(i);
 }
 
 std::optional<TileLeaseInfo> TileScheduler::Lease(uint32_t worker, SteadyTime now,
-                                                  std::chrono::milliseconds lease_time) {
-  if (pending_.empty()) return std::nullopt;
-  auto chosen = pending_.begin();
+                                                  std::chrono::milliseconds lease_time,
+                                                  const std::vector<uint32_t>& others) {
+  auto chosen = pending_.end();
   for (auto it = pending_.begin(); it != pending_.end(); ++it) {
+    const std::set<uint32_t>& failed = failed_on_[size_t(*it)];
+    if (failed.count(worker) &&
+        std::any_of(others.begin(), others.end(), [&](uint32_t o) { return !failed.count(o); }))
+      continue;  // a worker it has not failed on will take it
+    if (chosen == pending_.end()) chosen = it;  // the first eligible, if none is far
     bool far = true;
     for (const TileLeaseInfo& l : leases_) {
       const int dx = std::abs(*it % tiles_x_ - l.tile % tiles_x_);
@@ -35,11 +58,18 @@ std::optional<TileLeaseInfo> TileScheduler::Lease(uint32_t worker, SteadyTime no
       break;
     }
   }
-  TileLeaseInfo lease{*chosen, next_lease_id_++, worker, now + lease_time};
+  if (chosen == pending_.end()) return std::nullopt;
+  TileLeaseInfo lease{*chosen, RandomLeaseId(), worker, now, now + lease_time};
   pending_.erase(chosen);
   state_[size_t(lease.tile)] = State::kLeased;
   leases_.push_back(lease);
   return lease;
+}
+
+const TileLeaseInfo* TileScheduler::Current(int tile, uint64_t lease_id) const {
+  for (const TileLeaseInfo& l : leases_)
+    if (l.tile == tile && l.lease_id == lease_id) return &l;
+  return nullptr;
 }
 
 absl::Status TileScheduler::Complete(int tile, uint64_t lease_id) {
@@ -47,18 +77,12 @@ absl::Status TileScheduler::Complete(int tile, uint64_t lease_id) {
     return l.tile == tile && l.lease_id == lease_id;
   });
   if (it == leases_.end())
-    return absl::FailedPreconditionError("tile " + std::to_string(tile) + " lease " +
-                                         std::to_string(lease_id) + " is not current");
+    return absl::FailedPreconditionError("tile " + std::to_string(tile) +
+                                         ": that lease is not current");
   leases_.erase(it);
   state_[size_t(tile)] = State::kDone;
   ++done_count_;
   return absl::OkStatus();
-}
-
-bool TileScheduler::IsCurrent(int tile, uint64_t lease_id) const {
-  return std::any_of(leases_.begin(), leases_.end(), [&](const TileLeaseInfo& l) {
-    return l.tile == tile && l.lease_id == lease_id;
-  });
 }
 
 void TileScheduler::MarkDone(int tile) {
@@ -71,26 +95,33 @@ void TileScheduler::MarkDone(int tile) {
   ++done_count_;
 }
 
-absl::Status TileScheduler::Requeue(int tile, uint64_t lease_id, const std::string& reason) {
+absl::Status TileScheduler::Requeue(int tile, uint64_t lease_id, const std::string& reason,
+                                    bool count_failure) {
   auto it = std::find_if(leases_.begin(), leases_.end(), [&](const TileLeaseInfo& l) {
     return l.tile == tile && l.lease_id == lease_id;
   });
   if (it == leases_.end()) return absl::OkStatus();  // already completed or requeued
+  const uint32_t worker = it->worker;
   leases_.erase(it);
   state_[size_t(tile)] = State::kPending;
   pending_.push_front(tile);
-  if (++failures_[size_t(tile)] >= max_attempts_)
+  if (!count_failure) return absl::OkStatus();
+  std::set<uint32_t>& on = failed_on_[size_t(tile)];
+  on.insert(worker);
+  ++failures_[size_t(tile)];
+  if (int(on.size()) >= policy_.failure_workers || failures_[size_t(tile)] >= policy_.max_attempts)
     return absl::AbortedError("tile " + std::to_string(tile) + " failed " +
-                              std::to_string(failures_[size_t(tile)]) + " times (last: " + reason +
-                              ")");
+                              std::to_string(failures_[size_t(tile)]) + " times on " +
+                              std::to_string(on.size()) + " workers (last: " + reason + ")");
   return absl::OkStatus();
 }
 
-absl::Status TileScheduler::ReleaseWorker(uint32_t worker, const std::string& reason) {
+absl::Status TileScheduler::ReleaseWorker(uint32_t worker, const std::string& reason,
+                                          bool count_failure) {
   absl::Status result;
   const std::vector<TileLeaseInfo> leases = leases_;
   for (const TileLeaseInfo& l : leases)
-    if (l.worker == worker) result.Update(Requeue(l.tile, l.lease_id, reason));
+    if (l.worker == worker) result.Update(Requeue(l.tile, l.lease_id, reason, count_failure));
   return result;
 }
 
@@ -105,8 +136,10 @@ absl::Status TileScheduler::ExpireLeases(SteadyTime now) {
 }
 
 void TileScheduler::Clear() {
-  leases_.clear();
-  pending_.clear();
+  std::vector<TileLeaseInfo>().swap(leases_);
+  std::deque<int>().swap(pending_);
+  std::vector<int>().swap(failures_);
+  std::vector<std::set<uint32_t>>().swap(failed_on_);
 }
 
 std::vector<uint32_t> TileScheduler::LeaseHolders() const {

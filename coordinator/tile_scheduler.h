@@ -1,14 +1,18 @@
 // TileScheduler: the tiles of one job and who renders them. The image is cut into square tiles
 // (many more than workers, so a slow or lost worker costs little); a worker leases one tile at a
-// time until a deadline. A tile whose worker dies or misses its deadline goes back to the front
-// of the queue; after max_attempts failed attempts the job fails with the reason. Not
-// thread-safe: JobManager serialises access.
+// time until a deadline, under a random, unguessable lease id (64 bits from the kernel's CSPRNG)
+// bound to that worker: a result is accepted only from the lease's holder. A tile whose worker
+// fails it, dies or misses its deadline goes back to the front of the queue, but is leased to a
+// worker it has not failed on first; the job fails only when the tile failed on
+// `failure_workers` distinct workers, or `max_attempts` times in all (a single worker left).
+// Not thread-safe: JobManager serialises access.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -23,14 +27,22 @@ struct TileLeaseInfo {
   int tile = -1;
   uint64_t lease_id = 0;
   uint32_t worker = 0;
-  SteadyTime deadline;
+  SteadyTime start, deadline;
 };
+
+struct TileRetryPolicy {
+  int failure_workers = 3;  // a tile failing on this many distinct workers fails the job
+  int max_attempts = 10;    // ... or failing this many times in all
+};
+
+// A random lease id from the kernel's CSPRNG (getrandom), never 0.
+uint64_t RandomLeaseId();
 
 class TileScheduler {
  public:
-  TileScheduler(int width, int height, int tile_size, int max_attempts);
+  TileScheduler(int width, int height, int tile_size, const TileRetryPolicy& policy);
 
-  int num_tiles() const { return int(rects_.size()); }
+  int num_tiles() const { return num_tiles_; }
   int num_done() const { return done_count_; }
   bool all_done() const { return done_count_ == num_tiles(); }
   bool has_pending() const { return !pending_.empty(); }
@@ -38,42 +50,48 @@ class TileScheduler {
   bool is_done(int tile) const { return state_[size_t(tile)] == State::kDone; }
 
   // Leases a pending tile to `worker`, preferring one at least two tiles away from every tile
-  // leased now (so concurrent workers compute fewer overlapping records). nullopt when none is
-  // pending. Lease ids are unique per scheduler.
+  // leased now (so concurrent workers compute fewer overlapping records). A tile that failed on
+  // `worker` is skipped while one of `others` (the other workers that could take a lease) has
+  // not failed it. nullopt when no tile is pending for this worker.
   std::optional<TileLeaseInfo> Lease(uint32_t worker, SteadyTime now,
-                                     std::chrono::milliseconds lease_time);
+                                     std::chrono::milliseconds lease_time,
+                                     const std::vector<uint32_t>& others = {});
 
+  // The current lease `lease_id` of `tile`, or nullptr (expired and re-leased, done, or never).
+  const TileLeaseInfo* Current(int tile, uint64_t lease_id) const;
   // The tile's result arrived under `lease_id`. FAILED_PRECONDITION when that lease is no longer
-  // current (expired and re-leased, or the tile is done): the result is then ignored.
+  // current: the result is then ignored.
   absl::Status Complete(int tile, uint64_t lease_id);
-  // True while `lease_id` is the tile's current lease.
-  bool IsCurrent(int tile, uint64_t lease_id) const;
   // Marks a tile done without a lease (restoring finished tiles from a store).
   void MarkDone(int tile);
 
-  // Puts the tile of a lease back in the queue, counting a failed attempt. Returns an error
-  // (the job must fail) when the tile has now failed max_attempts times.
-  absl::Status Requeue(int tile, uint64_t lease_id, const std::string& reason);
-  // Requeues every tile leased to `worker` (its stream broke).
-  absl::Status ReleaseWorker(uint32_t worker, const std::string& reason);
+  // Puts the tile of a lease back in the queue. With `count_failure` the attempt counts against
+  // the tile (the worker failed it, died or missed the deadline); a worker that only went silent
+  // does not count. Returns an error (the job must fail) when the tile has now failed on
+  // failure_workers distinct workers or max_attempts times.
+  absl::Status Requeue(int tile, uint64_t lease_id, const std::string& reason,
+                       bool count_failure = true);
+  // Requeues every tile leased to `worker`.
+  absl::Status ReleaseWorker(uint32_t worker, const std::string& reason, bool count_failure);
   // Requeues every lease whose deadline is before `now`.
   absl::Status ExpireLeases(SteadyTime now);
-  // Drops every lease and pending tile (cancelled or failed job).
+  // Drops every lease and pending tile and the per-tile bookkeeping (cancelled, failed or
+  // finished job); rect() stays valid for a finished image.
   void Clear();
   // Workers holding a lease now.
   std::vector<uint32_t> LeaseHolders() const;
 
  private:
-  enum class State { kPending, kLeased, kDone };
-  int tiles_x_ = 0;
+  enum class State : uint8_t { kPending, kLeased, kDone };
+  int tiles_x_ = 0, num_tiles_ = 0;
   std::vector<PixelRect> rects_;
   std::vector<State> state_;
   std::vector<int> failures_;
-  std::vector<TileLeaseInfo> leases_;  // current leases
+  std::vector<std::set<uint32_t>> failed_on_;  // workers each tile failed on
+  std::vector<TileLeaseInfo> leases_;          // current leases
   std::deque<int> pending_;
   int done_count_ = 0;
-  int max_attempts_;
-  uint64_t next_lease_id_ = 1;
+  TileRetryPolicy policy_;
 };
 
 }  // namespace irfarm

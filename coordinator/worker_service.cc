@@ -6,20 +6,30 @@
 #include <atomic>
 #include <thread>
 
+#include "service/grpc_status.h"
+
 namespace irfarm {
 
 grpc::Status WorkerServiceImpl::Session(
     grpc::ServerContext* context,
     grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>* stream) {
+  if (auth_ != nullptr) {
+    absl::Status st = auth_->Worker(*context);
+    if (!st.ok()) return ToGrpcStatus(st);
+  }
   v1::WorkerMessage msg;
   if (!stream->Read(&msg) || !msg.has_register_())
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "first message must be register");
-  const uint32_t id = manager_->RegisterWorker(msg.register_().name());
-  spdlog::info("worker {} ({}) connected from {}", id, msg.register_().name(), context->peer());
+  if (msg.register_().name().size() > manager_->options().limits.max_name_bytes)
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "worker name too long");
+  const uint32_t id = manager_->RegisterWorker(msg.register_().name(), context->peer());
+  spdlog::info("worker {} connected from {}", id, context->peer());
   {
+    const int64_t heartbeat_ms = manager_->options().heartbeat.count();
     v1::CoordinatorMessage reply;
     reply.mutable_registered()->set_worker_id(id);
-    reply.mutable_registered()->set_heartbeat_seconds(5);
+    reply.mutable_registered()->set_heartbeat_seconds(int((heartbeat_ms + 999) / 1000));
+    reply.mutable_registered()->set_heartbeat_ms(int(heartbeat_ms));
     stream->Write(reply);
   }
   std::atomic<bool> done{false};
@@ -34,7 +44,9 @@ grpc::Status WorkerServiceImpl::Session(
     }
   });
   std::string reason = "disconnected";
+  grpc::Status result = grpc::Status::OK;
   while (stream->Read(&msg)) {
+    manager_->Heard(id);
     absl::Status st;
     switch (msg.msg_case()) {
       case v1::WorkerMessage::kRecords:
@@ -53,13 +65,23 @@ grpc::Status WorkerServiceImpl::Session(
       default:
         break;  // heartbeats only prove the stream is alive
     }
-    if (!st.ok()) spdlog::warn("worker {}: {}", id, st.ToString());
+    if (absl::IsFailedPrecondition(st)) {
+      spdlog::debug("worker {}: {}", id, st.ToString());  // stale, harmless
+    } else if (!st.ok()) {
+      spdlog::warn("worker {}: {}", id, st.ToString());
+    }
+    if (manager_->Expelled(id)) {
+      reason = "disconnected: too many invalid messages";
+      result = grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
+                            "too many invalid messages (last: " + std::string(st.message()) + ")");
+      break;
+    }
   }
   done = true;
   manager_->WorkerGone(id, reason);
   writer.join();
   spdlog::info("worker {} {}", id, reason);
-  return grpc::Status::OK;
+  return result;
 }
 
 }  // namespace irfarm

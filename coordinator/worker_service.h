@@ -1,9 +1,12 @@
 // WorkerServiceImpl: the gRPC WorkerService. Each worker's Session stream is read on the handler
 // thread and written by a second thread that forwards what JobManager::Poll hands out (gRPC
-// allows one concurrent reader and one writer per stream). When the stream breaks, the worker is
-// gone and its tiles are requeued.
+// allows one concurrent reader and one writer per stream). A session without a worker token
+// (when tokens are configured, auth.h) ends UNAUTHENTICATED before it registers; one whose worker
+// sends too many invalid messages (JobManager::Expelled) ends PERMISSION_DENIED. When the stream
+// ends, the worker is gone and its tiles are requeued.
 #pragma once
 
+#include "coordinator/auth.h"
 #include "coordinator/job_manager.h"
 #include "irfarm/v1/worker.grpc.pb.h"
 
@@ -11,7 +14,9 @@ namespace irfarm {
 
 class WorkerServiceImpl final : public v1::WorkerService::Service {
  public:
-  explicit WorkerServiceImpl(JobManager* manager) : manager_(manager) {}
+  // `auth` may be null: any worker may connect.
+  explicit WorkerServiceImpl(JobManager* manager, Authenticator* auth = nullptr)
+      : manager_(manager), auth_(auth) {}
 
   grpc::Status Session(
       grpc::ServerContext* context,
@@ -19,6 +24,7 @@ class WorkerServiceImpl final : public v1::WorkerService::Service {
 
  private:
   JobManager* manager_;
+  Authenticator* auth_;
 };
 
 }  // namespace irfarm

@@ -15,6 +15,11 @@
 #       (and a stats JSON of the job: per-worker and total records computed / received / used,
 #       tiles, wall seconds), and stops the cluster, also on failure or Ctrl-C.
 #
+# Credentials: `start` writes a random worker token and a client token ($IRFARM_TOKEN if set,
+# else random) to STATE/worker.token and STATE/client.token (mode 600); the coordinator refuses
+# calls without them. Talk to a started cluster with
+#   irfarm status --token-file STATE/client.token      (or export IRFARM_TOKEN=<that token>)
+#
 # Binaries: $IRFARM_BIN, else <repo>/build (the repo that holds this script).
 # State dir: $IRFARM_CLUSTER_DIR, else ${XDG_RUNTIME_DIR:-/tmp}/irfarm-cluster (`run` uses a
 # private temporary one, so it never disturbs a cluster started with `start`).
@@ -45,6 +50,12 @@ free_port() {
 }
 
 port_in_use() { (exec 3<>"/dev/tcp/127.0.0.1/$1") 2>/dev/null; }
+
+# A random 192-bit token (hex) from the kernel's CSPRNG.
+new_token() { od -An -N24 -tx1 /dev/urandom | tr -d ' \n'; }
+
+# irfarm_cli ARGS...: the `irfarm` command with this cluster's client token.
+irfarm_cli() { "$BIN/irfarm" "$@" --token-file "$STATE/client.token"; }
 
 # alive PID NAME: the pid runs and is the program we started (not a reused pid).
 alive() {
@@ -84,7 +95,7 @@ cmd_start() {
   need_bin
   mkdir -p "$STATE"
   [[ -z $(running_pids) ]] || die "a cluster is already running (state in $STATE); stop it first"
-  rm -f "$STATE"/*.pid "$STATE"/*.log "$STATE/address"
+  rm -f "$STATE"/*.pid "$STATE"/*.log "$STATE/address" "$STATE"/*.token
   if [[ -z $port ]]; then
     port=50051
     port_in_use "$port" && port=$(free_port)
@@ -93,6 +104,13 @@ cmd_start() {
   ((threads > 0)) || threads=$(($(nproc) / workers))
   ((threads > 0)) || threads=1
   local addr=127.0.0.1:$port coord_args=(--listen "127.0.0.1:$port")
+  # Tokens readable by this user only (the token file format is "NAME TOKEN" or "TOKEN").
+  (
+    umask 077
+    echo "local ${IRFARM_TOKEN:-$(new_token)}" >"$STATE/client.token"
+    new_token >"$STATE/worker.token"
+  )
+  coord_args+=(--client-token-file "$STATE/client.token" --worker-token-file "$STATE/worker.token")
 
   if ((redis)); then
     command -v redis-server >/dev/null || die "redis-server not installed (deploy/setup.sh installs it)"
@@ -113,14 +131,14 @@ cmd_start() {
   launch coordinator "$BIN/irfarm-coordinator" "${coord_args[@]}"
   local ok=0
   for _ in $(seq $((READY_TIMEOUT * 10))); do
-    if "$BIN/irfarm" status --coordinator "$addr" >/dev/null 2>&1; then ok=1; break; fi
+    if irfarm_cli status --coordinator "$addr" >/dev/null 2>&1; then ok=1; break; fi
     sleep 0.1
   done
   ((ok)) || { tail -5 "$STATE/coordinator.log" >&2; cmd_stop; die "coordinator did not come up on $addr"; }
 
   for i in $(seq "$workers"); do
     launch "worker-$i" "$BIN/irfarm-worker" --coordinator "$addr" --threads "$threads" \
-      --name "worker-$i"
+      --name "worker-$i" --token-file "$STATE/worker.token"
   done
   # A worker is ready once it has registered (its log says so).
   for i in $(seq "$workers"); do
@@ -133,6 +151,7 @@ cmd_start() {
   done
   echo "$addr" >"$STATE/address"
   say "coordinator on $addr with $workers worker(s) x $threads thread(s); state in $STATE"
+  say "client token: $STATE/client.token (irfarm ... --token-file $STATE/client.token)"
   echo "$addr"
 }
 
@@ -173,7 +192,7 @@ cmd_status() {
   procs=$(running_pids)
   [[ -n $procs ]] || { echo "no cluster running (state dir $STATE)"; return 1; }
   echo "$procs" | while read -r pid prog name; do echo "$name: pid $pid ($prog)"; done
-  [[ -f $STATE/address ]] && "$BIN/irfarm" status --coordinator "$(cat "$STATE/address")"
+  [[ -f $STATE/address ]] && irfarm_cli status --coordinator "$(cat "$STATE/address")"
 }
 
 # job_stats_json JOB_JSON SCENE: the stats JSON of a finished job (from `irfarm status --json`).
@@ -251,13 +270,13 @@ cmd_run() {
   addr=$(cmd_start "${start_args[@]}")
   say "submitting $scene"
   local job
-  "$BIN/irfarm" submit --coordinator "$addr" "$scene" --wait -o "$out" "${submit_args[@]}" \
+  irfarm_cli submit --coordinator "$addr" "$scene" --wait -o "$out" "${submit_args[@]}" \
     >"$STATE/submit.out" &
   SUBMIT_PID=$!
   wait "$SUBMIT_PID" || status=$?
   SUBMIT_PID=""
   job=$(head -1 "$STATE/submit.out")
-  if [[ -n $job ]] && "$BIN/irfarm" status --coordinator "$addr" "$job" --json >"$STATE/job.json"; then
+  if [[ -n $job ]] && irfarm_cli status --coordinator "$addr" "$job" --json >"$STATE/job.json"; then
     job_stats_json "$STATE/job.json" "$scene" >"$STATE/stats.json"
     python3 - "$STATE/stats.json" <<'PY' >&2
 import json, sys

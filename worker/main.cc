@@ -17,6 +17,11 @@ int main(int argc, char** argv) {
   app.add_option("--threads", options.threads, "render threads (default: all cores)");
   app.add_option("--name", options.name, "name shown in job stats (default: host:pid)");
   app.add_option("--flush-ms", flush_ms, "publish new records at least this often (50)");
+  app.add_option("--token-file", options.auth.token_file,
+                 "worker token file (default: $IRFARM_TOKEN)");
+  app.add_option("--tls-ca", options.auth.tls_ca, "use TLS, trusting this CA (PEM)");
+  app.add_option("--tls-cert", options.auth.tls_cert, "client certificate for mutual TLS (PEM)");
+  app.add_option("--tls-key", options.auth.tls_key, "client key for mutual TLS (PEM)");
   CLI11_PARSE(app, argc, argv);
   options.flush_interval = std::chrono::milliseconds(flush_ms);
   if (options.name.empty()) {

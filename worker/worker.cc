@@ -23,6 +23,9 @@ struct SessionState {
   bool broken = false;
   uint32_t worker_id = 0;
   std::mutex write_mu;  // one writer at a time on the stream
+  // Held while records are taken and written, so that a tile's records are all on the stream
+  // before its result (the coordinator takes records only while the lease is held).
+  std::mutex publish_mu;
 };
 
 }  // namespace
@@ -33,6 +36,14 @@ void Worker::Stop() {
 }
 
 int Worker::Run() {
+  absl::StatusOr<std::string> token = LoadClientToken(options_.auth);
+  absl::StatusOr<std::shared_ptr<grpc::ChannelCredentials>> credentials =
+      MakeChannelCredentials(options_.auth);
+  if (!token.ok() || !credentials.ok()) {
+    spdlog::error("{}", (!token.ok() ? token.status() : credentials.status()).ToString());
+    return 2;
+  }
+  token_ = *token;
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(256 << 20);
   // Reconnect quickly after a coordinator restart (gRPC's default starts at 1 s and grows 1.6x).
@@ -40,7 +51,7 @@ int Worker::Run() {
   args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 100);
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
   std::shared_ptr<grpc::Channel> channel =
-      grpc::CreateCustomChannel(options_.coordinator, grpc::InsecureChannelCredentials(), args);
+      grpc::CreateCustomChannel(options_.coordinator, *credentials, args);
   std::unique_ptr<v1::WorkerService::Stub> stub = v1::WorkerService::NewStub(channel);
   auto backoff = std::chrono::milliseconds(250);
   while (!stop_) {
@@ -64,9 +75,11 @@ int Worker::Run() {
 
 void Worker::RunSession(v1::WorkerService::Stub* stub) {
   grpc::ClientContext context;
+  AddToken(&context, token_);
   std::unique_ptr<grpc::ClientReaderWriter<v1::WorkerMessage, v1::CoordinatorMessage>> stream =
       stub->Session(&context);
   SessionState s;
+  auto heartbeat = std::chrono::milliseconds(5000);
   {
     v1::WorkerMessage reg;
     reg.mutable_register_()->set_name(options_.name);
@@ -74,10 +87,15 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
     v1::CoordinatorMessage reply;
     if (!stream->Write(reg) || !stream->Read(&reply) || !reply.has_registered()) {
       context.TryCancel();
-      stream->Finish();
+      const grpc::Status st = stream->Finish();
+      if (!st.ok()) spdlog::error("session refused: {}", st.error_message());
       return;
     }
     s.worker_id = reply.registered().worker_id();
+    if (reply.registered().heartbeat_ms() > 0)
+      heartbeat = std::chrono::milliseconds(reply.registered().heartbeat_ms());
+    else if (reply.registered().heartbeat_seconds() > 0)
+      heartbeat = std::chrono::seconds(reply.registered().heartbeat_seconds());
     spdlog::info("registered with {} as worker {}", options_.coordinator, s.worker_id);
   }
   const auto write = [&](const v1::WorkerMessage& m) {
@@ -116,6 +134,9 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
         s.jobs.erase(m.job_closed().job_id());  // a tile in progress keeps its shared_ptr
       } else if (m.has_drain()) {
         Stop();
+      } else if (m.has_rejected()) {
+        spdlog::warn("coordinator rejected a message ({} of {}): {}", m.rejected().violations(),
+                     m.rejected().limit(), m.rejected().reason());
       }
     }
     std::lock_guard<std::mutex> lock(s.mu);
@@ -126,6 +147,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
   // Publisher: new own records of every job, at least every flush_interval; heartbeats.
   std::atomic<bool> session_done{false};
   const auto publish_all = [&] {
+    std::lock_guard<std::mutex> publishing(s.publish_mu);
     std::vector<std::shared_ptr<JobContext>> jobs;
     {
       std::lock_guard<std::mutex> lock(s.mu);
@@ -147,7 +169,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
     while (!session_done) {
       std::this_thread::sleep_for(options_.flush_interval);
       publish_all();
-      if (std::chrono::steady_clock::now() - last_heartbeat > std::chrono::seconds(5)) {
+      if (std::chrono::steady_clock::now() - last_heartbeat >= heartbeat) {
         v1::WorkerMessage hb;
         hb.mutable_heartbeat();
         write(hb);

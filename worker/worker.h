@@ -3,7 +3,9 @@
 // local cache, publishes its new records in batches bounded by size (kMaxBatchRecords) and time
 // (flush_interval), inserts the records other workers computed, and reconnects with exponential
 // backoff when the stream breaks. Stop() (SIGTERM) lets the current tile finish and be reported,
-// then drains and returns.
+// then drains and returns. It authenticates with a worker token and, optionally, TLS
+// (service/client_auth.h), and sends heartbeats at the period the coordinator asks for (a worker
+// silent for 3 periods loses its leases).
 #pragma once
 
 #include <atomic>
@@ -16,6 +18,7 @@
 #include <string>
 
 #include "irfarm/v1/worker.grpc.pb.h"
+#include "service/client_auth.h"
 #include "worker/job_context.h"
 
 namespace irfarm {
@@ -26,6 +29,7 @@ struct WorkerOptions {
   int threads = 0;  // 0 = all cores
   std::chrono::milliseconds flush_interval{50};
   size_t max_batch_records = 4096;
+  ClientAuthOptions auth;
 };
 
 class Worker {
@@ -40,6 +44,7 @@ class Worker {
   // One connected session; returns when the stream breaks or the worker stops.
   void RunSession(v1::WorkerService::Stub* stub);
 
+  std::string token_;
   WorkerOptions options_;
   std::atomic<bool> stop_{false};
   std::mutex stop_mu_;

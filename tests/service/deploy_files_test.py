@@ -6,6 +6,11 @@
   its pod labels, every Service selects a Deployment's pods and targets a port its container
   declares, every probe names a declared port, the coordinator is ready by a TCP probe on its gRPC
   port, and every "service:port" address in container args names a Service and one of its ports;
+- credentials (issue 10): the irfarm-tokens Secret holds placeholder tokens too short to be
+  accepted; the coordinator pod reads its client and worker token lists and each worker its token
+  from files of that Secret mounted read-only (every key named exists); the Containerfile's default
+  command and the systemd units pass token files; nothing listens on a non-loopback address
+  without --client-token-file and --worker-token-file;
 - deploy/Containerfile is Debian 12 based, copies both entry points and installs runtime packages
   that exist (apt-cache, when it knows the Debian package lists);
 - deploy/systemd/*.service pass `systemd-analyze verify` with no warning (ExecStart pointed at the
@@ -63,7 +68,7 @@ for path in sorted(glob.glob(os.path.join(DEPLOY, "k8s", "*.yaml"))):
 objects = {(d["kind"], d["metadata"]["name"]): d for d in docs}
 expected = {("Deployment", "irfarm-coordinator"), ("Service", "irfarm-coordinator"),
             ("Deployment", "irfarm-worker"), ("Deployment", "irfarm-redis"),
-            ("Service", "irfarm-redis")}
+            ("Service", "irfarm-redis"), ("Secret", "irfarm-tokens")}
 check(set(objects) == expected, "objects are %s" % sorted(objects))
 check(len(objects) == len(docs), "no object defined twice")
 
@@ -121,6 +126,63 @@ for name, d in deployments.items():
             check(svc is not None and int(m.group(2)) in [p["port"] for p in svc["spec"]["ports"]],
                   "Deployment %s: address %s is a Service port" % (name, a))
 
+# --- Credentials ---
+def flag_value(args, flag):
+    args = [str(a) for a in args]
+    return args[args.index(flag) + 1] if flag in args and args.index(flag) + 1 < len(args) else None
+
+
+def listens_safely(args, what):
+    """A --listen on a non-loopback address must come with both token files."""
+    addr = flag_value(args, "--listen") or "127.0.0.1:50051"
+    loopback = addr.startswith("127.") or addr.startswith("localhost") or addr.startswith("[::1]")
+    check(loopback or (flag_value(args, "--client-token-file") and
+                       flag_value(args, "--worker-token-file")),
+          "%s: listens on %s with client and worker token files" % (what, addr))
+
+
+secret = objects.get(("Secret", "irfarm-tokens"))
+if secret:
+    data = secret.get("stringData", {})
+    check(set(data) == {"client-tokens", "worker-tokens", "worker-token"},
+          "Secret irfarm-tokens keys %s" % sorted(data))
+    check(all(len(str(v).split()[-1]) < 16 for v in data.values()),
+          "Secret irfarm-tokens: placeholders too short to be accepted as tokens")
+
+
+def secret_file(deployment, path):
+    """True when `path` is a key of irfarm-tokens mounted read-only in the deployment's pod."""
+    spec = deployment["spec"]["template"]["spec"]
+    volumes = {v["name"]: v for v in spec.get("volumes", [])}
+    for c in spec["containers"]:
+        for m in c.get("volumeMounts", []):
+            v = volumes.get(m["name"], {}).get("secret")
+            if not v or v.get("secretName") != "irfarm-tokens" or not m.get("readOnly"):
+                continue
+            prefix = m["mountPath"].rstrip("/") + "/"
+            if not path.startswith(prefix):
+                continue
+            name = path[len(prefix):]
+            items = {i["path"]: i["key"] for i in v.get("items", [])} or {k: k for k in
+                                                                        (secret or {}).get(
+                                                                            "stringData", {})}
+            return name in items and items[name] in (secret or {}).get("stringData", {})
+    return False
+
+
+if coord:
+    args = coord["spec"]["template"]["spec"]["containers"][0].get("args", [])
+    listens_safely(args, "k8s coordinator")
+    for flag in ("--client-token-file", "--worker-token-file"):
+        path = flag_value(args, flag)
+        check(path is not None and secret_file(coord, path),
+              "k8s coordinator: %s %s is a mounted key of irfarm-tokens" % (flag, path))
+if worker:
+    path = flag_value(worker["spec"]["template"]["spec"]["containers"][0].get("args", []),
+                      "--token-file")
+    check(path is not None and secret_file(worker, path),
+          "k8s worker: --token-file %s is a mounted key of irfarm-tokens" % path)
+
 # --- Containerfile ---
 with open(os.path.join(DEPLOY, "Containerfile")) as f:
     cf = f.read()
@@ -129,6 +191,9 @@ check(bool(froms) and all(f == "debian:12" for f in froms), "Containerfile: FROM
 for b in ("irfarm-coordinator", "irfarm-worker"):
     check(re.search(r"^COPY .*/%s\b" % b, cf, re.M) is not None, "Containerfile copies %s" % b)
 check(re.search(r"^(CMD|ENTRYPOINT) ", cf, re.M) is not None, "Containerfile has a default command")
+cmd = re.search(r"^CMD (\[.*?\])\s*$", cf.replace("\\\n", " "), re.M | re.S)
+cmd_args = __import__("json").loads(cmd.group(1)) if cmd else []
+listens_safely(cmd_args, "Containerfile CMD")
 install = re.search(r"apt-get install[^\n\\]*((?:\\\n[^\n\\]*)*)", cf)
 pkgs = [p for p in re.findall(r"[a-z0-9][a-z0-9.+-]+", install.group(1) if install else "")
         if p not in ("rm", "rf", "var", "lib", "apt", "lists", "useradd", "system", "uid", "home",
@@ -147,6 +212,17 @@ else:
 
 # --- systemd units ---
 units = sorted(glob.glob(os.path.join(DEPLOY, "systemd", "*.service")))
+for u in units:
+    with open(u) as f:
+        text = f.read()
+    exec_start = re.search(r"^ExecStart=(.*)$", text, re.M).group(1).split()
+    creds = dict(re.findall(r"^LoadCredential=([^:]+):(\S+)$", text, re.M))
+    flags = (["--client-token-file", "--worker-token-file"] if "coordinator" in u
+             else ["--token-file"])
+    for flag in flags:
+        path = flag_value(exec_start, flag) or ""
+        check(path.startswith("%d/") and path[3:] in creds,
+              "%s: %s %s is a LoadCredential" % (os.path.basename(u), flag, path))
 check({os.path.basename(u) for u in units} ==
       {"irfarm-coordinator.service", "irfarm-worker@.service"}, "systemd units present")
 if shutil.which("systemd-analyze"):

@@ -10,7 +10,9 @@
 #include <thread>
 
 #include "coordinator/in_memory_job_store.h"
+#include "coordinator/job_manager.h"
 #include "coordinator/redis_job_store.h"
+#include "service/record_codec.h"
 #include "service/scene_bundle.h"
 
 namespace irfarm {
@@ -128,6 +130,49 @@ TEST(RedisJobStoreTest, RedisDownIsUnavailable) {
   absl::StatusOr<std::unique_ptr<RedisJobStore>> s =
       RedisJobStore::Connect("127.0.0.1:" + std::to_string(FreePort()));
   EXPECT_EQ(s.status().code(), absl::StatusCode::kUnavailable);
+}
+
+// A worker's records count (are merged and fanned out) only once the store holds them: with
+// Redis gone, a batch is refused UNAVAILABLE and the job's merged count does not move, so memory
+// and store never disagree (issue 10, part 4).
+TEST(RedisRecordsTest, RecordsAreMergedOnlyOnceStored) {
+  auto redis = std::make_unique<RedisServer>();
+  std::unique_ptr<RedisJobStore> store;
+  for (int i = 0; i < 100 && !store; ++i) {
+    absl::StatusOr<std::unique_ptr<RedisJobStore>> s = RedisJobStore::Connect(redis->address());
+    if (s.ok()) {
+      store = std::move(*s);
+    } else {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
+  ASSERT_TRUE(store) << "redis-server did not start";
+  std::unique_ptr<JobManager> manager =
+      std::move(*JobManager::Create(JobManagerOptions(), store.get()));
+  v1::SubmitJobRequest req;
+  *req.mutable_scene()->mutable_bundle() =
+      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+  (*req.mutable_settings()->mutable_defines())["resx"] = "32";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "32";
+  absl::StatusOr<v1::Job> job = manager->Submit(req);
+  ASSERT_TRUE(job.ok()) << job.status();
+  const uint32_t worker = manager->RegisterWorker("w");
+  bool leased = false;
+  for (const v1::CoordinatorMessage& m : manager->Poll(worker, std::chrono::seconds(1)))
+    leased = leased || m.has_lease();
+  ASSERT_TRUE(leased);
+  v1::JobRecords batch;
+  batch.set_job_id(job->id());
+  IrradianceRecord r;
+  r.normal = Vec3(0, 1, 0);
+  r.irradiance = Vec3(0.5f);
+  r.radius = 0.1f;
+  PackRecords({r, r}, worker, batch.mutable_batch());
+  ASSERT_TRUE(manager->AddRecords(worker, batch).ok());
+  EXPECT_EQ(manager->GetJob(job->id())->records_merged(), 2u);
+  redis.reset();  // SIGKILL
+  EXPECT_EQ(manager->AddRecords(worker, batch).code(), absl::StatusCode::kUnavailable);
+  EXPECT_EQ(manager->GetJob(job->id())->records_merged(), 2u);
 }
 
 }  // namespace

@@ -4,12 +4,15 @@
 #     and the stats JSON has the job's two workers, each with tiles and records computed, and the
 #     total matches the sum of the workers;
 #  2. `run` stopped with SIGTERM mid-job leaves no coordinator or worker behind;
-#  3. `start --redis` then `stop`: the coordinator answers on the chosen port, its redis-server
+#  3. `start --redis` then `stop`: the coordinator answers on the chosen port (with the cluster's
+#     client token; without it, or with the worker token, UNAUTHENTICATED), its redis-server
 #     runs, and after `stop` none of the cluster's processes is left.
 source "$(dirname "$0")/lib.sh"
 SCRIPT=$(cd "$(dirname "$0")/../.." && pwd)/deploy/local-cluster.sh
 SCENE=$DATA/scenes/cornell-box/scene.xml
 export IRFARM_BIN=$BIN
+# The clusters' client token (local-cluster.sh uses $IRFARM_TOKEN when set); `irfarm` reads it too.
+export IRFARM_TOKEN=local-cluster-test-token-$$-$RANDOM
 
 # --- 1. run ---
 "$SCRIPT" run "$SCENE" -o "$WORK/out.exr" --stats "$WORK/out.json" -D resx=64 -D resy=64 \
@@ -61,6 +64,14 @@ ADDR=$("$SCRIPT" start --redis --workers 2 --port "$PORT" 2>"$WORK/start.log") |
 for f in "$IRFARM_CLUSTER_DIR"/*.pid; do read -r pid _ <"$f"; PIDS+=("$pid"); done
 [[ $ADDR == "127.0.0.1:$PORT" ]] || fail "start printed '$ADDR'"
 "$BIN/irfarm" status --coordinator "$ADDR" >/dev/null || fail "coordinator does not answer"
+# Without the token (or with the worker token) the coordinator refuses.
+OUT=$(IRFARM_TOKEN= "$BIN/irfarm" status --coordinator "$ADDR" 2>&1) && fail "no token: accepted"
+[[ $OUT == *UNAUTHENTICATED* ]] || fail "no token: $OUT"
+OUT=$("$BIN/irfarm" status --coordinator "$ADDR" --token-file "$IRFARM_CLUSTER_DIR/worker.token" \
+  2>&1) && fail "worker token on the job API: accepted"
+[[ $OUT == *UNAUTHENTICATED* ]] || fail "worker token on the job API: $OUT"
+[[ $(stat -c %a "$IRFARM_CLUSTER_DIR/client.token") == 600 ]] || fail "client.token is not mode 600"
+echo "ok: the cluster refuses calls without its client token"
 "$SCRIPT" status >/dev/null || fail "status says no cluster"
 "$SCRIPT" start --port "$(free_port)" 2>/dev/null && fail "a second start was accepted"
 "$SCRIPT" stop 2>/dev/null

@@ -1,0 +1,90 @@
+// RecordBounds: scene-derived limits on records (see record_bounds.h).
+#include "coordinator/record_bounds.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace irfarm {
+namespace {
+
+constexpr float kInterreflectionFactor = 100.0f;  // 1 / (1 - 0.99), see record_bounds.h
+
+float MaxChannel(const Vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
+
+float Length3(const Vec3& v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
+
+}  // namespace
+
+Bounds3 SceneShapeBounds(const SceneDesc& desc) {
+  Bounds3 b;
+  for (const ShapeDesc& s : desc.shapes) {
+    if (s.type == ShapeType::kSphere) {
+      b.Extend(s.center - Vec3(s.radius));
+      b.Extend(s.center + Vec3(s.radius));
+    }
+    for (const Vec3& p : s.mesh.positions) b.Extend(p);
+  }
+  if (b.Empty()) {
+    b.Extend(Vec3(-1));
+    b.Extend(Vec3(1));
+  }
+  return b;
+}
+
+float EmitterIrradianceBound(const SceneDesc& desc) {
+  const Bounds3 shapes = SceneShapeBounds(desc);
+  const float diag = std::max(Length3(shapes.Diagonal()), 1e-6f);
+  const float d_min = 1e-3f * diag;
+  double direct = 0;  // W/m^2, summed over emitters (double: many emitters, no overflow)
+  for (const ShapeDesc& s : desc.shapes)
+    if (s.area_radiance) direct += kPi * std::max(0.0f, MaxChannel(*s.area_radiance));
+  for (const EmitterDesc& e : desc.emitters) {
+    switch (e.type) {
+      case EmitterType::kPoint:
+      case EmitterType::kSpot:
+        direct += std::max(0.0f, MaxChannel(e.intensity)) / (double(d_min) * d_min);
+        break;
+      case EmitterType::kDirectional:
+        direct += std::max(0.0f, MaxChannel(e.irradiance));
+        break;
+      case EmitterType::kConstant:
+        direct += kPi * std::max(0.0f, MaxChannel(e.radiance));
+        break;
+      case EmitterType::kEnvmap:
+        return std::numeric_limits<float>::max();
+    }
+  }
+  const double bound = direct * kInterreflectionFactor;
+  if (!(bound < double(std::numeric_limits<float>::max())))
+    return std::numeric_limits<float>::max();
+  // A scene without emitters is black: allow a tiny positive value for rounding.
+  return std::max(float(bound), 1e-6f);
+}
+
+RecordBounds RecordBoundsForScene(const SceneDesc& desc) {
+  RecordBounds b;
+  const Bounds3 shapes = SceneShapeBounds(desc);
+  const float margin = 0.01f * Length3(shapes.Diagonal());
+  b.box.lo = shapes.lo - Vec3(margin);
+  b.box.hi = shapes.hi + Vec3(margin);
+  Bounds3 with_camera = shapes;
+  const Mat4& m = desc.camera.to_world;
+  with_camera.Extend(Vec3(float(m.m[0][3]), float(m.m[1][3]), float(m.m[2][3])));
+  b.max_radius = 2.0f * std::max(Length3(with_camera.Diagonal()), 1e-6f);
+  b.max_irradiance = EmitterIrradianceBound(desc);
+  return b;
+}
+
+const char* RecordProblem(const RecordBounds& b, const IrradianceRecord& r) {
+  if (!IsValidRecord(r)) return "not finite, normal not unit, R <= 0 or E < 0";
+  const Vec3& p = r.position;
+  if (p.x < b.box.lo.x || p.y < b.box.lo.y || p.z < b.box.lo.z || p.x > b.box.hi.x ||
+      p.y > b.box.hi.y || p.z > b.box.hi.z)
+    return "position outside the scene's bounds";
+  if (r.radius > b.max_radius) return "radius larger than the scene";
+  if (MaxChannel(r.irradiance) > b.max_irradiance)
+    return "irradiance above the bound from the scene's emitters";
+  return nullptr;
+}
+
+}  // namespace irfarm

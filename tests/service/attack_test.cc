@@ -1,0 +1,850 @@
+// The attacks of issue 10, replayed against the real coordinator services (JobManager behind the
+// gRPC JobService and WorkerService, with client, worker and admin tokens) on a loopback port,
+// by a foreign client written here against the generated stubs: fake workers on real Session
+// streams, clients with no, wrong and other clients' tokens, and TLS / mutual TLS with
+// certificates made by openssl at test time. An honest irfarm worker (the real Worker class, in
+// this process) renders what the attacks leave. Each case asserts the status code, that the job
+// list did not change, and that the image is within noise of the reference: relMSE at most 3x
+// that of a clean job of the same scene on the same coordinator (64x64 Cornell box, 16 tiles).
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <optional>
+#include <sstream>
+#include <thread>
+
+#include "cache/snapshot.h"
+#include "coordinator/auth.h"
+#include "coordinator/in_memory_job_store.h"
+#include "coordinator/job_manager.h"
+#include "coordinator/job_service.h"
+#include "coordinator/worker_service.h"
+#include "irfarm/v1/jobs.grpc.pb.h"
+#include "irfarm/v1/worker.grpc.pb.h"
+#include "render/image.h"
+#include "service/record_codec.h"
+#include "service/scene_bundle.h"
+#include "worker/worker.h"
+
+namespace irfarm {
+namespace {
+
+const std::string kData = IRFARM_TEST_DATA;
+const std::string kScene = kData + "/scenes/cornell-box/scene.xml";
+const std::string kReference = kData + "/scenes/cornell-box/reference-x4.exr";  // 64x64
+
+const std::string kAlice = "alice-token-0123456789abcdef";
+const std::string kBob = "bob-token-0123456789abcdef";
+const std::string kAdmin = "admin-token-0123456789abcdef";
+const std::string kWorker = "worker-token-0123456789abcdef";
+constexpr int kMaxViolations = 12;
+
+std::string WriteTemp(const std::string& dir, const std::string& name, const std::string& text) {
+  const std::string path = dir + "/" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+// A foreign worker: a raw Session stream, speaking the protocol by hand.
+class FakeWorker {
+ public:
+  FakeWorker(const std::shared_ptr<grpc::Channel>& channel, const std::string& token,
+             const std::string& name)
+      : stub_(v1::WorkerService::NewStub(channel)) {
+    context_.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(90));
+    if (!token.empty()) context_.AddMetadata("authorization", "Bearer " + token);
+    stream_ = stub_->Session(&context_);
+    v1::WorkerMessage reg;
+    reg.mutable_register_()->set_name(name);
+    stream_->Write(reg);
+  }
+  ~FakeWorker() { Close(); }
+
+  // The next message that satisfies `want`, skipping others; nullopt when the stream ended.
+  std::optional<v1::CoordinatorMessage> ReadUntil(
+      const std::function<bool(const v1::CoordinatorMessage&)>& want) {
+    v1::CoordinatorMessage m;
+    while (stream_->Read(&m)) {
+      if (m.has_rejected()) rejections.push_back(m.rejected().reason());
+      if (want(m)) return m;
+    }
+    return std::nullopt;
+  }
+  std::optional<v1::TileLease> NextLease() {
+    auto m = ReadUntil([](const v1::CoordinatorMessage& m) { return m.has_lease(); });
+    if (!m) return std::nullopt;
+    return m->lease();
+  }
+  // Waits for the Rejected answer to the last message; returns its reason ("" if none came).
+  std::string NextRejection() {
+    auto m = ReadUntil([](const v1::CoordinatorMessage& m) { return m.has_rejected(); });
+    return m ? m->rejected().reason() : "";
+  }
+  bool Send(const v1::WorkerMessage& m) { return stream_->Write(m); }
+  // Cancels the session (thread-safe: another thread may be blocked reading).
+  void Cancel() { context_.TryCancel(); }
+  // Ends the session; the stream's final status.
+  grpc::Status Close() {
+    if (closed_) return final_;
+    closed_ = true;
+    stream_->WritesDone();
+    v1::CoordinatorMessage m;
+    context_.TryCancel();
+    while (stream_->Read(&m)) {
+    }
+    final_ = stream_->Finish();
+    return final_;
+  }
+  // Reads to the end of the stream (the coordinator ended it); the final status.
+  grpc::Status Finish() {
+    v1::CoordinatorMessage m;
+    while (stream_->Read(&m)) {
+    }
+    closed_ = true;
+    final_ = stream_->Finish();
+    return final_;
+  }
+
+  std::vector<std::string> rejections;
+
+ private:
+  std::unique_ptr<v1::WorkerService::Stub> stub_;
+  grpc::ClientContext context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::WorkerMessage, v1::CoordinatorMessage>> stream_;
+  bool closed_ = false;
+  grpc::Status final_;
+};
+
+v1::WorkerMessage Records(const std::string& job_id, const std::vector<IrradianceRecord>& recs) {
+  v1::WorkerMessage m;
+  m.mutable_records()->set_job_id(job_id);
+  PackRecords(recs, 7, m.mutable_records()->mutable_batch());
+  return m;
+}
+
+IrradianceRecord Record(Vec3 p, float radius, float e) {
+  IrradianceRecord r;
+  r.position = p;
+  r.normal = Vec3(0, 1, 0);
+  r.irradiance = Vec3(e);
+  r.radius = radius;
+  return r;
+}
+
+v1::WorkerMessage Result(const std::string& job, int tile, uint64_t lease, int floats,
+                         float value) {
+  v1::WorkerMessage m;
+  v1::TileResult* r = m.mutable_tile_result();
+  r->set_job_id(job);
+  r->set_tile_index(tile);
+  r->set_lease_id(lease);
+  for (int i = 0; i < floats; ++i) r->add_pixels(value);
+  return m;
+}
+
+int LeaseFloats(const v1::TileLease& l) {
+  return (l.rect().x1() - l.rect().x0()) * (l.rect().y1() - l.rect().y0()) * 3;
+}
+
+class AttackTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char tmpl[] = "/tmp/irfarm-attack.XXXXXX";
+    dir_ = mkdtemp(tmpl);
+    worker_token_file_ = WriteTemp(dir_, "worker.token", kWorker + "\n");
+  }
+  void TearDown() override {
+    StopHonestWorker();
+    if (server_) server_->Shutdown(std::chrono::system_clock::now());
+    (void)std::system(("rm -rf " + dir_).c_str());
+  }
+
+  // Starts the coordinator services with tokens; TLS when `cert` is given, mutual TLS when
+  // `client_ca` is given too.
+  void StartServer(const std::string& cert = "", const std::string& key = "",
+                   const std::string& client_ca = "") {
+    JobManagerOptions options;
+    options.max_upload_bytes = size_t(8) << 20;
+    options.max_violations = kMaxViolations;
+    options.limits.max_live_jobs_per_client = 4;
+    options.limits.max_outbox_bytes = size_t(1) << 20;
+    manager_ = std::move(*JobManager::Create(options, &store_));
+    auth_ = std::make_unique<Authenticator>(
+        std::vector<NamedToken>{{"alice", kAlice}, {"bob", kBob}},
+        std::vector<NamedToken>{{"w", kWorker}}, std::vector<NamedToken>{{"root", kAdmin}});
+    jobs_ = std::make_unique<JobServiceImpl>(manager_.get(), auth_.get());
+    workers_ = std::make_unique<WorkerServiceImpl>(manager_.get(), auth_.get());
+    std::shared_ptr<grpc::ServerCredentials> creds = grpc::InsecureServerCredentials();
+    if (!cert.empty()) {
+      grpc::SslServerCredentialsOptions ssl(
+          client_ca.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                            : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+      ssl.pem_key_cert_pairs.push_back({ReadAll(key), ReadAll(cert)});
+      if (!client_ca.empty()) ssl.pem_root_certs = ReadAll(client_ca);
+      creds = grpc::SslServerCredentials(ssl);
+    }
+    grpc::ServerBuilder b;
+    b.AddListeningPort("127.0.0.1:0", creds, &port_);
+    b.SetMaxReceiveMessageSize(16 << 20);
+    b.RegisterService(jobs_.get());
+    b.RegisterService(workers_.get());
+    server_ = b.BuildAndStart();
+    ASSERT_GT(port_, 0);
+    grpc::ChannelArguments args;
+    args.SetMaxSendMessageSize(-1);
+    args.SetMaxReceiveMessageSize(-1);
+    channel_ = grpc::CreateCustomChannel(Address(), grpc::InsecureChannelCredentials(), args);
+    stub_ = v1::JobService::NewStub(channel_);
+  }
+  std::string Address() const { return "127.0.0.1:" + std::to_string(port_); }
+  static std::string ReadAll(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+
+  void StartHonestWorker() {
+    WorkerOptions o;
+    o.coordinator = Address();
+    o.name = "honest";
+    o.threads = 2;
+    o.auth.token_file = worker_token_file_;
+    honest_ = std::make_unique<Worker>(o);
+    honest_thread_ = std::thread([this] { honest_->Run(); });
+  }
+  void StopHonestWorker() {
+    if (!honest_) return;
+    honest_->Stop();
+    honest_thread_.join();
+    honest_.reset();
+  }
+
+  static void Auth(grpc::ClientContext* c, const std::string& token) {
+    c->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
+    if (!token.empty()) c->AddMetadata("authorization", "Bearer " + token);
+  }
+  v1::SubmitJobRequest Request(int tile_size = 16) {
+    v1::SubmitJobRequest req;
+    *req.mutable_scene()->mutable_bundle() = *MakeBundle(kScene);
+    (*req.mutable_settings()->mutable_defines())["resx"] = "64";
+    (*req.mutable_settings()->mutable_defines())["resy"] = "64";
+    req.mutable_settings()->set_tile_size(tile_size);
+    req.mutable_settings()->set_share_records(true);
+    req.mutable_settings()->set_seed(1);
+    return req;
+  }
+  grpc::Status Submit(const std::string& token, const v1::SubmitJobRequest& req,
+                      std::string* id = nullptr) {
+    grpc::ClientContext c;
+    Auth(&c, token);
+    v1::SubmitJobResponse r;
+    grpc::Status st = stub_->SubmitJob(&c, req, &r);
+    if (id) *id = r.job().id();
+    return st;
+  }
+  grpc::Status Get(const std::string& token, const std::string& id, v1::Job* job = nullptr) {
+    grpc::ClientContext c;
+    Auth(&c, token);
+    v1::GetJobRequest req;
+    req.set_job_id(id);
+    v1::GetJobResponse r;
+    grpc::Status st = stub_->GetJob(&c, req, &r);
+    if (job) *job = r.job();
+    return st;
+  }
+  // "id:STATE" of every job, as the admin sees them (what must not change).
+  std::string JobList() {
+    grpc::ClientContext c;
+    Auth(&c, kAdmin);
+    v1::ListJobsResponse r;
+    EXPECT_TRUE(stub_->ListJobs(&c, v1::ListJobsRequest(), &r).ok());
+    std::string s;
+    for (const v1::Job& j : r.jobs()) s += j.id() + ":" + v1::JobState_Name(j.state()) + " ";
+    return s;
+  }
+  v1::GetClusterResponse Cluster() {
+    grpc::ClientContext c;
+    Auth(&c, kAdmin);
+    v1::GetClusterResponse r;
+    EXPECT_TRUE(stub_->GetCluster(&c, v1::GetClusterRequest(), &r).ok());
+    return r;
+  }
+  v1::Job WaitFinal(const std::string& id, int seconds = 120) {
+    v1::Job job;
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(seconds);
+    while (std::chrono::steady_clock::now() < end) {
+      EXPECT_TRUE(Get(kAdmin, id, &job).ok());
+      if (job.state() >= v1::JOB_STATE_SUCCEEDED) return job;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    ADD_FAILURE() << "job " << id << " did not finish";
+    return job;
+  }
+  // The job's image compared with the reference.
+  ImageError ImageOf(const std::string& token, const std::string& id) {
+    grpc::ClientContext c;
+    Auth(&c, token);
+    v1::GetResultRequest req;
+    req.set_job_id(id);
+    auto reader = stub_->GetResult(&c, req);
+    std::string bytes;
+    v1::GetResultResponse chunk;
+    while (reader->Read(&chunk)) bytes += chunk.chunk();
+    EXPECT_TRUE(reader->Finish().ok());
+    const std::string path = WriteTemp(dir_, id + ".exr", bytes);
+    absl::StatusOr<Image> image = ReadExr(path);
+    absl::StatusOr<Image> ref = ReadExr(kReference);
+    EXPECT_TRUE(image.ok() && ref.ok());
+    if (!image.ok() || !ref.ok()) return ImageError{1e30, 1e30, {}, {}, 1};
+    return CompareImages(*image, *ref);
+  }
+  // The noise tolerance: 3x the relMSE of a clean job rendered by the honest worker alone.
+  double CleanTolerance() {
+    std::string id;
+    EXPECT_TRUE(Submit(kBob, Request(), &id).ok());
+    StartHonestWorker();
+    EXPECT_EQ(WaitFinal(id).state(), v1::JOB_STATE_SUCCEEDED);
+    StopHonestWorker();
+    const ImageError e = ImageOf(kBob, id);
+    EXPECT_EQ(e.nonfinite, 0);
+    return 3 * e.relmse;
+  }
+
+  std::string dir_, worker_token_file_;
+  InMemoryJobStore store_;
+  std::unique_ptr<JobManager> manager_;
+  std::unique_ptr<Authenticator> auth_;
+  std::unique_ptr<JobServiceImpl> jobs_;
+  std::unique_ptr<WorkerServiceImpl> workers_;
+  std::unique_ptr<grpc::Server> server_;
+  int port_ = 0;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::JobService::Stub> stub_;
+  std::unique_ptr<Worker> honest_;
+  std::thread honest_thread_;
+};
+
+// Why 1: records with R = 1e30 / E = 10, E = 1e30, outside the scene, for a job the worker holds
+// no lease of, and for a finished job; then a later job of the same scene from another client.
+TEST_F(AttackTest, PoisonedRecordsAreRefusedAndDoNotSpread) {
+  StartServer();
+  const double tol = CleanTolerance();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  FakeWorker f(channel_, kWorker, "mallory");
+  std::optional<v1::TileLease> lease = f.NextLease();
+  ASSERT_TRUE(lease.has_value());
+  ASSERT_EQ(lease->job_id(), a);
+  v1::Job before;
+  ASSERT_TRUE(Get(kAdmin, a, &before).ok());  // seeded from the clean job: some records already
+
+  ASSERT_TRUE(f.Send(Records(a, {Record(Vec3(0, 0, 0), 1e30f, 10)})));
+  EXPECT_NE(f.NextRejection().find("radius"), std::string::npos);
+  ASSERT_TRUE(f.Send(Records(a, {Record(Vec3(0, 0, 0), 0.1f, 1e30f)})));
+  EXPECT_NE(f.NextRejection().find("irradiance"), std::string::npos);
+  ASSERT_TRUE(f.Send(Records(a, {Record(Vec3(1e6f, 0, 0), 0.1f, 1)})));
+  EXPECT_NE(f.NextRejection().find("outside"), std::string::npos);
+  ASSERT_TRUE(f.Send(Records("job-1", {Record(Vec3(0, 0, 0), 0.1f, 1)})));  // not its lease
+  EXPECT_NE(f.NextRejection().find("no lease"), std::string::npos);
+  v1::Job job;
+  ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+  EXPECT_EQ(job.records_merged(), before.records_merged());
+  EXPECT_EQ(job.records_rejected(), before.records_rejected() + 3);
+  ASSERT_TRUE(Get(kAdmin, "job-1", &job).ok());
+  const uint64_t job1_records = job.records_merged();
+  EXPECT_EQ(Cluster().worker_violations(), 4u);
+  f.Close();
+
+  StartHonestWorker();
+  ASSERT_EQ(WaitFinal(a).state(), v1::JOB_STATE_SUCCEEDED);
+  // Records for the finished job, from a worker that holds a lease of another job.
+  std::string c;
+  ASSERT_TRUE(Submit(kAlice, Request(), &c).ok());
+  StopHonestWorker();
+  FakeWorker g(channel_, kWorker, "mallory2");
+  ASSERT_TRUE(g.NextLease().has_value());
+  ASSERT_TRUE(g.Send(Records(a, {Record(Vec3(0, 0, 0), 0.5f, 0.5f)})));
+  EXPECT_NE(g.NextRejection().find("no lease"), std::string::npos);
+  ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+  const uint64_t a_records = job.records_merged();
+  g.Close();
+  ASSERT_TRUE(Get(kAdmin, "job-1", &job).ok());
+  EXPECT_EQ(job.records_merged(), job1_records);
+
+  // Nothing poisoned reached the images, the export or a later job of another client.
+  const ImageError ea = ImageOf(kAlice, a);
+  std::printf("MEASURED attacked job relMSE %g (tolerance %g)\n", ea.relmse, tol);
+  EXPECT_EQ(ea.nonfinite, 0);
+  EXPECT_LE(ea.relmse, tol);
+  StartHonestWorker();
+  ASSERT_EQ(WaitFinal(c).state(), v1::JOB_STATE_SUCCEEDED);
+  std::string b;
+  ASSERT_TRUE(Submit(kBob, Request(), &b).ok());
+  ASSERT_EQ(WaitFinal(b).state(), v1::JOB_STATE_SUCCEEDED);
+  ASSERT_TRUE(Get(kBob, b, &job).ok());
+  EXPECT_GT(job.records_seeded(), 0u);
+  const ImageError eb = ImageOf(kBob, b);
+  std::printf("MEASURED later job of another client relMSE %g (tolerance %g)\n", eb.relmse, tol);
+  EXPECT_LE(eb.relmse, tol);
+  grpc::ClientContext ctx;
+  Auth(&ctx, kAlice);
+  v1::ExportCacheRequest ereq;
+  ereq.set_job_id(a);
+  auto reader = stub_->ExportCache(&ctx, ereq);
+  std::string bytes;
+  v1::ExportCacheResponse chunk;
+  while (reader->Read(&chunk)) bytes += chunk.chunk();
+  ASSERT_TRUE(reader->Finish().ok());
+  absl::StatusOr<Snapshot> snap = ParseSnapshot(bytes, "export");
+  ASSERT_TRUE(snap.ok());
+  EXPECT_EQ(snap->records.size(), a_records);
+  for (const IrradianceRecord& r : snap->records) {
+    ASSERT_LT(r.radius, 100.0f);  // the box is 2 units wide
+    ASSERT_LT(r.irradiance.x, 1e6f);
+  }
+}
+
+// A snapshot carrying poisoned records is refused on import like a worker's records.
+TEST_F(AttackTest, PoisonedSnapshotIsRefused) {
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  v1::Job job;
+  ASSERT_TRUE(Get(kAlice, a, &job).ok());
+  const std::string list = JobList();
+  Snapshot snap;
+  snap.scene_hash = job.scene_hash();
+  snap.records = {Record(Vec3(0, 0, 0), 0.1f, 1), Record(Vec3(0, 0, 0), 1e30f, 10)};
+  v1::SubmitJobRequest req = Request();
+  req.set_cache_snapshot(SerializeSnapshot(snap));
+  const grpc::Status st = Submit(kAlice, req);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("record 1"), std::string::npos) << st.error_message();
+  EXPECT_EQ(JobList(), list);
+}
+
+// Why 2: results for leases the worker does not hold (sequential guesses), NaN pixels and forged
+// stats under its own lease; the session ends after kMaxViolations.
+TEST_F(AttackTest, HijackedLeasesNanPixelsAndForgedStatsAreRefused) {
+  StartServer();
+  const double tol = CleanTolerance();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  FakeWorker f(channel_, kWorker, "mallory");
+  std::optional<v1::TileLease> lease = f.NextLease();
+  ASSERT_TRUE(lease.has_value());
+  const int floats = LeaseFloats(*lease);
+  EXPECT_GT(lease->lease_id(), 1000u);  // random, not counting from 1
+  // Guessed leases of other tiles, NaN pixels.
+  for (int t = 0; t < 4; ++t) {
+    if (t == lease->tile_index()) continue;
+    ASSERT_TRUE(f.Send(Result(a, t, uint64_t(t + 1), floats, std::nanf(""))));
+    EXPECT_NE(f.NextRejection().find("does not hold"), std::string::npos);
+  }
+  // Its own lease: NaN pixels, then (on its next lease) negative ones, then forged stats.
+  ASSERT_TRUE(f.Send(Result(a, lease->tile_index(), lease->lease_id(), floats, std::nanf(""))));
+  EXPECT_NE(f.NextRejection().find("not finite"), std::string::npos);
+  lease = f.NextLease();
+  ASSERT_TRUE(lease.has_value());
+  ASSERT_TRUE(f.Send(Result(a, lease->tile_index(), lease->lease_id(), floats, -1)));
+  EXPECT_NE(f.NextRejection().find("non-negative"), std::string::npos);
+  lease = f.NextLease();
+  ASSERT_TRUE(lease.has_value());
+  v1::WorkerMessage forged = Result(a, lease->tile_index(), lease->lease_id(), floats, 0.5f);
+  forged.mutable_tile_result()->mutable_stats()->set_records_computed(1000000000000ull);
+  forged.mutable_tile_result()->mutable_stats()->set_wall_seconds(-5);
+  ASSERT_TRUE(f.Send(forged));
+  EXPECT_NE(f.NextRejection().find("stats"), std::string::npos);
+  v1::Job job;
+  ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+  EXPECT_EQ(job.tiles_done(), 0);
+  EXPECT_NE(job.state(), v1::JOB_STATE_FAILED);  // three bad tiles on one worker fail nothing
+  // Keep going until the coordinator ends the session.
+  for (int i = 0; i < 2 * kMaxViolations; ++i)
+    if (!f.Send(Result(a, 0, 42, floats, std::nanf("")))) break;
+  const grpc::Status end = f.Finish();
+  EXPECT_EQ(end.error_code(), grpc::StatusCode::PERMISSION_DENIED) << end.error_message();
+  EXPECT_GE(Cluster().workers_disconnected(), 1u);
+
+  StartHonestWorker();
+  job = WaitFinal(a);
+  ASSERT_EQ(job.state(), v1::JOB_STATE_SUCCEEDED);
+  for (const v1::WorkerJobStats& w : job.workers()) {
+    EXPECT_LT(w.records_computed(), 1000000000000ull);
+    EXPECT_GE(w.render_seconds(), 0);
+  }
+  // The finished job released its uploaded bundle (in the store too).
+  absl::StatusOr<std::vector<v1::StoredJob>> stored = store_.LoadJobs();
+  ASSERT_TRUE(stored.ok());
+  size_t bundle_bytes = 0, jobs_seen = 0;
+  for (const v1::StoredJob& sj : *stored) {
+    if (sj.job().id() != a) continue;
+    ++jobs_seen;
+    ASSERT_TRUE(sj.scene().has_bundle());
+    EXPECT_GT(sj.scene().bundle().files_size(), 0);
+    for (const v1::BundleFile& file : sj.scene().bundle().files())
+      bundle_bytes += file.content().size();
+  }
+  EXPECT_EQ(jobs_seen, 1u);
+  EXPECT_EQ(bundle_bytes, 0u);
+  const ImageError e = ImageOf(kAlice, a);
+  std::printf("MEASURED hijacked job relMSE %g (tolerance %g)\n", e.relmse, tol);
+  EXPECT_EQ(e.nonfinite, 0);
+  EXPECT_LE(e.relmse, tol);
+}
+
+// Why 4: forged TileFailed for leases the worker does not hold change nothing; a worker that
+// fails every tile it gets is quarantined while an honest worker finishes every job.
+TEST_F(AttackTest, FailingWorkerIsQuarantinedAndJobsSucceed) {
+  StartServer();
+  std::vector<std::string> ids(3);
+  for (std::string& id : ids) ASSERT_TRUE(Submit(kAlice, Request(), &id).ok());
+  FakeWorker f(channel_, kWorker, "broken");
+  std::optional<v1::TileLease> lease = f.NextLease();
+  ASSERT_TRUE(lease.has_value());
+  for (int t = 0; t < 3; ++t) {  // forged: other tiles, guessed lease ids
+    v1::WorkerMessage m;
+    m.mutable_tile_failed()->set_job_id(ids[0]);
+    m.mutable_tile_failed()->set_tile_index(t + 5);
+    m.mutable_tile_failed()->set_lease_id(uint64_t(t + 1));
+    m.mutable_tile_failed()->set_reason("forged");
+    ASSERT_TRUE(f.Send(m));
+    EXPECT_NE(f.NextRejection().find("does not hold"), std::string::npos);
+  }
+  StartHonestWorker();
+  // "Cannot open the scene": fail every lease it is given until it gets none.
+  std::thread broken([&] {
+    std::optional<v1::TileLease> l = lease;
+    while (l) {
+      v1::WorkerMessage m;
+      m.mutable_tile_failed()->set_job_id(l->job_id());
+      m.mutable_tile_failed()->set_tile_index(l->tile_index());
+      m.mutable_tile_failed()->set_lease_id(l->lease_id());
+      m.mutable_tile_failed()->set_reason("cannot open the scene");
+      if (!f.Send(m)) break;
+      l = f.NextLease();
+    }
+  });
+  for (const std::string& id : ids) {
+    const v1::Job job = WaitFinal(id);
+    EXPECT_EQ(job.state(), v1::JOB_STATE_SUCCEEDED) << job.error();
+  }
+  bool quarantined = false;
+  const v1::GetClusterResponse cluster = Cluster();
+  for (const v1::WorkerInfo& w : cluster.workers())
+    if (w.name() == "broken") quarantined = w.quarantined();
+  EXPECT_TRUE(quarantined);
+  f.Cancel();
+  broken.join();
+}
+
+// Part 3: a tile fails the job only once it failed on 3 distinct workers.
+TEST_F(AttackTest, JobFailsOnlyWhenATileFailedOnThreeWorkers) {
+  StartServer();
+  std::vector<std::unique_ptr<FakeWorker>> fakes;
+  for (int i = 0; i < 3; ++i)
+    fakes.push_back(std::make_unique<FakeWorker>(channel_, kWorker, "bad" + std::to_string(i)));
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(/*tile_size=*/64), &a).ok());  // one tile
+  std::vector<int> failed(3, 0);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < 3; ++i)
+    threads.emplace_back([&, i] {
+      while (std::optional<v1::TileLease> l = fakes[size_t(i)]->NextLease()) {
+        v1::WorkerMessage m;
+        m.mutable_tile_failed()->set_job_id(l->job_id());
+        m.mutable_tile_failed()->set_tile_index(l->tile_index());
+        m.mutable_tile_failed()->set_lease_id(l->lease_id());
+        m.mutable_tile_failed()->set_reason("broken " + std::to_string(i));
+        ++failed[size_t(i)];
+        if (!fakes[size_t(i)]->Send(m)) break;
+      }
+    });
+  const v1::Job job = WaitFinal(a, 30);
+  for (auto& f : fakes) f->Cancel();
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(job.error().find("on 3 workers"), std::string::npos) << job.error();
+  EXPECT_EQ(failed, std::vector<int>({1, 1, 1}));  // each failed it once: never the same twice
+}
+
+// Why 3: no token, a wrong token, a worker token on the job API, a client token as a worker
+// token, client B on client A's job. UNAUTHENTICATED / NOT_FOUND, nothing changes, counted.
+TEST_F(AttackTest, AccessControl) {
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  const std::string list = JobList();
+  for (const std::string& token : {std::string(), std::string("wrong-token-0123456789"), kWorker}) {
+    EXPECT_EQ(Submit(token, Request()).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+    EXPECT_EQ(Get(token, a).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+    grpc::ClientContext c;
+    Auth(&c, token);
+    v1::CancelJobRequest cr;
+    cr.set_job_id(a);
+    v1::CancelJobResponse crr;
+    EXPECT_EQ(stub_->CancelJob(&c, cr, &crr).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+    grpc::ClientContext l;
+    Auth(&l, token);
+    v1::ListJobsResponse lr;
+    EXPECT_EQ(stub_->ListJobs(&l, v1::ListJobsRequest(), &lr).error_code(),
+              grpc::StatusCode::UNAUTHENTICATED);
+  }
+  // A client token (and no token) on the worker API: refused before it can register.
+  for (const std::string& token : {kAlice, std::string()}) {
+    FakeWorker f(channel_, token, "intruder");
+    EXPECT_FALSE(f.NextLease().has_value());
+    EXPECT_EQ(f.Finish().error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  }
+  EXPECT_EQ(Cluster().workers_size(), 0);
+  // Bob on Alice's job: as if it did not exist.
+  EXPECT_EQ(Get(kBob, a).error_code(), grpc::StatusCode::NOT_FOUND);
+  {
+    grpc::ClientContext c;
+    Auth(&c, kBob);
+    v1::CancelJobRequest cr;
+    cr.set_job_id(a);
+    v1::CancelJobResponse crr;
+    EXPECT_EQ(stub_->CancelJob(&c, cr, &crr).error_code(), grpc::StatusCode::NOT_FOUND);
+  }
+  for (int call = 0; call < 2; ++call) {
+    grpc::ClientContext c;
+    Auth(&c, kBob);
+    grpc::Status st;
+    if (call == 0) {
+      v1::GetResultRequest r;
+      r.set_job_id(a);
+      auto reader = stub_->GetResult(&c, r);
+      v1::GetResultResponse x;
+      while (reader->Read(&x)) {
+      }
+      st = reader->Finish();
+    } else {
+      v1::ExportCacheRequest r;
+      r.set_job_id(a);
+      auto reader = stub_->ExportCache(&c, r);
+      v1::ExportCacheResponse x;
+      while (reader->Read(&x)) {
+      }
+      st = reader->Finish();
+    }
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND);
+  }
+  {
+    grpc::ClientContext c;
+    Auth(&c, kBob);
+    v1::ListJobsResponse lr;
+    ASSERT_TRUE(stub_->ListJobs(&c, v1::ListJobsRequest(), &lr).ok());
+    EXPECT_EQ(lr.jobs_size(), 0);
+  }
+  EXPECT_EQ(JobList(), list);
+  v1::Job job;
+  ASSERT_TRUE(Get(kAlice, a, &job).ok());
+  EXPECT_EQ(job.state(), v1::JOB_STATE_QUEUED);
+  EXPECT_EQ(job.owner(), "alice");
+  EXPECT_EQ(Cluster().auth_failures(), 3u * 4u + 2u);
+}
+
+// Why 8: a client (not admin) naming a coordinator-side file gets PERMISSION_DENIED whether it
+// exists (and is XML) or not, so nothing about the coordinator's files leaks; an admin may.
+TEST_F(AttackTest, ScenePathsAreForClientsNotAllowed) {
+  StartServer();
+  std::string answers[2];
+  const std::string paths[2] = {kScene, "/nonexistent/scene.xml"};
+  for (int i = 0; i < 2; ++i) {
+    v1::SubmitJobRequest req = Request();
+    req.mutable_scene()->set_path(paths[i]);
+    const grpc::Status st = Submit(kAlice, req);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << st.error_message();
+    answers[i] = st.error_message();
+  }
+  EXPECT_EQ(answers[0], answers[1]);
+  v1::SubmitJobRequest req = Request();
+  req.mutable_scene()->set_path(kScene);
+  EXPECT_TRUE(Submit(kAdmin, req).ok());
+}
+
+// Why 7: requests asking too much are refused up front, quickly, and leave nothing behind.
+TEST_F(AttackTest, ResourceLimits) {
+  StartServer();
+  const std::string list = JobList();
+  const auto expect = [&](v1::SubmitJobRequest req, grpc::StatusCode code, const char* what) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const grpc::Status st = Submit(kAlice, req);
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_EQ(st.error_code(), code) << what << ": " << st.error_message();
+    EXPECT_LT(s, 2.0) << what;
+  };
+  // (The coordinator's RSS around these cases is measured on the real process in
+  // limits_test.sh: in here client and server share one heap.)
+  v1::SubmitJobRequest req = Request();
+  (*req.mutable_settings()->mutable_defines())["resx"] = "100000";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "100000";
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "100000^2 film");
+  req = Request();
+  (*req.mutable_settings()->mutable_defines())["resx"] = "2147483647";
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "2^31 film");
+  req = Request(4);
+  (*req.mutable_settings()->mutable_defines())["resx"] = "2048";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "2048";
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "262144 tiles");
+  req = Request(64);
+  req.mutable_settings()->set_spp(1 << 20);
+  (*req.mutable_settings()->mutable_defines())["resx"] = "8192";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "8192";
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "spp x pixels");
+  req = Request();
+  req.mutable_settings()->set_record_rays(2000000000);
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "record rays");
+  req = Request();
+  req.set_name(std::string(size_t(5) << 20, 'x'));
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "5 MiB name");
+  req = Request();
+  for (int i = 0; i < 300; ++i)
+    (*req.mutable_settings()->mutable_defines())["d" + std::to_string(i)] = "1";
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "300 defines");
+  EXPECT_EQ(JobList(), list);
+  // Live jobs per client (4 here): the fifth is refused, another client is not affected.
+  for (int i = 0; i < 4; ++i) ASSERT_TRUE(Submit(kAlice, Request()).ok());
+  expect(Request(), grpc::StatusCode::RESOURCE_EXHAUSTED, "fifth live job");
+  EXPECT_TRUE(Submit(kBob, Request()).ok());
+  // Too many records in one worker message.
+  FakeWorker f(channel_, kWorker, "flood");
+  ASSERT_TRUE(f.NextLease().has_value());
+  std::vector<IrradianceRecord> flood(size_t(1 << 16) + 1, Record(Vec3(0, 0, 0), 0.1f, 1));
+  ASSERT_TRUE(f.Send(Records("job-1", flood)));
+  EXPECT_NE(f.NextRejection().find("over the limit"), std::string::npos);
+}
+
+// Part 5: a worker that stops reading its stream does not make the coordinator queue record
+// fan-out for it without bound (1 MiB here): the batches past the bound are dropped and counted,
+// and the records are still merged.
+TEST_F(AttackTest, OutboxOfAWorkerThatDoesNotReadIsBounded) {
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  FakeWorker sleepy(channel_, kWorker, "sleepy");
+  ASSERT_TRUE(sleepy.NextLease().has_value());  // then never reads again
+  FakeWorker chatty(channel_, kWorker, "chatty");
+  ASSERT_TRUE(chatty.NextLease().has_value());
+  const int kBatches = 60, kPerBatch = 4000;  // 10.6 MB of payload
+  for (int b = 0; b < kBatches; ++b) {
+    std::vector<IrradianceRecord> recs;
+    for (int i = 0; i < kPerBatch; ++i) {
+      const int k = b * kPerBatch + i;
+      const Vec3 p(-0.9f + 1.8f * float(k % 97) / 97, -0.9f + 1.8f * float(k % 89) / 89,
+                   -0.9f + 1.8f * float(k % 83) / 83);
+      recs.push_back(Record(p, 0.05f, 0.3f));
+    }
+    ASSERT_TRUE(chatty.Send(Records(a, recs)));
+  }
+  v1::Job job;
+  for (int i = 0; i < 400; ++i) {
+    ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+    if (job.records_merged() >= uint64_t(kBatches) * kPerBatch) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_EQ(job.records_merged(), uint64_t(kBatches) * kPerBatch);
+  const v1::GetClusterResponse cluster = Cluster();
+  bool seen = false;
+  for (const v1::WorkerInfo& w : cluster.workers()) {
+    if (w.name() != "sleepy") continue;
+    seen = true;
+    std::printf("MEASURED sleepy worker: outbox %llu bytes, %llu batches dropped\n",
+                static_cast<unsigned long long>(w.outbox_bytes()),
+                static_cast<unsigned long long>(w.batches_dropped()));
+    EXPECT_LE(w.outbox_bytes(), 1u << 20);
+    EXPECT_GT(w.batches_dropped(), 0u);
+  }
+  EXPECT_TRUE(seen);
+  sleepy.Cancel();
+  chatty.Cancel();
+}
+
+// TLS and mutual TLS with certificates made now by openssl: a client with the CA and (for mTLS)
+// a client certificate gets in; one without the client certificate, or without TLS, does not.
+class TlsTest : public AttackTest {
+ protected:
+  bool MakeCerts() {
+    const std::string d = dir_;
+    WriteTemp(d, "ext.cnf", "subjectAltName=DNS:localhost,IP:127.0.0.1\n");
+    const std::string ec = "-newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes";
+    const std::string cmd =
+        "cd " + d + " && openssl req -x509 " + ec +
+        " -keyout ca.key -out ca.pem -days 1 -subj /CN=irfarm-test-ca && openssl req " + ec +
+        " -keyout server.key -out server.csr -subj /CN=localhost && openssl x509 -req -in "
+        "server.csr -CA ca.pem -CAkey ca.key -CAcreateserial -out server.pem -days 1 -extfile "
+        "ext.cnf && openssl req " +
+        ec +
+        " -keyout client.key -out client.csr -subj /CN=client && openssl x509 -req -in "
+        "client.csr -CA ca.pem -CAkey ca.key -CAcreateserial -out client.pem -days 1";
+    return std::system(("(" + cmd + ") >/dev/null 2>&1").c_str()) == 0;
+  }
+  grpc::Status ListWith(bool tls, bool client_cert, const std::string& token) {
+    std::shared_ptr<grpc::ChannelCredentials> creds = grpc::InsecureChannelCredentials();
+    if (tls) {
+      grpc::SslCredentialsOptions o;
+      o.pem_root_certs = ReadAll(dir_ + "/ca.pem");
+      if (client_cert) {
+        o.pem_cert_chain = ReadAll(dir_ + "/client.pem");
+        o.pem_private_key = ReadAll(dir_ + "/client.key");
+      }
+      creds = grpc::SslCredentials(o);
+    }
+    auto stub = v1::JobService::NewStub(
+        grpc::CreateChannel("localhost:" + std::to_string(port_), creds));
+    grpc::ClientContext c;
+    Auth(&c, token);
+    c.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+    v1::ListJobsResponse r;
+    return stub->ListJobs(&c, v1::ListJobsRequest(), &r);
+  }
+};
+
+TEST_F(TlsTest, ServerTls) {
+  ASSERT_TRUE(MakeCerts());
+  StartServer(dir_ + "/server.pem", dir_ + "/server.key");
+  EXPECT_TRUE(ListWith(true, false, kAlice).ok());
+  EXPECT_EQ(ListWith(true, false, "").error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_EQ(ListWith(false, false, kAlice).error_code(), grpc::StatusCode::UNAVAILABLE);
+}
+
+TEST_F(TlsTest, MutualTls) {
+  ASSERT_TRUE(MakeCerts());
+  StartServer(dir_ + "/server.pem", dir_ + "/server.key", dir_ + "/ca.pem");
+  EXPECT_TRUE(ListWith(true, true, kAlice).ok());
+  EXPECT_EQ(ListWith(true, true, kWorker).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_EQ(ListWith(true, false, kAlice).error_code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_EQ(ListWith(false, false, kAlice).error_code(), grpc::StatusCode::UNAVAILABLE);
+}
+
+TEST(TokenTest, ConstantTimeEqualAndTokenFiles) {
+  EXPECT_TRUE(ConstantTimeEqual("abcdef", "abcdef"));
+  EXPECT_FALSE(ConstantTimeEqual("abcdef", "abcdeg"));
+  EXPECT_FALSE(ConstantTimeEqual("abcdef", "abcdefg"));
+  EXPECT_FALSE(ConstantTimeEqual("", "a"));
+  char tmpl[] = "/tmp/irfarm-token.XXXXXX";
+  const std::string dir = mkdtemp(tmpl);
+  const std::string good =
+      WriteTemp(dir, "good", "# comment\n\nalice 0123456789abcdef0\n0123456789abcdef1\n");
+  absl::StatusOr<std::vector<NamedToken>> t = ReadTokenFile(good, "client-");
+  ASSERT_TRUE(t.ok()) << t.status();
+  ASSERT_EQ(t->size(), 2u);
+  EXPECT_EQ((*t)[0].name, "alice");
+  EXPECT_EQ((*t)[1].name, "client-4");
+  EXPECT_EQ(ReadTokenFile(WriteTemp(dir, "short", "abc\n"), "c").status().code(),
+            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(ReadTokenFile(WriteTemp(dir, "empty", "# none\n"), "c").status().code(),
+            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(ReadTokenFile(dir + "/missing", "c").status().code(), absl::StatusCode::kNotFound);
+  (void)std::system(("rm -rf " + dir).c_str());
+}
+
+}  // namespace
+}  // namespace irfarm

@@ -1,0 +1,62 @@
+// TileScheduler's retry rules (issue 10, part 3): random lease ids; a failed tile goes to a worker
+// it has not failed on while one exists, back to a worker it failed on when every other one
+// failed it too (no tile is stranded); the job fails only when a tile failed on
+// failure_workers distinct workers or max_attempts times; a silent worker's release is no
+// failure.
+#include "coordinator/tile_scheduler.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+
+namespace irfarm {
+namespace {
+
+const auto kLease = std::chrono::milliseconds(60000);
+
+TEST(TileSchedulerTest, LeaseIdsAreRandomAndDistinct) {
+  TileScheduler s(64, 64, 16, TileRetryPolicy());
+  std::set<uint64_t> ids;
+  for (int i = 0; i < 16; ++i) {
+    auto l = s.Lease(1, SteadyTime(), kLease);
+    ASSERT_TRUE(l.has_value());
+    EXPECT_GT(l->lease_id, uint64_t(1) << 20);  // not a small counter (2^-44 chance to fail)
+    ids.insert(l->lease_id);
+  }
+  EXPECT_EQ(ids.size(), 16u);
+  EXPECT_FALSE(s.Lease(1, SteadyTime(), kLease).has_value());
+}
+
+TEST(TileSchedulerTest, FailedTileGoesToAnotherWorkerFirstAndIsNeverStranded) {
+  TileScheduler s(16, 16, 16, TileRetryPolicy{3, 10});  // one tile
+  auto l = s.Lease(1, SteadyTime(), kLease, {2});
+  ASSERT_TRUE(l.has_value());
+  ASSERT_TRUE(s.Requeue(l->tile, l->lease_id, "broken").ok());
+  EXPECT_FALSE(s.Lease(1, SteadyTime(), kLease, {2}).has_value());  // worker 2 has not failed it
+  l = s.Lease(2, SteadyTime(), kLease, {1});
+  ASSERT_TRUE(l.has_value());
+  ASSERT_TRUE(s.Requeue(l->tile, l->lease_id, "broken too").ok());
+  // Both failed it: it goes back to one of them rather than waiting forever.
+  l = s.Lease(1, SteadyTime(), kLease, {2});
+  ASSERT_TRUE(l.has_value());
+  // A silent worker's release does not count.
+  ASSERT_TRUE(s.ReleaseWorker(1, "silent", /*count_failure=*/false).ok());
+  l = s.Lease(3, SteadyTime(), kLease, {1, 2});
+  ASSERT_TRUE(l.has_value());
+  const absl::Status st = s.Requeue(l->tile, l->lease_id, "third");
+  EXPECT_EQ(st.code(), absl::StatusCode::kAborted);  // third distinct worker
+  EXPECT_NE(st.message().find("on 3 workers"), std::string::npos) << st.message();
+}
+
+TEST(TileSchedulerTest, OneWorkerFailingRepeatedlyFailsAfterMaxAttempts) {
+  TileScheduler s(16, 16, 16, TileRetryPolicy{3, 4});
+  for (int i = 1; i <= 4; ++i) {
+    auto l = s.Lease(1, SteadyTime(), kLease);
+    ASSERT_TRUE(l.has_value());
+    const absl::Status st = s.Requeue(l->tile, l->lease_id, "again");
+    EXPECT_EQ(st.ok(), i < 4) << i;
+  }
+}
+
+}  // namespace
+}  // namespace irfarm
