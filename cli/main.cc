@@ -34,6 +34,7 @@ struct RenderArgs {
   float accuracy = 0, min_spacing = 0, max_spacing = 0;
   uint64_t seed = 0;
   bool no_overture = false, quiet = false;
+  bool aovs = false;  // write the AOV layers (render/aov.h) into the output EXR
   std::string cache_in;  // warm-start from this cache snapshot
   std::vector<std::string> defines;
 };
@@ -88,6 +89,7 @@ int RunRender(const RenderArgs& args) {
   s.overture = !args.no_overture;
   s.record_map = !args.record_map.empty();
   s.progress = !args.quiet;
+  s.aovs = args.aovs;
 
   std::unique_ptr<IrradianceCache> warm_cache;
   if (!args.cache_in.empty()) {
@@ -114,7 +116,8 @@ int RunRender(const RenderArgs& args) {
   st.warnings = desc->warnings;
 
   PhaseTimer write_timer("write");
-  absl::Status status = WriteExr(out.image, args.output);
+  absl::Status status =
+      WriteExr(out.image, args.output, args.aovs ? out.aovs.Layers() : std::vector<ExrLayer>{});
   if (status.ok()) status = WritePng(out.image, StripExtension(args.output) + ".png");
   if (status.ok() && s.record_map) {
     status = StripExtension(args.record_map) + ".exr" == args.record_map
@@ -211,6 +214,9 @@ int main(int argc, char** argv) {
   render->add_option("--record-map", ra.record_map, "write an image marking computed records");
   render->add_option("-D", ra.defines, "name=value for the scene's <default>s");
   render->add_flag("-q,--quiet", ra.quiet, "no progress or summary on stderr");
+  render->add_flag("--aovs", ra.aovs,
+                   "add layers albedo, normal, depth, emission, direct, indirect, variance "
+                   "to the EXR");
   render->add_option("--cache-in", ra.cache_in, "warm-start from this cache snapshot file")
       ->check(CLI::ExistingFile);
 

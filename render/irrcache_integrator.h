@@ -20,6 +20,7 @@
 #include <cstdint>
 
 #include "cache/irradiance_cache.h"
+#include "render/aov.h"
 #include "render/path_tracer.h"
 #include "render/pixel_sampler.h"
 #include "render/scene.h"
@@ -56,9 +57,11 @@ class IrrcacheIntegrator {
  public:
   IrrcacheIntegrator(const Scene& scene, IrradianceCache* cache, const IrrcacheSettings& settings);
 
-  // Radiance arriving at the camera along camera ray `ray`.
+  // Radiance arriving at the camera along camera ray `ray`. `aov` (optional) receives the
+  // sample's AOVs: direct = emission seen + explicit direct light, indirect = the cached
+  // irradiance term; the returned radiance is exactly direct + indirect (one float addition).
   Vec3 Li(const Ray& ray, const LightStrata& strata, Rng& rng, RenderCounters& counters,
-          IrrcacheShade* shade) const;
+          IrrcacheShade* shade, SampleAov* aov = nullptr) const;
   // Overture: makes sure the cache covers the first diffuse surface seen along `ray`, computing
   // a record there if none counts, and nothing else. Returns true when it computed one.
   bool Prime(const Ray& ray, Rng& rng, RenderCounters& counters) const;

@@ -138,6 +138,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
   }
   IrrcacheIntegrator integrator(scene, cache, settings.irrcache);
   out.image = Image(rw, rh);
+  if (settings.aovs) out.aovs = AovImages(rw, rh);
   std::vector<uint8_t> marks(settings.record_map ? size_t(rw) * rh : 0);
   tbb::enumerable_thread_specific<RenderCounters> counters;
   tbb::task_arena arena(threads);
@@ -188,6 +189,9 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
             Rng rng(HashCombine(settings.seed, uint64_t(y) * w + x), kStreamFinal);
             Vec3 sum;
             bool made = false;
+            PixelAovSum aov_sum;
+            SampleAov sample_aov;
+            SampleAov* aov = settings.aovs ? &sample_aov : nullptr;
             const PixelSampler film(settings.spp, rng);
             const PixelSampler lights(settings.spp * light_samples, rng);
             for (int s = 0; s < settings.spp; ++s) {
@@ -200,15 +204,20 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
               Vec3 L;
               if (irrcache) {
                 IrrcacheShade shade;
-                L = integrator.Li(ray, LightStrata{&lights, s * light_samples}, rng, c, &shade);
+                L = integrator.Li(ray, LightStrata{&lights, s * light_samples}, rng, c, &shade,
+                                  aov);
                 made |= shade.made_record;
               } else {
-                L = TracePath(scene, ray, 1, false, path, rng, c);
+                L = TracePath(scene, ray, 1, false, path, rng, c, nullptr, aov);
               }
               // A non-finite sample would poison the pixel; it is dropped (counted as black).
-              if (IsFinite(L)) sum += L;
+              if (IsFinite(L)) {
+                sum += L;
+                if (aov) aov_sum.Add(L, *aov);
+              }
             }
             out.image.at(x - rect.x0, y - rect.y0) = sum / float(settings.spp);
+            if (aov) out.aovs.Set(x - rect.x0, y - rect.y0, aov_sum, settings.spp);
             if (made && !marks.empty()) marks[size_t(y - rect.y0) * rw + (x - rect.x0)] = 1;
           }
         progress.Tick();

@@ -11,6 +11,7 @@
 
 #include "absl/status/statusor.h"
 #include "cache/irradiance_cache.h"
+#include "render/aov.h"
 #include "render/image.h"
 #include "render/irrcache_integrator.h"
 #include "render/render_stats.h"
@@ -27,6 +28,7 @@ struct RenderSettings {
   bool overture = true;       // irrcache: fill the cache before the final pass
   bool record_map = false;    // also produce an image marking where records were computed
   bool progress = false;      // progress line on stderr
+  bool aovs = false;          // also accumulate the AOV images (render/aov.h)
   IrrcacheSettings irrcache;  // its `path` member is used by both integrators
 };
 
@@ -44,6 +46,7 @@ CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& setting
 struct RenderOutput {
   Image image;
   Image record_map;  // when requested: the image darkened, record positions in red
+  AovImages aovs;    // when requested (settings.aovs), else empty
   RenderStats stats;
 };
 
