@@ -11,6 +11,7 @@
 
 #include "cache/snapshot.h"
 #include "cli/service_commands.h"
+#include "render/denoiser.h"
 #include "render/image.h"
 #include "render/renderer.h"
 #include "render/scene.h"
@@ -35,6 +36,8 @@ struct RenderArgs {
   uint64_t seed = 0;
   bool no_overture = false, quiet = false;
   bool aovs = false;  // write the AOV layers (render/aov.h) into the output EXR
+  bool denoise = false;  // OUT.exr denoised (render/denoiser.h), OUT.noisy.exr as rendered
+  std::string denoise_mode = "image";
   std::string cache_in;  // warm-start from this cache snapshot
   std::vector<std::string> defines;
 };
@@ -66,6 +69,21 @@ int RunRender(const RenderArgs& args) {
   }
   const PhaseTime build_time = build_timer.Stop();
 
+  // The denoiser is loaded before rendering, so that a missing one fails fast.
+  std::unique_ptr<Denoiser> denoiser;
+  DenoiseMode denoise_mode = DenoiseMode::kImage;
+  if (args.denoise) {
+    absl::StatusOr<DenoiseMode> mode = ParseDenoiseMode(args.denoise_mode);
+    absl::StatusOr<std::unique_ptr<Denoiser>> d =
+        mode.ok() ? Denoiser::Open(args.threads) : mode.status();
+    if (!d.ok()) {
+      std::fprintf(stderr, "error: %s\n", std::string(d.status().message()).c_str());
+      return 1;
+    }
+    denoiser = std::move(*d);
+    denoise_mode = *mode;
+  }
+
   absl::StatusOr<RenderSettings> defaults =
       SettingsForScene(*desc, !args.integrator.empty() ? args.integrator : "irrcache");
   if (!defaults.ok()) {
@@ -89,7 +107,7 @@ int RunRender(const RenderArgs& args) {
   s.overture = !args.no_overture;
   s.record_map = !args.record_map.empty();
   s.progress = !args.quiet;
-  s.aovs = args.aovs;
+  s.aovs = args.aovs || args.denoise;
 
   std::unique_ptr<IrradianceCache> warm_cache;
   if (!args.cache_in.empty()) {
@@ -115,9 +133,20 @@ int RunRender(const RenderArgs& args) {
   st.degenerate_dropped = (*scene)->counts().degenerate_dropped;
   st.warnings = desc->warnings;
 
+  const std::vector<ExrLayer> layers = args.aovs ? out.aovs.Layers() : std::vector<ExrLayer>{};
+  absl::Status status;
+  if (denoiser) {
+    PhaseTimer denoise_timer("denoise");
+    const std::string noisy = StripExtension(args.output) + ".noisy.exr";
+    status = WriteExr(out.image, noisy, layers);
+    absl::StatusOr<Image> clean = DenoiseRender(*denoiser, out.image, out.aovs, denoise_mode);
+    if (!clean.ok()) status = clean.status();
+    if (status.ok()) out.image = std::move(*clean);
+    st.phases.push_back(denoise_timer.Stop());
+  }
+
   PhaseTimer write_timer("write");
-  absl::Status status =
-      WriteExr(out.image, args.output, args.aovs ? out.aovs.Layers() : std::vector<ExrLayer>{});
+  if (status.ok()) status = WriteExr(out.image, args.output, layers);
   if (status.ok()) status = WritePng(out.image, StripExtension(args.output) + ".png");
   if (status.ok() && s.record_map) {
     status = StripExtension(args.record_map) + ".exr" == args.record_map
@@ -217,6 +246,11 @@ int main(int argc, char** argv) {
   render->add_flag("--aovs", ra.aovs,
                    "add layers albedo, normal, depth, emission, direct, indirect, variance "
                    "to the EXR");
+  render->add_flag("--denoise", ra.denoise,
+                   "denoise with Open Image Denoise (OUT.exr), keep the render as OUT.noisy.exr");
+  render->add_option("--denoise-mode", ra.denoise_mode,
+                     "image (default), demodulated (by albedo) or indirect (only)")
+      ->check(CLI::IsMember({"image", "demodulated", "indirect"}));
   render->add_option("--cache-in", ra.cache_in, "warm-start from this cache snapshot file")
       ->check(CLI::ExistingFile);
 
