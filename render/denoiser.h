@@ -58,9 +58,12 @@ enum class DenoiseMode {
 // "image", "demodulated", "indirect".
 absl::StatusOr<DenoiseMode> ParseDenoiseMode(const std::string& name);
 
-// Denoises `image` rendered with `aovs` (non-empty) in `mode`.
+// Denoises `image` rendered with `aovs` (non-empty) in `mode`. The guides are used as rendered
+// by default: averaged over the pixel's samples they are nearly clean, and prefiltering them
+// measured worse and 7x slower (cornell-box irrcache 16 spp: relMSE 1.25e-3 in 2.5 s with,
+// 1.15e-3 in 0.36 s without).
 absl::StatusOr<Image> DenoiseRender(const Denoiser& denoiser, const Image& image,
                                     const AovImages& aovs, DenoiseMode mode,
-                                    bool prefilter_aux = true);
+                                    bool prefilter_aux = false);
 
 }  // namespace irfarm
