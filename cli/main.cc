@@ -304,6 +304,9 @@ int main(int argc, char** argv) {
   submit->add_option("--seed", sa.seed, "random seed");
   submit->add_flag("--no-share", sa.no_share, "do not share records between workers");
   submit->add_flag("--no-overture", sa.no_overture, "irrcache: skip the per-tile prepass");
+  submit->add_flag("--denoise", sa.denoise,
+                   "the coordinator denoises the image (Open Image Denoise); the EXR keeps the "
+                   "render as layer 'noisy'");
   submit->add_flag("--shared-path", sa.shared_path,
                    "send the scene path (readable by coordinator and workers), not a bundle");
   submit->add_option("-D", sa.defines, "name=value for the scene's <default>s");

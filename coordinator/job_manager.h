@@ -28,6 +28,7 @@
 #include "coordinator/global_cache.h"
 #include "coordinator/job_store.h"
 #include "coordinator/tile_scheduler.h"
+#include "render/denoiser.h"
 #include "irfarm/v1/jobs.pb.h"
 #include "irfarm/v1/worker.pb.h"
 
@@ -56,7 +57,9 @@ class JobManager {
   absl::StatusOr<v1::Job> GetJob(const std::string& id) const;
   std::vector<v1::Job> ListJobs() const;
   absl::StatusOr<v1::Job> Cancel(const std::string& id);
-  // The finished image as EXR file bytes.
+  // The finished image as EXR file bytes. A job with settings.denoise is denoised here (tiles
+  // alone cannot be: the filter needs their neighbours): RGB = denoised, layer "noisy" = as
+  // rendered, layers "albedo" and "normal" = the guides.
   absl::StatusOr<std::string> ResultExr(const std::string& id) const;
   // The job's merged records as snapshot file bytes (cache/snapshot.h).
   absl::StatusOr<std::string> ExportSnapshot(const std::string& id) const;
@@ -81,7 +84,9 @@ class JobManager {
     v1::StoredJob stored;
     std::unique_ptr<TileScheduler> tiles;
     std::unique_ptr<GlobalCache> cache;
-    std::map<int, std::string> pixels;  // finished tiles: float RGB bytes
+    // Finished tiles: float RGB bytes, followed for denoised jobs by the guides (albedo RGB and
+    // normal XYZ per pixel, as in TileResult.guides).
+    std::map<int, std::string> pixels;
     std::map<uint32_t, v1::WorkerJobStats> worker_stats;
     std::set<uint32_t> workers;  // have the spec (and get the job's records)
     SteadyTime started, finished;
@@ -107,6 +112,8 @@ class JobManager {
   // record settings (cache_seed.h) into its cache, so its workers get them on joining.
   void SeedCache(Job& job);
   void Changed();
+  // The denoiser, loaded on first use (thread-safe); its error says why it is unavailable.
+  absl::StatusOr<const Denoiser*> GetDenoiser() const;
 
   const JobManagerOptions options_;
   JobStore* const store_;
@@ -117,6 +124,9 @@ class JobManager {
   uint32_t next_worker_ = 1;
   std::map<std::string, std::unique_ptr<Job>> jobs_;
   std::map<uint32_t, Worker> workers_;
+  mutable std::mutex denoiser_mu_;  // guards the two below; OIDN filters run one at a time
+  mutable std::unique_ptr<Denoiser> denoiser_;
+  mutable absl::Status denoiser_error_;
 };
 
 }  // namespace irfarm
