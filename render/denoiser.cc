@@ -55,6 +55,11 @@ absl::StatusOr<std::unique_ptr<Denoiser>> Denoiser::Open(int threads) {
     candidates.push_back(std::string(dir) + "/lib/" + kOidnLibrary);
   candidates.push_back(std::string(IRFARM_OIDN_DEFAULT_DIR) + "/lib/" + kOidnLibrary);
   candidates.push_back(kOidnLibrary);
+  return OpenFrom(candidates, threads);
+}
+
+absl::StatusOr<std::unique_ptr<Denoiser>> Denoiser::OpenFrom(
+    const std::vector<std::string>& candidates, int threads) {
   std::unique_ptr<Denoiser> d(new Denoiser());
   std::string tried;
   for (const std::string& path : candidates) {

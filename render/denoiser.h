@@ -14,6 +14,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "render/aov.h"
@@ -28,6 +29,9 @@ class Denoiser {
   // build time (IRFARM_OIDN_DIR, default /opt/irfarm/oidn), then on the loader's path. Errors
   // start with "denoiser unavailable: ".
   static absl::StatusOr<std::unique_ptr<Denoiser>> Open(int threads = 0);
+  // The same from an explicit list of library files to try in order.
+  static absl::StatusOr<std::unique_ptr<Denoiser>> OpenFrom(
+      const std::vector<std::string>& libraries, int threads);
   ~Denoiser();
   Denoiser(const Denoiser&) = delete;
   Denoiser& operator=(const Denoiser&) = delete;

@@ -21,6 +21,16 @@ std::unique_ptr<Denoiser> OpenOrSkip() {
   return std::move(*d);
 }
 
+TEST(DenoiserTest, MissingLibraryIsReportedAsUnavailable) {
+  absl::StatusOr<std::unique_ptr<Denoiser>> d =
+      Denoiser::OpenFrom({"/nonexistent/lib/libOpenImageDenoise.so.2"}, 1);
+  ASSERT_FALSE(d.ok());
+  EXPECT_EQ(d.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_EQ(d.status().message().rfind("denoiser unavailable: ", 0), 0u) << d.status();
+  EXPECT_NE(d.status().message().find("/nonexistent/lib/libOpenImageDenoise.so.2"),
+            std::string::npos);
+}
+
 TEST(DenoiserTest, UnknownModeIsAnError) {
   EXPECT_FALSE(ParseDenoiseMode("bilateral").ok());
   EXPECT_TRUE(ParseDenoiseMode("demodulated").ok());
