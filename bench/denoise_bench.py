@@ -163,6 +163,51 @@ def plot(scene, points, path):
     plt.close(fig)
 
 
+def mitsuba_time_for(points, target):
+    """Seconds Mitsuba + OIDN needs for relMSE `target`: log-log interpolation along its curve
+    (None when the target is below its 256-spp point, inf... when above its 4-spp point, its
+    4-spp time is an upper bound)."""
+    curve = sorted((p["seconds"], p["relmse"]) for p in points
+                   if p["renderer"] == "mitsuba" and p["denoise"] == "oidn")
+    for (t0, e0), (t1, e1) in zip(curve, curve[1:]):
+        if e1 <= target <= e0:
+            if e0 == e1:
+                return t0
+            f = (np.log(target) - np.log(e0)) / (np.log(e1) - np.log(e0))
+            return float(np.exp(np.log(t0) + f * (np.log(t1) - np.log(t0))))
+    if curve and target >= curve[0][1]:
+        return curve[0][0]
+    return None
+
+
+def summarize(results):
+    """Per scene: Mitsuba + OIDN at 16 spp against irfarm's settings; where --denoise is worse."""
+    print("\nsummary: irfarm (denoise mode 'image') against Mitsuba + OIDN 16 spp")
+    print(f"  {'scene':12} {'Mitsuba+OIDN 16spp':>22} | {'irfarm setting':17} "
+          f"{'relMSE':>9} {'sec':>6} | Mitsuba+OIDN sec at that relMSE")
+    worse = []
+    for scene, points in results.items():
+        m16 = [p for p in points if p["renderer"] == "mitsuba" and p["setting"] == "16spp"
+               and p["denoise"] == "oidn"]
+        for p in points:
+            if p["renderer"] != "irfarm" or p["denoise"] == "none":
+                continue
+            base = [q for q in points if q["renderer"] == "irfarm" and
+                    q["setting"] == p["setting"] and q["denoise"] == "none"][0]
+            if p["relmse"] > base["relmse"]:
+                worse.append((scene, p["setting"], p["denoise"], base["relmse"], p["relmse"]))
+            if p["denoise"] != "image" or not m16:
+                continue
+            t = mitsuba_time_for(points, p["relmse"])
+            print(f"  {scene:12} {m16[0]['relmse']:10.2e} {m16[0]['seconds']:7.2f} s    | "
+                  f"{p['setting']:17} {p['relmse']:9.2e} {p['seconds']:6.2f} | "
+                  + ("below Mitsuba 256spp+OIDN" if t is None else f"{t:.2f}"))
+    print("\n--denoise worse than the same render undenoised:",
+          "never" if not worse else "")
+    for w in worse:
+        print("  %s %s mode %s: %.3e -> %.3e" % w)
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -172,7 +217,12 @@ def main():
     ap.add_argument("--out", default="bench-denoise")
     ap.add_argument("--variant", default="llvm_ad_rgb")
     ap.add_argument("--no-mitsuba", action="store_true")
+    ap.add_argument("--summarize", metavar="JSON", help="only print the summary of a past run")
     args = ap.parse_args()
+    if args.summarize:
+        with open(args.summarize) as f:
+            summarize(json.load(f)["results"])
+        return
     os.makedirs(args.out, exist_ok=True)
     try:
         import mitsuba  # noqa: F401
@@ -199,6 +249,7 @@ def main():
         plot(scene, points, os.path.join(args.out, scene + ".png"))
         with open(os.path.join(args.out, "bench-denoise.json"), "w") as f:
             json.dump({"load_average": os.getloadavg(), "results": results}, f, indent=1)
+    summarize(results)
 
 
 if __name__ == "__main__":
