@@ -148,11 +148,14 @@ def plot(scene, points, path):
         key = (p["renderer"] + " " + (p["setting"] if p["renderer"] == "irfarm" else "")).strip()
         key += "" if p["denoise"] == "none" else " + " + p["denoise"]
         curves.setdefault(key, []).append(p)
-    for key, ps in sorted(curves.items()):
+    for i, (key, ps) in enumerate(sorted(curves.items())):
         ps = sorted(ps, key=lambda q: q["seconds"])
-        style = "-o" if key.startswith("mitsuba") else "s"
+        # Mitsuba: lines through its spp points; irfarm: one marker per setting, the marker
+        # telling undenoised (square), denoised whole (circle) and demodulated (triangle).
+        style = "-o" if key.startswith("mitsuba") else (
+            "^" if key.endswith("demodulated") else "o" if key.endswith("image") else "s")
         ax.loglog([q["seconds"] for q in ps], [q["relmse"] for q in ps], style, label=key,
-                  markersize=5)
+                  markersize=5, color=plt.cm.tab20(i % 20))
     ax.set_xlabel("seconds (render + denoise; same run, same machine)")
     ax.set_ylabel("relMSE vs reference")
     ax.set_title(scene)
@@ -217,13 +220,17 @@ def main():
     ap.add_argument("--out", default="bench-denoise")
     ap.add_argument("--variant", default="llvm_ad_rgb")
     ap.add_argument("--no-mitsuba", action="store_true")
-    ap.add_argument("--summarize", metavar="JSON", help="only print the summary of a past run")
+    ap.add_argument("--summarize", metavar="JSON",
+                    help="only print the summary of a past run and redraw its plots into --out")
     args = ap.parse_args()
+    os.makedirs(args.out, exist_ok=True)
     if args.summarize:
         with open(args.summarize) as f:
-            summarize(json.load(f)["results"])
+            results = json.load(f)["results"]
+        for scene, points in results.items():
+            plot(scene, points, os.path.join(args.out, scene + ".png"))
+        summarize(results)
         return
-    os.makedirs(args.out, exist_ok=True)
     try:
         import mitsuba  # noqa: F401
         import pyoidn  # noqa: F401
