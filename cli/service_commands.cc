@@ -142,6 +142,7 @@ int RunSubmit(const SubmitArgs& args) {
     s->set_share_records(!args.no_share);
     s->set_seed(args.seed);
     s->set_no_overture(args.no_overture);
+    s->set_denoise(args.denoise);
     for (const std::string& d : args.defines) {
       const size_t eq = d.find('=');
       if (eq == std::string::npos || eq == 0) {

@@ -32,6 +32,7 @@ struct SubmitArgs {
   float accuracy = 0;
   uint64_t seed = 0;
   bool no_share = false, shared_path = false, no_overture = false;
+  bool denoise = false;  // the coordinator denoises the assembled image
   std::vector<std::string> defines;
 };
 

@@ -99,7 +99,8 @@ absl::Status JobManager::Resume() {
     for (auto& [tile, pixels] : *tiles) {
       if (tile < 0 || tile >= job->tiles->num_tiles()) continue;
       const PixelRect& r = job->tiles->rect(tile);
-      if (pixels.size() != size_t(r.width()) * r.height() * 3 * sizeof(float)) continue;
+      const size_t floats = size_t(r.width()) * r.height() * (j.settings().denoise() ? 9 : 3);
+      if (pixels.size() != floats * sizeof(float)) continue;
       job->tiles->MarkDone(tile);
       job->pixels[tile] = std::move(pixels);
     }
@@ -225,6 +226,10 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
                                       std::to_string(settings->irrcache.record_rays) +
                                       " (from the scene) is over the limit of " +
                                       std::to_string(lim.max_record_rays));
+  if (request.settings().denoise()) {
+    absl::StatusOr<const Denoiser*> denoiser = GetDenoiser();
+    if (!denoiser.ok()) return absl::FailedPreconditionError(denoiser.status().message());
+  }
   const uint64_t scene_hash = SceneHash(*desc);
   const RecordBounds record_bounds = RecordBoundsForScene(*desc);
   std::vector<IrradianceRecord> imported;
@@ -370,9 +375,25 @@ absl::StatusOr<v1::Job> JobManager::Cancel(const std::string& id, const Caller& 
   return View(job);
 }
 
+absl::StatusOr<const Denoiser*> JobManager::GetDenoiser() const {
+  std::lock_guard<std::mutex> lock(denoiser_mu_);
+  if (!denoiser_ && denoiser_error_.ok()) {
+    absl::StatusOr<std::unique_ptr<Denoiser>> d = Denoiser::Open();
+    if (d.ok()) {
+      denoiser_ = std::move(*d);
+    } else {
+      denoiser_error_ = d.status();
+    }
+  }
+  if (!denoiser_) return denoiser_error_;
+  return denoiser_.get();
+}
+
 absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
                                                   const Caller& caller) const {
   Image image;
+  AovImages guides;  // albedo and normal only, for denoised jobs
+  bool denoise = false;
   {
     std::lock_guard<std::mutex> lock(mu_);
     absl::StatusOr<Job*> found = Find(id, caller);
@@ -381,22 +402,49 @@ absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
     if (job.stored.job().state() != v1::JOB_STATE_SUCCEEDED)
       return absl::FailedPreconditionError("job '" + id + "' has no image: it is " +
                                            v1::JobState_Name(job.stored.job().state()));
-    image = Image(job.stored.job().width(), job.stored.job().height());
+    const int w = job.stored.job().width(), h = job.stored.job().height();
+    image = Image(w, h);
+    denoise = job.stored.job().settings().denoise();
+    if (denoise) guides = AovImages(w, h);
     for (const auto& [tile, bytes] : job.pixels) {
       const PixelRect& r = job.tiles->rect(tile);
       std::vector<float> px(bytes.size() / sizeof(float));
       std::memcpy(px.data(), bytes.data(), px.size() * sizeof(float));
+      const size_t n = size_t(r.width()) * r.height();
+      const bool has_guides = px.size() == 9 * n;  // checked when the tile came in
       for (int y = r.y0; y < r.y1; ++y)
         for (int x = r.x0; x < r.x1; ++x) {
-          const size_t i = 3 * (size_t(y - r.y0) * r.width() + (x - r.x0));
+          const size_t k = size_t(y - r.y0) * r.width() + (x - r.x0), i = 3 * k;
           image.at(x, y) = Vec3(px[i], px[i + 1], px[i + 2]);
+          if (denoise && has_guides) {
+            const size_t g = 3 * n + 6 * k;
+            guides.albedo.at(x, y) = Vec3(px[g], px[g + 1], px[g + 2]);
+            guides.normal.at(x, y) = Vec3(px[g + 3], px[g + 4], px[g + 5]);
+          }
         }
     }
+  }
+  std::vector<ExrLayer> layers;
+  Image noisy;
+  if (denoise) {
+    absl::StatusOr<const Denoiser*> denoiser = GetDenoiser();
+    if (!denoiser.ok()) return absl::FailedPreconditionError(denoiser.status().message());
+    absl::StatusOr<Image> clean;
+    {
+      std::lock_guard<std::mutex> lock(denoiser_mu_);
+      clean = DenoiseRender(**denoiser, image, guides, DenoiseMode::kImage);
+    }
+    if (!clean.ok()) return clean.status();
+    noisy = std::move(image);
+    image = std::move(*clean);
+    layers = {{"noisy", {"R", "G", "B"}, &noisy},
+              {"albedo", {"R", "G", "B"}, &guides.albedo},
+              {"normal", {"X", "Y", "Z"}, &guides.normal}};
   }
   absl::StatusOr<std::string> dir = MakeTempDir("irfarm-result-");
   if (!dir.ok()) return dir.status();
   const std::string path = *dir + "/image.exr";
-  absl::Status st = WriteExr(image, path);
+  absl::Status st = WriteExr(image, path, layers);
   std::string bytes;
   if (st.ok()) {
     std::ifstream in(path, std::ios::binary);
@@ -650,6 +698,13 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
       }
     }
   }
+  const bool denoise = job.stored.job().settings().denoise();
+  if (bad.empty() && result.guides_size() != (denoise ? pixels * 6 : 0))
+    bad = "tile " + std::to_string(tile) + " has " + std::to_string(result.guides_size()) +
+          " guide floats, expected " + std::to_string(denoise ? pixels * 6 : 0);
+  for (int i = 0; bad.empty() && i < result.guides_size(); ++i)
+    if (!std::isfinite(result.guides(i)))
+      bad = "tile " + std::to_string(tile) + " guide value " + std::to_string(i) + " is not finite";
   const v1::TileStats& ts = result.stats();
   if (bad.empty()) {
     // Sane stats: no counter above 1e6 per pixel and sample (an irradiance lookup or record per
@@ -675,6 +730,8 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   }
   std::string bytes(reinterpret_cast<const char*>(result.pixels().data()),
                     size_t(result.pixels_size()) * sizeof(float));
+  bytes.append(reinterpret_cast<const char*>(result.guides().data()),
+               size_t(result.guides_size()) * sizeof(float));
   absl::Status st = store_->PutTile(job.stored.job().id(), tile, bytes);
   if (!st.ok()) {
     // Not stored, so not done: the tile is rendered again.

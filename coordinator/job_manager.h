@@ -41,6 +41,7 @@
 #include "coordinator/record_bounds.h"
 #include "coordinator/job_store.h"
 #include "coordinator/tile_scheduler.h"
+#include "render/denoiser.h"
 #include "irfarm/v1/jobs.pb.h"
 #include "irfarm/v1/worker.pb.h"
 
@@ -105,7 +106,9 @@ class JobManager {
   absl::StatusOr<v1::Job> GetJob(const std::string& id, const Caller& caller = Caller()) const;
   std::vector<v1::Job> ListJobs(const Caller& caller = Caller()) const;
   absl::StatusOr<v1::Job> Cancel(const std::string& id, const Caller& caller = Caller());
-  // The finished image as EXR file bytes.
+  // The finished image as EXR file bytes. A job with settings.denoise is denoised here (tiles
+  // alone cannot be: the filter needs their neighbours): RGB = denoised, layer "noisy" = as
+  // rendered, layers "albedo" and "normal" = the guides.
   absl::StatusOr<std::string> ResultExr(const std::string& id,
                                         const Caller& caller = Caller()) const;
   // The job's merged records as snapshot file bytes (cache/snapshot.h).
@@ -143,7 +146,9 @@ class JobManager {
     v1::StoredJob stored;
     std::unique_ptr<TileScheduler> tiles;
     std::unique_ptr<GlobalCache> cache;
-    std::map<int, std::string> pixels;  // finished tiles: float RGB bytes
+    // Finished tiles: float RGB bytes, followed for denoised jobs by the guides (albedo RGB and
+    // normal XYZ per pixel, as in TileResult.guides).
+    std::map<int, std::string> pixels;
     std::map<uint32_t, v1::WorkerJobStats> worker_stats;
     std::set<uint32_t> workers;  // have the spec (and get the job's records)
     SteadyTime started, finished;
@@ -200,6 +205,8 @@ class JobManager {
   // record settings (cache_seed.h) into its cache, so its workers get them on joining.
   void SeedCache(Job& job);
   void Changed();
+  // The denoiser, loaded on first use (thread-safe); its error says why it is unavailable.
+  absl::StatusOr<const Denoiser*> GetDenoiser() const;
 
   const JobManagerOptions options_;
   JobStore* const store_;
@@ -212,6 +219,9 @@ class JobManager {
   std::map<uint32_t, Worker> workers_;
   std::map<std::string, WorkerHealth> health_;  // by worker name
   uint64_t violations_total_ = 0, expelled_total_ = 0;
+  mutable std::mutex denoiser_mu_;  // guards the two below; OIDN filters run one at a time
+  mutable std::unique_ptr<Denoiser> denoiser_;
+  mutable absl::Status denoiser_error_;
 };
 
 }  // namespace irfarm

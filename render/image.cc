@@ -18,19 +18,30 @@
 
 namespace irfarm {
 
-absl::Status WriteExr(const Image& image, const std::string& path) {
+absl::Status WriteExr(const Image& image, const std::string& path,
+                      const std::vector<ExrLayer>& layers) {
+  std::vector<ExrLayer> all = {{"", {"R", "G", "B"}, &image}};
+  for (const ExrLayer& l : layers) {
+    if (!l.image || l.image->width != image.width || l.image->height != image.height ||
+        l.channels.empty() || l.channels.size() > 3 || l.name.empty())
+      return absl::InternalError(path + ": EXR layer '" + l.name + "' is malformed");
+    all.push_back(l);
+  }
   const std::string tmp = path + ".tmp";
   try {
     Imf::Header header(image.width, image.height);
     header.compression() = Imf::ZIP_COMPRESSION;
-    for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(Imf::FLOAT));
-    Imf::OutputFile file(tmp.c_str(), header);
     Imf::FrameBuffer fb;
-    char* base = const_cast<char*>(reinterpret_cast<const char*>(image.pixels.data()));
     const size_t xs = sizeof(Vec3), ys = sizeof(Vec3) * image.width;
-    fb.insert("R", Imf::Slice(Imf::FLOAT, base + 0, xs, ys));
-    fb.insert("G", Imf::Slice(Imf::FLOAT, base + 4, xs, ys));
-    fb.insert("B", Imf::Slice(Imf::FLOAT, base + 8, xs, ys));
+    for (const ExrLayer& l : all) {
+      char* base = const_cast<char*>(reinterpret_cast<const char*>(l.image->pixels.data()));
+      for (size_t c = 0; c < l.channels.size(); ++c) {
+        const std::string name = l.name.empty() ? l.channels[c] : l.name + "." + l.channels[c];
+        header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+        fb.insert(name, Imf::Slice(Imf::FLOAT, base + 4 * c, xs, ys));
+      }
+    }
+    Imf::OutputFile file(tmp.c_str(), header);
     file.setFrameBuffer(fb);
     file.writePixels(image.height);
   } catch (const std::exception& e) {
@@ -56,6 +67,31 @@ absl::StatusOr<Image> ReadExr(const std::string& path) {
     const char* names[3] = {"R", "G", "B"};
     for (int c = 0; c < 3; ++c)
       fb.insert(has_rgb ? names[c] : "Y", Imf::Slice(Imf::FLOAT, base + 4 * c, xs, ys, 1, 1, 0.0));
+    file.setFrameBuffer(fb);
+    file.readPixels(dw.min.y, dw.max.y);
+    return image;
+  } catch (const std::exception& e) {
+    return absl::InvalidArgumentError(path + ": cannot read EXR: " + e.what());
+  }
+}
+
+absl::StatusOr<Image> ReadExrLayer(const std::string& path, const std::string& layer,
+                                   const std::vector<std::string>& channels) {
+  try {
+    Imf::InputFile file(path.c_str());
+    const Imath::Box2i dw = file.header().dataWindow();
+    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+    Image image(w, h);
+    Imf::FrameBuffer fb;
+    char* base = reinterpret_cast<char*>(image.pixels.data()) -
+                 (size_t(dw.min.x) + size_t(dw.min.y) * w) * sizeof(Vec3);
+    const size_t xs = sizeof(Vec3), ys = sizeof(Vec3) * w;
+    for (size_t c = 0; c < channels.size() && c < 3; ++c) {
+      const std::string name = layer + "." + channels[c];
+      if (!file.header().channels().findChannel(name))
+        return absl::NotFoundError(path + ": no EXR channel '" + name + "'");
+      fb.insert(name, Imf::Slice(Imf::FLOAT, base + 4 * c, xs, ys));
+    }
     file.setFrameBuffer(fb);
     file.readPixels(dw.min.y, dw.max.y);
     return image;

@@ -20,9 +20,22 @@ struct Image {
   const Vec3& at(int x, int y) const { return pixels[size_t(y) * width + x]; }
 };
 
-// Writes linear float RGB to `path` through a temporary file renamed into place.
-absl::Status WriteExr(const Image& image, const std::string& path);
+// An extra layer of an EXR file: channels "name.C" for each C of `channels` (1 to 3 names, taken
+// from the image's x, y, z in order), the OpenEXR layer convention tools such as exrheader show.
+struct ExrLayer {
+  std::string name;
+  std::vector<std::string> channels;
+  const Image* image = nullptr;  // same size as the main image
+};
+
+// Writes linear float RGB (channels R, G, B), and any `layers`, to `path` through a temporary
+// file renamed into place.
+absl::Status WriteExr(const Image& image, const std::string& path,
+                      const std::vector<ExrLayer>& layers = {});
 absl::StatusOr<Image> ReadExr(const std::string& path);
+// Reads channels "layer.C" for C in `channels` (1 to 3) into x, y, z; an error if one is missing.
+absl::StatusOr<Image> ReadExrLayer(const std::string& path, const std::string& layer,
+                                   const std::vector<std::string>& channels);
 // 8-bit sRGB preview of clip(exposure * linear, 0, 1); exposure <= 0 picks the reference
 // images' rule: 2^floor(log2(0.5 / p98 luminance)).
 absl::Status WritePng(const Image& image, const std::string& path, float exposure = 0);

@@ -232,26 +232,33 @@ Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int d
 
 Vec3 IrrcacheIntegrator::Li(const Ray& ray, const LightStrata& strata, Rng& rng,
                             RenderCounters& counters, IrrcacheShade* shade,
-                            DirectTerms* terms) const {
+                            DirectTerms* terms, SampleAov* aov) const {
   Vec3 L, beta(1, 1, 1);
   SurfaceHit hit;
   Vec3 nf;
   int depth;
   float distance;
-  if (!FindDiffuse(ray, rng, counters, &L, &beta, &hit, &nf, &depth, &distance)) return L;
+  if (!FindDiffuse(ray, rng, counters, &L, &beta, &hit, &nf, &depth, &distance)) {
+    if (aov) *aov = SampleAov{L, L, Vec3(), Vec3(), Vec3(), 0};
+    return L;
+  }
   const int max_depth = settings_.path.max_depth;
   const Material& mat = scene_.material(hit.material);
   const Vec3 albedo = mat.Albedo(hit.u, hit.v);
   const Vec3 wo = -ray.dir;
+  if (aov) *aov = SampleAov{L, Vec3(), Vec3(), beta * albedo, nf, distance};
   // Direct light from local lights, always explicit.
   if (max_depth < 0 || depth + 1 <= max_depth)
     L += DirectLight(hit, nf, wo, beta * albedo * kInvPi, strata, rng, counters, terms);
+  if (aov) aov->direct = L;  // AOV split: all above is direct, the cached term below indirect
   // Indirect irradiance from the cache.
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;
     const Vec3 E = Irradiance(hit, nf, depth, distance, true, rng, counters, &made);
     if (shade) shade->made_record = made;
-    L += beta * albedo * E * kInvPi;
+    const Vec3 indirect = beta * albedo * E * kInvPi;
+    L += indirect;
+    if (aov) aov->indirect = indirect;
   }
   return L;
 }

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "cache/irradiance_cache.h"
+#include "render/aov.h"
 #include "render/path_tracer.h"
 #include "render/pixel_sampler.h"
 #include "render/scene.h"
@@ -87,9 +88,12 @@ class IrrcacheIntegrator {
 
   // Radiance arriving at the camera along camera ray `ray`. With `terms`, the direct light of
   // rectangle lights goes there (for the pixel's ratio estimate, see DirectTerms) instead of
-  // into the returned value; without, each sample's own ratio is used.
+  // into the returned value; without, each sample's own ratio is used. `aov` (optional)
+  // receives the sample's AOVs: direct = emission seen + explicit direct light, indirect = the
+  // cached irradiance term (with `terms`, the rectangles' ratio part is added per pixel).
   Vec3 Li(const Ray& ray, const LightStrata& strata, Rng& rng, RenderCounters& counters,
-          IrrcacheShade* shade, DirectTerms* terms = nullptr) const;
+          IrrcacheShade* shade, DirectTerms* terms = nullptr,
+          SampleAov* aov = nullptr) const;
   // Overture: makes sure the cache covers the first diffuse surface seen along `ray`, computing
   // a record there if none counts, and nothing else. Returns true when it computed one.
   bool Prime(const Ray& ray, Rng& rng, RenderCounters& counters) const;

@@ -4,12 +4,23 @@ namespace irfarm {
 
 Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emission,
                const PathSettings& settings, Rng& rng, RenderCounters& counters,
-               float* first_distance) {
+               float* first_distance, SampleAov* aov) {
   Vec3 L, beta(1, 1, 1);
   float prev_pdf = 0;   // solid-angle pdf of the BSDF sample that made `ray`; 0 = delta/camera
   Vec3 prev_p, prev_n;  // the previous vertex and its facing normal (light selection weights)
   float eta_scale = 1;
   bool first = true;
+  // AOVs: depth of the first non-specular vertex (-1: not reached yet), and the path length so
+  // far. A contribution made at vertex `d` is direct up to one vertex past that one.
+  int diffuse_depth = -1;
+  float path_length = 0;
+  if (aov) *aov = SampleAov{};
+  const auto add = [&](const Vec3& c, int d) {
+    L += c;
+    if (!aov) return;
+    if (diffuse_depth < 0) aov->emission += c;
+    (diffuse_depth < 0 || d <= diffuse_depth + 1 ? aov->direct : aov->indirect) += c;
+  };
   for (;; ++depth) {
     SurfaceHit hit;
     if (!scene.Intersect(ray, &hit)) {
@@ -19,11 +30,12 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
         const float w =
             skip_mis ? 1.0f
                      : PowerHeuristic(prev_pdf, scene.PdfEnvironment(prev_p, prev_n, ray.dir));
-        L += beta * scene.EvalEnvironment(ray.dir) * w;
+        add(beta * scene.EvalEnvironment(ray.dir) * w, depth);
       }
       break;
     }
     if (first && first_distance) *first_distance = hit.t;
+    path_length += hit.t;
     const Vec3 wo = -ray.dir;
     if (hit.light >= 0 && !(first && skip_first_local_emission)) {
       const Vec3 le = scene.Emitted(hit, wo);
@@ -32,7 +44,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
             prev_pdf == 0
                 ? 1.0f
                 : PowerHeuristic(prev_pdf, scene.PdfAreaLight(prev_p, prev_n, hit, ray.dir));
-        L += beta * le * w;
+        add(beta * le * w, depth);
       }
     }
     first = false;
@@ -51,6 +63,12 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       prev_pdf = 0;
     } else {
       const Vec3 albedo = mat.Albedo(hit.u, hit.v);
+      if (aov && diffuse_depth < 0) {
+        diffuse_depth = depth;
+        aov->albedo = beta * albedo;
+        aov->normal = nf;
+        aov->depth = path_length;
+      }
       if (can_extend) {  // next-event estimation
         LightSample ls;
         const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
@@ -64,7 +82,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
             if (!scene.Occluded(Scene::SpawnShadowRay(hit, ls))) {
               const float bsdf_pdf = cos_i * kInvPi;
               const float w = ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf_pdf);
-              L += beta * albedo * ls.value * (cos_i * kInvPi * w);
+              add(beta * albedo * ls.value * (cos_i * kInvPi * w), depth);
             }
           }
         }

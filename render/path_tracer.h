@@ -4,6 +4,7 @@
 // integrator to estimate the radiance arriving along each hemisphere ray of a new record.
 #pragma once
 
+#include "render/aov.h"
 #include "render/render_counters.h"
 #include "render/sampling.h"
 #include "render/scene.h"
@@ -20,8 +21,12 @@ struct PathSettings {
 // (area, point, spot, directional) lights is computed explicitly, so area emission at the first
 // hit is not counted; environment light is counted in full along the first segment.
 // `first_distance` (optional) receives the distance to the first hit (INFINITY on escape).
+// `aov` (optional, camera paths) receives the sample's AOVs, split at the first non-specular
+// vertex x: direct = emission seen before x, next-event estimation at x and the light the BSDF
+// ray from x hits (the other half of that MIS pair); indirect = the rest. The returned radiance
+// is their sum (accumulated in the same order, so equal within float rounding).
 Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emission,
                const PathSettings& settings, Rng& rng, RenderCounters& counters,
-               float* first_distance = nullptr);
+               float* first_distance = nullptr, SampleAov* aov = nullptr);
 
 }  // namespace irfarm

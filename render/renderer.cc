@@ -142,12 +142,15 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     streams.emplace_back(HashCombine(settings.seed, uint64_t(y) * w + x), max_spp, light_samples);
   }
   SampleFilm film(npix, irrcache ? integrator.ratio_slots() : 0);
+  std::vector<PixelAovSum> aov_sums(settings.aovs ? npix : 0);
 
   // Samples [from, to) of pixel p.
   auto render_pixel = [&](size_t p, int from, int to, RenderCounters& c) {
     const int x = rect.x0 + int(p % size_t(rw)), y = rect.y0 + int(p / size_t(rw));
     PixelStreams& ps = streams[p];
     bool made = false;
+    SampleAov sample_aov;
+    SampleAov* aov = settings.aovs ? &sample_aov : nullptr;
     for (int s = from; s < to; ++s) {
       float fx, fy;
       ps.film.Get(s, &fx, &fy);
@@ -158,17 +161,19 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       if (irrcache) {
         IrrcacheShade shade;
         L = integrator.Li(ray, LightStrata{&ps.lights, s * light_samples}, ps.rng, c, &shade,
-                          &terms);
+                          &terms, aov);
         made |= shade.made_record;
       } else {
-        L = TracePath(scene, ray, 1, false, path, ps.rng, c);
+        L = TracePath(scene, ray, 1, false, path, ps.rng, c, nullptr, aov);
       }
-      // A non-finite sample would poison the pixel: it is counted and left out.
+      // A non-finite sample would poison the pixel: it is counted and left out (black).
       if (!IsFinite(L)) {
         ++c.nonfinite_samples;
         L = Vec3();
+        if (aov) *aov = SampleAov{};
       }
       film.Add(p, s, L, irrcache ? &terms : nullptr);
+      if (aov) aov_sums[p].Add(L, *aov);
     }
     if (made && !marks->empty()) (*marks)[p] = 1;
   };
@@ -257,9 +262,16 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   double spp_sum = 0;
   st.spp_min = max_spp;
   st.spp_max = 0;
+  if (settings.aovs) out->aovs = AovImages(rw, rh);
   for (size_t p = 0; p < npix; ++p) {
     out->image.pixels[p] = film.Value(p);
     const int n = film.count(p);
+    if (settings.aovs) {
+      const int x = int(p % size_t(rw)), y = int(p / size_t(rw));
+      out->aovs.Set(x, y, aov_sums[p], n);
+      // The rectangles' ratio estimate (DirectTerms) is formed per pixel: direct light too.
+      out->aovs.direct.at(x, y) += out->image.pixels[p] - film.SampleMean(p);
+    }
     early += n < max_spp;
     spp_sum += n;
     st.spp_min = std::min(st.spp_min, n);
@@ -354,6 +366,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
   }
   IrrcacheIntegrator integrator(scene, cache, settings.irrcache);
   out.image = Image(rw, rh);
+  if (settings.aovs) out.aovs = AovImages(rw, rh);
   std::vector<uint8_t> marks(settings.record_map ? size_t(rw) * rh : 0);
   tbb::enumerable_thread_specific<RenderCounters> counters;
   tbb::task_arena arena(threads);

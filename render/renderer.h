@@ -11,6 +11,7 @@
 
 #include "absl/status/statusor.h"
 #include "cache/irradiance_cache.h"
+#include "render/aov.h"
 #include "render/image.h"
 #include "render/irrcache_integrator.h"
 #include "render/render_stats.h"
@@ -39,6 +40,7 @@ struct RenderSettings {
   double target_error = 0;
   double time_limit = 0;      // seconds (wall) from the start of the render; 0 = none
   bool sample_map = false;    // also produce an image of the samples each pixel got
+  bool aovs = false;          // also accumulate the AOV images (render/aov.h)
   IrrcacheSettings irrcache;  // its `path` member is used by both integrators
 };
 
@@ -57,6 +59,7 @@ struct RenderOutput {
   Image image;
   Image record_map;  // when requested: the image darkened, record positions in red
   Image sample_map;  // when requested: samples per pixel, 0 (black) to spp (white), log scale
+  AovImages aovs;    // when requested (settings.aovs), else empty
   RenderStats stats;
 };
 

@@ -23,6 +23,10 @@ class SampleFilm {
   // The pixel's estimate from all its samples, and from half h (0 even, 1 odd) alone.
   Vec3 Value(size_t p) const;
   Vec3 HalfValue(size_t p, int h) const;
+  // The plain mean of the radiance samples added (without the DirectTerms' ratio part).
+  Vec3 SampleMean(size_t p) const {
+    return count_[p] ? (Half(p, 0)[0] + Half(p, 1)[0]) / float(count_[p]) : Vec3();
+  }
   // Estimated squared error of Value(p), relative as relMSE weighs it:
   // mean over channels of ((h0 - h1)^2 / 4) / (v^2 + 0.01). 0 with fewer than 2 samples.
   double RelativeError(size_t p) const;

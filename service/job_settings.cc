@@ -40,6 +40,7 @@ absl::StatusOr<RenderSettings> MakeRenderSettings(const SceneDesc& desc,
   s->seed = settings.seed();
   s->threads = threads;
   s->overture = !settings.no_overture();
+  s->aovs = settings.denoise();  // the tiles carry the denoiser's guides
   // Inside a job tile the renderer's own sub-tiles spread the tile over the worker's threads.
   s->tile_size = 16;
   return s;

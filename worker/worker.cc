@@ -222,6 +222,12 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
       tr->add_pixels(p.y);
       tr->add_pixels(p.z);
     }
+    if (!out.aovs.empty()) {  // the job is denoised: send the guides along
+      tr->mutable_guides()->Reserve(int(out.image.pixels.size() * 6));
+      for (size_t i = 0; i < out.image.pixels.size(); ++i)
+        for (const Vec3* v : {&out.aovs.albedo.pixels[i], &out.aovs.normal.pixels[i]})
+          for (int k = 0; k < 3; ++k) tr->add_guides((*v)[k]);
+    }
     const RenderCounters& c = out.stats.counters;
     v1::TileStats* ts = tr->mutable_stats();
     ts->set_records_computed(c.records_computed);
