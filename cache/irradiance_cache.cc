@@ -29,6 +29,11 @@ constexpr double kRootPadding = 0.25;
 // at 1k and 10k too, and keeps the octree's own memory under the records' (see MemoryUse).
 constexpr double kCellPerReach = 2.0;
 
+// A leaf gets children once this many records that belong deeper have been stored in it. Bounds
+// the nodes per record (at most 8 / kSplitAfter groups of 8 nodes) for sparse caches; measured on
+// bench_micro's caches, lookups were as fast with 8 as with immediate splitting.
+constexpr int kSplitAfter = 8;
+
 // Relative slack on a record's reach a * R_i. RecordWeight only counts a record when the float
 // |x - x_i| < a * R_i, which bounds the true distance by a * R_i * (1 + ~1e-6) (a few
 // roundings); 1e-4 covers that with margin. The grown-cell test is done in double on the grid,
@@ -245,7 +250,7 @@ void IrradianceCache::AddToNode(Node* node, const IrradianceRecord& r, std::atom
     }
     // No block yet, or the newest one is full: push a new one holding r in slot 0.
     Block* fresh =
-        Block::Create(head ? std::min(4 * head->capacity, kMaxBlock) : kFirstBlock, head);
+        Block::Create(head ? std::min(2 * head->capacity, kMaxBlock) : kFirstBlock, head);
     fresh->claimed.store(1, std::memory_order_relaxed);
     if (node->head.compare_exchange_strong(head, fresh, std::memory_order_acq_rel,
                                            std::memory_order_acquire)) {
@@ -278,6 +283,10 @@ void IrradianceCache::Insert(const IrradianceRecord& r) {
     for (int d = 0; d < depth; ++d) {
       Node* children = node->children.load(std::memory_order_acquire);
       if (children == nullptr) {
+        // A leaf keeps the first kSplitAfter records that would go deeper (still correct: its
+        // cell contains them and its radius bound covers them), so isolated small records do not
+        // each get a chain of nodes down to their own level.
+        if (node->deeper.fetch_add(1, std::memory_order_relaxed) < kSplitAfter) break;
         Node* fresh = new Node[8];
         // The loser of a race deletes its group and uses the winner's (acquire makes it
         // readable).

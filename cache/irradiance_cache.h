@@ -7,11 +7,11 @@
 // Layout (a loose octree, as RADIANCE's ambient tree): each record is stored ONCE, in the node
 // whose cell contains its position x_i at the deepest level whose cell edge is still at least
 // kCellPerReach times its largest reach a_max * R_i (or in the root if x_i is outside the root
-// cube). Every node also keeps, per child, the largest R_i stored in that child's subtree. A record
-// can count at x only when |x - x_i| < a * R_i, so a lookup at accuracy a only descends into
-// children whose cell, grown by a * (that largest R_i) on every side, contains x: it visits few
-// nodes (those whose records can reach x at the accuracy actually asked for, not at a_max) and no
-// record twice.
+// cube), or in a leaf above that level until that leaf has held kSplitAfter such records. Every
+// node also keeps, per child, the largest R_i stored in that child's subtree. A record can count at
+// x only when |x - x_i| < a * R_i, so a lookup at accuracy a only descends into children whose
+// cell, grown by a * (that largest R_i) on every side, contains x: it visits few nodes (those whose
+// records can reach x at the accuracy actually asked for, not at a_max) and no record twice.
 //
 // Records sit in per-node blocks split into a hot array (position and R, 16 bytes: all a lookup
 // reads to reject a candidate by squared distance) and a cold array (normal, irradiance, origin
@@ -26,7 +26,8 @@
 // Measured (one thread, records on the walls of a room as in bench/micro_bench.cc, lookups at
 // a = a_max / 2, on the shared 2-vCPU machine): 0.5 / 0.7 / 1.0 us per lookup at 1k / 10k /
 // 100k records, 1.5-2x faster than the previous layout (every record copied into up to 8 nodes)
-// in the same run; 56 bytes per record, octree overhead 1.2-1.4x the records' bytes.
+// in the same run; 56 bytes per record, octree overhead 0.55-0.75x the records' bytes
+// (tests/cache: RecordsAreCompactAndTheOctreeSmall).
 #pragma once
 
 #include <atomic>
@@ -122,7 +123,7 @@ class IrradianceCache {
   // A node's records are kept in a push-front list of blocks. A block is one kBlockAlign-aligned
   // allocation: this header, then the hot part as structure of arrays (x[capacity], y[], z[],
   // radius[]: all a lookup reads to reject a candidate by squared distance, 4 candidates per SSE
-  // step), then capacity Cold entries. Blocks grow 4-fold in capacity from kFirstBlock to
+  // step), then capacity Cold entries. Blocks double in capacity from kFirstBlock to
   // kMaxBlock, so the many nodes holding a few records waste little and full nodes are read in long
   // sequential runs. A writer claims a slot with fetch_add on `claimed`, writes it, then sets its
   // bit in `ready` (release); readers load `ready` (acquire) once per block and read only ready
@@ -162,8 +163,9 @@ class IrradianceCache {
   static const Block* BlockOf(uint64_t ref) { return reinterpret_cast<const Block*>(ref & ~63ull); }
   static int SlotOf(uint64_t ref) { return int(ref & 63); }
 
-  // 48 bytes: everything a lookup needs to decide which children to enter is in the parent.
+  // 56 bytes: everything a lookup needs to decide which children to enter is in the parent.
   struct Node {
+    std::atomic<int> deeper{0};  // records stored here that belong deeper (while a leaf)
     std::atomic<float> child_radius[8] = {};  // largest R_i in child i's subtree; 0 = none yet
     std::atomic<Block*> head{nullptr};        // newest block of this node's own records
     std::atomic<Node*> children{nullptr};     // 8 nodes allocated together, index bit 0: x,
