@@ -339,7 +339,14 @@ bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradi
   const Block* heads[kHeads];
   int num_heads = 0;
   while (top > 0) {
-    const Item item = stack[--top];
+    // Copied field by field, with the widths they were stored with: a whole-struct copy right
+    // after the field stores below fails store-to-load forwarding and stalls.
+    --top;
+    Item item;
+    item.node = stack[top].node;
+    for (int k = 0; k < 3; ++k) item.lo[k] = stack[top].lo[k];
+    item.grow = stack[top].grow;
+    item.depth = stack[top].depth;
     if (const Block* head = item.node->head.load(std::memory_order_acquire)) {
       if (num_heads < kHeads) {
         __builtin_prefetch(head);
@@ -358,26 +365,27 @@ bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradi
     static constexpr unsigned kLowerHalf[3] = {0x55, 0x33, 0x0F};
     unsigned maybe = 0xFF;
     float mid[3];
+    // Branch-free: which children a lookup enters is data dependent, and mispredicted branches
+    // were most of the walk's cost.
     for (int k = 0; k < 3; ++k) {
       mid[k] = item.lo[k] + half;
-      if (gx[k] > mid[k] + item.grow) maybe &= ~kLowerHalf[k];
-      if (gx[k] < mid[k] - item.grow) maybe &= kLowerHalf[k];
+      maybe &= ~(kLowerHalf[k] & (0u - unsigned(gx[k] > mid[k] + item.grow)));
+      maybe &= kLowerHalf[k] | (0u - unsigned(!(gx[k] < mid[k] - item.grow)));
     }
     for (; maybe != 0; maybe &= maybe - 1) {
       const int i = __builtin_ctz(maybe);
       const float radius = item.node->child_radius[i].load(std::memory_order_acquire);
-      if (!(radius > 0)) continue;  // empty child
       const float grow = radius * reach_scale + kGridMargin;
-      Item next{&children[i], {0, 0, 0}, grow, item.depth + 1};
-      bool enter = true;
+      Item& next = stack[top];
+      next.node = &children[i];
+      next.grow = grow;
+      next.depth = item.depth + 1;
+      bool enter = radius > 0;  // else an empty child
       for (int k = 0; k < 3; ++k) {
         next.lo[k] = ((i >> k) & 1) ? mid[k] : item.lo[k];
-        enter = enter && gx[k] >= next.lo[k] - grow && gx[k] <= next.lo[k] + half + grow;
+        enter &= (gx[k] >= next.lo[k] - grow) & (gx[k] <= next.lo[k] + half + grow);
       }
-      if (enter) {
-        __builtin_prefetch(next.node);
-        stack[top++] = next;
-      }
+      top += enter;
     }
   }
   for (int i = 0; i < num_heads; ++i) acc.Scan(heads[i]);
