@@ -6,7 +6,9 @@
 // traces T x P hemisphere rays and continues each as a path (bounce and shadow rays); every Embree
 // call it makes is counted (RenderCounters: record, bounce and shadow rays). The bare loop traces
 // one T x P stratified cosine hemisphere per point, built the same way (same frame, same strata),
-// with closest-hit rtcIntersect1 only. Reported: both rates and their ratio (goal >= 0.8).
+// with closest-hit rtcIntersect1 only. Reported: both rates and their ratio (goal >= 0.8), and the
+// bare rate of the same rays traced as rtcIntersect8 packets (bare8), to see whether packets for
+// a record's first hits would pay.
 // Run: build/bench/bench_record (one thread; the two loops alternate within each iteration, timed
 // in thread CPU time).
 #include <benchmark/benchmark.h>
@@ -116,7 +118,8 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
   RenderCounters counters;
   Rng rng(1, 2);
   double record_seconds = 0, bare_seconds = 0;
-  uint64_t bare_rays = 0, bare_hits = 0;
+  uint64_t bare_rays = 0, bare_hits = 0, packet_hits = 0;
+  double packet_seconds = 0;
   std::vector<RTCRayHit> rays = f->bare_rays;
   for (auto _ : state) {
     const double t0 = ThreadSeconds();
@@ -133,10 +136,39 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
       bare_hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
     }
     const double t2 = ThreadSeconds();
+    // The same rays as packets of 8 (a record's hemisphere rays share their origin): does
+    // rtcIntersect8 pay for the first hits?
+    for (size_t i0 = 0; i0 < rays.size(); i0 += 8) {
+      RTCRayHit8 packet;
+      alignas(32) int valid[8];
+      for (int k = 0; k < 8; ++k) {
+        const bool on = i0 + k < rays.size();
+        valid[k] = on ? -1 : 0;
+        const RTCRayHit& rh = f->bare_rays[on ? i0 + k : i0];
+        packet.ray.org_x[k] = rh.ray.org_x;
+        packet.ray.org_y[k] = rh.ray.org_y;
+        packet.ray.org_z[k] = rh.ray.org_z;
+        packet.ray.dir_x[k] = rh.ray.dir_x;
+        packet.ray.dir_y[k] = rh.ray.dir_y;
+        packet.ray.dir_z[k] = rh.ray.dir_z;
+        packet.ray.tnear[k] = rh.ray.tnear;
+        packet.ray.tfar[k] = rh.ray.tfar;
+        packet.ray.mask[k] = rh.ray.mask;
+        packet.ray.flags[k] = 0;
+        packet.ray.time[k] = 0;
+        packet.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+        packet.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+      }
+      rtcIntersect8(valid, f->scene->embree_scene(), &ctx, &packet);
+      for (int k = 0; k < 8; ++k)
+        packet_hits += valid[k] && packet.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
+    }
+    const double t3 = ThreadSeconds();
+    packet_seconds += t3 - t2;
     bare_rays += rays.size();
     record_seconds += t1 - t0;
     bare_seconds += t2 - t1;
-    state.SetIterationTime(t2 - t0);
+    state.SetIterationTime(t3 - t0);
   }
   const double record_rays =
       double(counters.record_rays + counters.bounce_rays + counters.shadow_rays);
@@ -146,6 +178,8 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
   state.counters["record_Mrays_s"] = record_rate * 1e-6;
   state.counters["bare_Mrays_s"] = bare_rate * 1e-6;
   state.counters["ratio"] = record_rate / bare_rate;
+  state.counters["bare8_Mrays_s"] = double(bare_rays) / packet_seconds * 1e-6;
+  state.counters["hits_8_vs_1"] = double(packet_hits) / double(bare_hits);
   state.counters["rays_per_record"] = record_rays / double(counters.records_computed);
   state.counters["bare_hit_frac"] = double(bare_hits) / double(bare_rays);
   state.counters["us_per_record"] = record_seconds / double(counters.records_computed) * 1e6;
