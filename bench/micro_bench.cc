@@ -49,6 +49,9 @@ void BM_CacheLookup(benchmark::State& state) {
     benchmark::DoNotOptimize(E);
   }
   state.counters["hit_rate"] = double(hits) / double(state.iterations());
+  const CacheMemory m = cache->MemoryUse();
+  state.counters["bytes_per_record"] = double(m.bytes_per_record);
+  state.counters["octree_per_record_bytes"] = double(m.octree_bytes) / double(m.record_bytes);
 }
 BENCHMARK(BM_CacheLookup)->Arg(1000)->Arg(10000)->Arg(100000);
 

@@ -91,6 +91,8 @@ class Scene {
   bool has_environment() const { return lights_.has_environment(); }
   const Bounds3& bounds() const { return bounds_; }
   const SceneStatsCounts& counts() const { return counts_; }
+  // The committed Embree scene, for benchmarks that compare with bare Embree calls.
+  RTCScene embree_scene() const { return rtc_scene_; }
 
  private:
   Scene() = default;

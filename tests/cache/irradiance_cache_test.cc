@@ -419,6 +419,48 @@ TEST(IrradianceCacheTest, ForEachVisitsEveryRecordOnce) {
   EXPECT_NEAR(sum, expected, 1e-9 * expected);
 }
 
+// ---- Memory -----------------------------------------------------------------------------
+
+// Records as a renderer makes them: on the six walls of a room, facing in, validity radii a * R of
+// 0.5 to 2 times the mean record spacing at a = 0.1 (as bench/micro_bench.cc).
+std::vector<IrradianceRecord> RoomRecords(int n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0, 1);
+  std::vector<IrradianceRecord> records;
+  for (int i = 0; i < n; ++i) {
+    const int axis = i % 3;
+    const float side = u(rng) < 0.5f ? -1.0f : 1.0f;
+    Vec3 p(2 * u(rng) - 1, 2 * u(rng) - 1, 2 * u(rng) - 1), normal(0);
+    p[axis] = side;
+    normal[axis] = -side;
+    const float radius = (0.5f + 1.5f * u(rng)) * std::sqrt(24.0f / float(n)) / 0.1f;
+    records.push_back(MakeRecord(p, normal, radius, Vec3(u(rng))));
+  }
+  return records;
+}
+
+// Issue 9's budget: at most 64 bytes per record in memory, and the octree (nodes, block headers,
+// unused slots) at most 1.5x the records' own bytes, on caches of a renderer's size and density
+// and on the random scene of the tests above (radii over four decades, records in the volume).
+TEST(IrradianceCacheTest, RecordsAreCompactAndTheOctreeSmall) {
+  const auto check = [](const std::vector<IrradianceRecord>& records, const char* what) {
+    SCOPED_TRACE(what);
+    IrradianceCache cache(UnitSettings(0.2f));
+    for (const IrradianceRecord& r : records) cache.Insert(r);
+    const CacheMemory m = cache.MemoryUse();
+    EXPECT_EQ(m.records, records.size());
+    EXPECT_LE(m.bytes_per_record, 64u);
+    EXPECT_EQ(m.record_bytes, m.records * m.bytes_per_record);
+    EXPECT_GT(m.nodes, 1u);  // a tree, not a list
+    EXPECT_LE(double(m.octree_bytes), 1.5 * double(m.record_bytes))
+        << m.octree_bytes << " octree bytes for " << m.records << " records";
+  };
+  check(RoomRecords(1000, 1), "room, 1k records");
+  check(RoomRecords(10000, 2), "room, 10k records");
+  check(RoomRecords(100000, 3), "room, 100k records");
+  check(RandomScene(20000, 0, 5).records, "random scene, 20k records");
+}
+
 // ---- Concurrency --------------------------------------------------------------------------
 
 TEST(IrradianceCacheTest, ConcurrentInsertsAndLookups) {

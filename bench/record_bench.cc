@@ -1,0 +1,199 @@
+// Record cost (issue 9): rays per second inside IrrcacheIntegrator::ComputeRecord against a bare
+// Embree loop (rtcIntersect1 and nothing else) over record hemispheres from the same points, on
+// cornell-box (a few dozen triangles) and veach-ajar (many triangles), in the same run.
+//
+// The points are the first diffuse hits of camera rays through a grid of pixel centres. A record
+// traces T x P hemisphere rays and continues each as a path (bounce and shadow rays); every Embree
+// call it makes is counted (RenderCounters: record, bounce and shadow rays). The bare loop traces
+// one T x P stratified cosine hemisphere per point, built the same way (same frame, same strata),
+// with closest-hit rtcIntersect1 only. Reported: both rates and their ratio (goal >= 0.8), and the
+// bare rate of the same rays traced as rtcIntersect8 packets (bare8), to see whether packets for
+// a record's first hits would pay.
+// Run: build/bench/bench_record (one thread; the two loops alternate within each iteration, timed
+// in thread CPU time).
+#include <benchmark/benchmark.h>
+
+#include <time.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "render/bsdf.h"
+#include "render/irrcache_integrator.h"
+#include "render/renderer.h"
+#include "render/sampling.h"
+#include "render/scene.h"
+#include "render/scene_loader.h"
+
+namespace irfarm {
+namespace {
+
+// This thread's CPU time in seconds: the machine is shared, and wall time would count the time
+// other processes hold the core.
+double ThreadSeconds() {
+  timespec t;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
+struct RecordPoint {
+  SurfaceHit hit;
+  Vec3 nf;
+  float pixel_spread;
+};
+
+struct Fixture {
+  std::unique_ptr<Scene> scene;
+  RenderSettings settings;
+  std::vector<RecordPoint> points;
+  std::vector<RTCRayHit> bare_rays;  // T x P per point, prepared outside the timed loop
+};
+
+// Loads a test scene and finds up to `grid` x `grid` record points (diffuse first hits).
+std::unique_ptr<Fixture> MakeFixture(const std::string& name, int grid) {
+  const std::string path = std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/scene.xml";
+  absl::StatusOr<SceneDesc> desc = LoadSceneFile(path, {});
+  if (!desc.ok()) return nullptr;
+  absl::StatusOr<RenderSettings> settings = SettingsForScene(*desc, "irrcache");
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
+  if (!settings.ok() || !scene.ok()) return nullptr;
+  auto f = std::make_unique<Fixture>();
+  f->scene = std::move(*scene);
+  f->settings = *settings;
+  const Camera& cam = f->scene->camera();
+  for (int gy = 0; gy < grid; ++gy) {
+    for (int gx = 0; gx < grid; ++gx) {
+      const Vec3 dir =
+          cam.Direction((gx + 0.5f) * cam.width() / grid, (gy + 0.5f) * cam.height() / grid);
+      RecordPoint p;
+      if (!f->scene->Intersect(Ray{cam.origin(), dir, INFINITY}, &p.hit)) continue;
+      const Material& m = f->scene->material(p.hit.material);
+      if (m.IsDelta() || !FacingNormal(m, p.hit.ns, -dir, &p.nf)) continue;
+      p.pixel_spread = cam.PixelSpread(p.hit.t);
+      f->points.push_back(p);
+    }
+  }
+  // The bare loop's rays: the record's strata and frame, origins offset the same way.
+  IrrcacheIntegrator integrator(*f->scene, nullptr, f->settings.irrcache);
+  const int T = integrator.strata_theta(), P = integrator.strata_phi();
+  Rng rng(11, 12);
+  for (const RecordPoint& p : f->points) {
+    Vec3 s, t;
+    MakeFrame(p.nf, &s, &t);
+    const Vec3 ng_side = Dot(p.hit.ng, p.nf) >= 0 ? p.hit.ng : -p.hit.ng;
+    for (int i = 0; i < T; ++i) {
+      for (int j = 0; j < P; ++j) {
+        const float u = rng.Next(), v = rng.Next();
+        const Vec3 local = StratifiedCosineHemisphere(i, j, T, P, u, v);
+        const Vec3 dir = s * local.x + t * local.y + p.nf * local.z;
+        if (Dot(dir, ng_side) <= 0) continue;
+        const Ray ray = Scene::SpawnRay(p.hit.p, p.hit.ng, p.hit.error_scale, dir);
+        RTCRayHit rh;
+        rh.ray.org_x = ray.origin.x;
+        rh.ray.org_y = ray.origin.y;
+        rh.ray.org_z = ray.origin.z;
+        rh.ray.dir_x = ray.dir.x;
+        rh.ray.dir_y = ray.dir.y;
+        rh.ray.dir_z = ray.dir.z;
+        rh.ray.tnear = 0;
+        rh.ray.tfar = ray.tmax;
+        rh.ray.mask = 0xFFFFFFFFu;
+        rh.ray.flags = 0;
+        rh.ray.time = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        f->bare_rays.push_back(rh);
+      }
+    }
+  }
+  return f;
+}
+
+void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
+  const std::unique_ptr<Fixture> f = MakeFixture(name, 12);
+  if (!f || f->points.empty()) return state.SkipWithError("cannot load the scene");
+  IrrcacheIntegrator integrator(*f->scene, nullptr, f->settings.irrcache);
+  RenderCounters counters;
+  Rng rng(1, 2);
+  double record_seconds = 0, bare_seconds = 0;
+  uint64_t bare_rays = 0, bare_hits = 0, packet_hits = 0;
+  double packet_seconds = 0;
+  std::vector<RTCRayHit> rays = f->bare_rays;
+  for (auto _ : state) {
+    const double t0 = ThreadSeconds();
+    for (const RecordPoint& p : f->points) {
+      benchmark::DoNotOptimize(
+          integrator.ComputeRecord(p.hit, p.nf, 1, p.pixel_spread, rng, counters));
+    }
+    const double t1 = ThreadSeconds();
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    for (size_t i = 0; i < rays.size(); ++i) {
+      RTCRayHit rh = f->bare_rays[i];
+      rtcIntersect1(f->scene->embree_scene(), &ctx, &rh);
+      bare_hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    }
+    const double t2 = ThreadSeconds();
+    // The same rays as packets of 8 (a record's hemisphere rays share their origin): does
+    // rtcIntersect8 pay for the first hits?
+    for (size_t i0 = 0; i0 < rays.size(); i0 += 8) {
+      RTCRayHit8 packet;
+      alignas(32) int valid[8];
+      for (int k = 0; k < 8; ++k) {
+        const bool on = i0 + k < rays.size();
+        valid[k] = on ? -1 : 0;
+        const RTCRayHit& rh = f->bare_rays[on ? i0 + k : i0];
+        packet.ray.org_x[k] = rh.ray.org_x;
+        packet.ray.org_y[k] = rh.ray.org_y;
+        packet.ray.org_z[k] = rh.ray.org_z;
+        packet.ray.dir_x[k] = rh.ray.dir_x;
+        packet.ray.dir_y[k] = rh.ray.dir_y;
+        packet.ray.dir_z[k] = rh.ray.dir_z;
+        packet.ray.tnear[k] = rh.ray.tnear;
+        packet.ray.tfar[k] = rh.ray.tfar;
+        packet.ray.mask[k] = rh.ray.mask;
+        packet.ray.flags[k] = 0;
+        packet.ray.time[k] = 0;
+        packet.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+        packet.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+      }
+      rtcIntersect8(valid, f->scene->embree_scene(), &ctx, &packet);
+      for (int k = 0; k < 8; ++k)
+        packet_hits += valid[k] && packet.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
+    }
+    const double t3 = ThreadSeconds();
+    packet_seconds += t3 - t2;
+    bare_rays += rays.size();
+    record_seconds += t1 - t0;
+    bare_seconds += t2 - t1;
+    state.SetIterationTime(t3 - t0);
+  }
+  const double record_rays =
+      double(counters.record_rays + counters.bounce_rays + counters.shadow_rays);
+  const double record_rate = record_rays / record_seconds;
+  const double bare_rate = double(bare_rays) / bare_seconds;
+  state.counters["points"] = double(f->points.size());
+  state.counters["record_Mrays_s"] = record_rate * 1e-6;
+  state.counters["bare_Mrays_s"] = bare_rate * 1e-6;
+  state.counters["ratio"] = record_rate / bare_rate;
+  state.counters["bare8_Mrays_s"] = double(bare_rays) / packet_seconds * 1e-6;
+  state.counters["hits_8_vs_1"] = double(packet_hits) / double(bare_hits);
+  state.counters["rays_per_record"] = record_rays / double(counters.records_computed);
+  state.counters["bare_hit_frac"] = double(bare_hits) / double(bare_rays);
+  state.counters["us_per_record"] = record_seconds / double(counters.records_computed) * 1e6;
+}
+BENCHMARK_CAPTURE(BM_RecordVsBareEmbree, cornell_box, "cornell-box")
+    ->UseManualTime()
+    ->Iterations(3)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_RecordVsBareEmbree, veach_ajar, "veach-ajar")
+    ->UseManualTime()
+    ->Iterations(3)
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace irfarm
+
+BENCHMARK_MAIN();
