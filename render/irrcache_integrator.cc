@@ -17,27 +17,31 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
   strata_p_ = std::max(1, int(std::lround(double(n) / strata_t_)));
 }
 
-bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* L,
-                                     Vec3* beta, SurfaceHit* hit, Vec3* nf, int* depth,
+bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* beta,
+                                     SurfaceHit* hit, Vec3* nf, int* depth,
                                      float* distance) const {
   const int max_depth = settings_.path.max_depth;
   *distance = 0;
   for (*depth = 1; *depth <= kMaxSpecularChain; ++*depth) {
-    if (!scene_.Intersect(ray, hit)) {
-      if (L) *L += *beta * scene_.EvalEnvironment(ray.dir);
-      return false;
-    }
+    if (!scene_.Intersect(ray, hit)) return false;
     *distance += hit->t;
     const Vec3 wo = -ray.dir;
-    if (L && hit->light >= 0) *L += *beta * scene_.Emitted(*hit, wo);
     if (max_depth >= 0 && *depth >= max_depth) return false;
-    const Material& mat = scene_.material(hit->material);
-    if (!FacingNormal(mat, hit->ns, wo, nf)) return false;
-    if (!mat.IsDelta()) return true;
-    const BsdfSample bs = SampleDelta(mat, hit->ns, wo, rng.Next());
+    const Bsdf& bsdf = scene_.material(hit->material);
+    const BsdfContext ctx{hit->u, hit->v};
+    const ShadingFrame frame(hit->ns);
+    const Vec3 wo_l = frame.ToLocal(wo);
+    if (!IsBlack(bsdf.DiffuseAlbedo(ctx, wo_l))) {
+      *nf = wo_l.z >= 0 ? hit->ns : -hit->ns;
+      return true;
+    }
+    const BsdfSample bs =
+        bsdf.Sample(ctx, wo_l, rng.Next(), rng.Next(), rng.Next(), kNonDiffuseLobes);
+    if (IsBlack(bs.weight)) return false;
+    const Vec3 wi = frame.ToWorld(bs.wi);
+    if (!SidesAgree(wo, wi, hit->ng, wo_l.z, bs.wi.z)) return false;
     *beta *= bs.weight;
-    if (IsBlack(*beta)) return false;
-    ray = Scene::SpawnRay(hit->p, hit->ng, hit->error_scale, bs.wi);
+    ray = Scene::SpawnRay(hit->p, hit->ng, hit->error_scale, wi);
     ++counters.bounce_rays;
   }
   return false;
@@ -116,18 +120,107 @@ Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int d
   return r.irradiance;
 }
 
-Vec3 IrrcacheIntegrator::Li(const Ray& ray, const LightStrata& strata, Rng& rng,
+Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rng& rng,
                             RenderCounters& counters, IrrcacheShade* shade) const {
+  // The camera path: through delta and glossy lobes (path traced, light sampled with MIS at
+  // glossy vertices), and at every vertex with a diffuse lobe that lobe is shaded from the
+  // cache (ShadeDiffuse). A scene without glossy or delta materials makes one vertex per path.
   Vec3 L, beta(1, 1, 1);
-  SurfaceHit hit;
-  Vec3 nf;
-  int depth;
-  float distance;
-  if (!FindDiffuse(ray, rng, counters, &L, &beta, &hit, &nf, &depth, &distance)) return L;
   const int max_depth = settings_.path.max_depth;
-  const Material& mat = scene_.material(hit.material);
-  const Vec3 albedo = mat.Albedo(hit.u, hit.v);
-  const Vec3 wo = -ray.dir;
+  float prev_pdf = 0;  // pdf of the glossy sample that made `ray`; 0 = delta lobe or camera
+  Vec3 prev_p;
+  float distance = 0;
+  Ray ray = camera_ray;
+  for (int depth = 1; depth <= kMaxSpecularChain; ++depth) {
+    SurfaceHit hit;
+    if (!scene_.Intersect(ray, &hit)) {
+      if (scene_.has_environment()) {
+        const float w = prev_pdf == 0 ? 1.0f : PowerHeuristic(prev_pdf, scene_.PdfEnvironment());
+        L += beta * scene_.EvalEnvironment(ray.dir) * w;
+      }
+      break;
+    }
+    distance += hit.t;
+    const Vec3 wo = -ray.dir;
+    if (hit.light >= 0) {
+      const Vec3 le = scene_.Emitted(hit, wo);
+      if (!IsBlack(le)) {
+        const float w = prev_pdf == 0
+                            ? 1.0f
+                            : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, hit, ray.dir));
+        L += beta * le * w;
+      }
+    }
+    if (max_depth >= 0 && depth >= max_depth) break;
+    const Bsdf& bsdf = scene_.material(hit.material);
+    const BsdfContext ctx{hit.u, hit.v};
+    const ShadingFrame frame(hit.ns);
+    const Vec3 wo_l = frame.ToLocal(wo);
+    const Vec3 albedo = bsdf.DiffuseAlbedo(ctx, wo_l);
+    if (!IsBlack(albedo)) {
+      const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;
+      L += beta * ShadeDiffuse(hit, nf, wo, albedo, depth, distance, strata, rng, counters, shade);
+    }
+    if (!bsdf.HasNonDiffuse()) break;
+    if (max_depth >= 0 && depth + 1 > max_depth) break;
+    const bool glossy = (bsdf.Flags() & (kGlossyReflection | kGlossyTransmission)) != 0;
+    if (glossy) {
+      ++counters.glossy_bounces;
+      L += beta * GlossyDirect(bsdf, ctx, frame, hit, wo, wo_l, rng, counters);
+    }
+    const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+    const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3, kNonDiffuseLobes);
+    if (IsBlack(bs.weight)) break;
+    const Vec3 wi = frame.ToWorld(bs.wi);
+    if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) break;
+    beta *= bs.weight;
+    if (IsBlack(beta)) break;
+    if (depth >= settings_.path.rr_depth) {
+      const float q = std::min(MaxComponent(beta), 0.95f);
+      if (rng.Next() >= q) break;
+      beta /= q;
+    }
+    prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
+    prev_p = hit.p;
+    ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
+    ++counters.bounce_rays;
+  }
+  return L;
+}
+
+// Direct light through the non-diffuse (glossy) lobes at a camera-path vertex: one light sample
+// over all lights (environment included: the cache serves only the diffuse lobe), MIS-weighted
+// against the glossy sample that continues the path.
+Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
+                                      const ShadingFrame& frame, const SurfaceHit& hit,
+                                      const Vec3& wo, const Vec3& wo_l, Rng& rng,
+                                      RenderCounters& counters) const {
+  LightSample ls;
+  const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+  if (!scene_.SampleLight(hit.p, u1, u2, u3, true, &ls)) return Vec3();
+  const Vec3 wi_l = frame.ToLocal(ls.wi);
+  if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return Vec3();
+  const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l, kNonDiffuseLobes);
+  if (IsBlack(f)) return Vec3();
+  ++counters.shadow_rays;
+  if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) return Vec3();
+  const float w =
+      ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l, kNonDiffuseLobes));
+  return f * ls.value * w;
+}
+
+// The diffuse lobe at x: direct light from local lights by next-event estimation, plus the
+// cached indirect irradiance times albedo / pi.
+Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
+                                      const Vec3& albedo, int depth, float distance,
+                                      const LightStrata& strata, Rng& rng,
+                                      RenderCounters& counters, IrrcacheShade* shade) const {
+  Vec3 L;
+  const int max_depth = settings_.path.max_depth;
+  const Bsdf& bsdf = scene_.material(hit.material);
+  const BsdfContext ctx{hit.u, hit.v};
+  const ShadingFrame frame(hit.ns);
+  const Vec3 wo_l = frame.ToLocal(wo);
   // Direct light from local lights, always explicit.
   if (max_depth < 0 || depth + 1 <= max_depth) {
     const int k = std::max(1, settings_.light_samples);
@@ -146,15 +239,17 @@ Vec3 IrrcacheIntegrator::Li(const Ray& ray, const LightStrata& strata, Rng& rng,
       if (cos_i <= 0 || Dot(ls.wi, hit.ng) * Dot(wo, hit.ng) <= 0) continue;
       ++counters.shadow_rays;
       if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) continue;
-      L += beta * albedo * ls.value * (cos_i * kInvPi / float(k));
+      // f * cos of the diffuse lobe (albedo cos / pi for a plain diffuse surface).
+      const Vec3 f_cos = bsdf.Eval(ctx, wo_l, frame.ToLocal(ls.wi), kDiffuseLobe);
+      L += f_cos * ls.value * (1.0f / float(k));
     }
   }
   // Indirect irradiance from the cache.
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;
     const Vec3 E = Irradiance(hit, nf, depth, distance, true, rng, counters, &made);
-    if (shade) shade->made_record = made;
-    L += beta * albedo * E * kInvPi;
+    if (shade) shade->made_record = shade->made_record || made;
+    L += albedo * E * kInvPi;
   }
   return L;
 }
@@ -165,7 +260,7 @@ bool IrrcacheIntegrator::Prime(const Ray& ray, Rng& rng, RenderCounters& counter
   Vec3 nf;
   int depth;
   float distance;
-  if (!FindDiffuse(ray, rng, counters, nullptr, &beta, &hit, &nf, &depth, &distance)) return false;
+  if (!FindDiffuse(ray, rng, counters, &beta, &hit, &nf, &depth, &distance)) return false;
   const int max_depth = settings_.path.max_depth;
   if (!(max_depth < 0 || depth + 2 <= max_depth)) return false;
   bool made = false;

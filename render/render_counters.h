@@ -11,6 +11,7 @@ struct RenderCounters {
   uint64_t bounce_rays = 0;  // BSDF-sampled continuation rays (incl. specular)
   uint64_t shadow_rays = 0;  // next-event-estimation visibility rays
   uint64_t record_rays = 0;  // first rays of irradiance-record hemispheres
+  uint64_t glossy_bounces = 0;  // irrcache camera-path vertices shaded through a glossy lobe
   uint64_t records_computed = 0;
   uint64_t lookups = 0;              // irradiance-cache queries
   uint64_t lookup_hits = 0;          // queries answered by interpolation
@@ -23,6 +24,7 @@ struct RenderCounters {
     bounce_rays += o.bounce_rays;
     shadow_rays += o.shadow_rays;
     record_rays += o.record_rays;
+    glossy_bounces += o.glossy_bounces;
     records_computed += o.records_computed;
     lookups += o.lookups;
     lookup_hits += o.lookup_hits;

@@ -101,7 +101,8 @@ std::string RenderStats::ToJson() const {
   o << "  \"cache\": {\"lookups\": " << c.lookups << ", \"hits\": " << c.lookup_hits
     << ", \"hit_rate\": " << Num(c.lookups ? double(c.lookup_hits) / double(c.lookups) : 0)
     << ", \"records_per_hit\": "
-    << Num(c.lookup_hits ? double(c.records_used) / double(c.lookup_hits) : 0) << "},\n";
+    << Num(c.lookup_hits ? double(c.records_used) / double(c.lookup_hits) : 0)
+    << ", \"glossy_bounces\": " << c.glossy_bounces << "},\n";
   o << "  \"tiles\": {\"count\": " << tiles << ", \"size\": " << tile_size << "},\n";
   o << "  \"geometry\": {\"triangles\": " << triangles
     << ", \"degenerate_dropped\": " << degenerate_dropped << "},\n";

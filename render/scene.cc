@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstring>
 
+#include "render/bsdfs/registry.h"
 #include "render/sampling.h"
 
 namespace irfarm {
@@ -37,18 +38,23 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc) {
     if (!tex.ok()) return tex.status();
     s->textures_.push_back(std::make_unique<Texture>(std::move(*tex)));
   }
+  BsdfBuildContext bsdf_ctx;
+  bsdf_ctx.textures = &s->textures_;
+  bsdf_ctx.bsdfs = &s->materials_;
   for (const BsdfDesc& b : desc.bsdfs) {
-    Material m;
-    m.type = b.type;
-    m.twosided = b.twosided;
-    m.reflectance = b.reflectance.value;
-    if (b.reflectance.texture >= 0) m.texture = s->textures_[b.reflectance.texture].get();
-    m.specular_reflectance = b.specular_reflectance;
-    m.specular_transmittance = b.specular_transmittance;
-    m.eta = b.int_ior / b.ext_ior;
-    s->materials_.push_back(m);
+    const BsdfPlugin* plugin = FindBsdfPlugin(b.type);
+    if (plugin == nullptr)
+      return absl::InvalidArgumentError(b.loc.ToString() + ": unknown bsdf type '" + b.type + "'");
+    for (const int i : b.nested)
+      if (i < 0 || size_t(i) >= s->materials_.size())
+        return absl::InternalError(b.loc.ToString() + ": nested bsdf index out of order");
+    s->materials_.push_back(plugin->build(b, bsdf_ctx));
   }
-  if (s->materials_.empty()) s->materials_.push_back(Material());
+  if (s->materials_.empty()) {
+    BsdfDesc def;
+    def.colors["reflectance"].value = Vec3(0.5f);
+    s->materials_.push_back(FindBsdfPlugin("diffuse")->build(def, bsdf_ctx));
+  }
 
   s->rtc_scene_ = rtcNewScene(s->device_);
   // No RTC_SCENE_FLAG_ROBUST: it cost 12% of path-tracing time and changed no test image

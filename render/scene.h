@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "render/bsdf.h"
+#include "render/bsdfs/bsdf.h"
 #include "render/camera.h"
 #include "render/scene_desc.h"
 #include "render/texture.h"
@@ -112,7 +112,7 @@ class Scene {
   Vec3 Emitted(const SurfaceHit& hit, const Vec3& wo) const;
 
   const Camera& camera() const { return camera_; }
-  const Material& material(int i) const { return materials_[i]; }
+  const Bsdf& material(int i) const { return *materials_[size_t(i)]; }
   const std::vector<Light>& lights() const { return lights_; }
   bool has_environment() const { return has_env_; }
   const Bounds3& bounds() const { return bounds_; }
@@ -148,7 +148,7 @@ class Scene {
   RTCScene rtc_scene_ = nullptr;
   std::vector<Mesh> meshes_;  // indexed by Embree geometry id
   std::vector<std::unique_ptr<Texture>> textures_;
-  std::vector<Material> materials_;
+  std::vector<std::unique_ptr<Bsdf>> materials_;  // SceneDesc::bsdfs, built
   std::vector<Light> lights_;
   int num_local_ = 0;  // lights_[0, num_local_) are local; the rest are environment lights
   bool has_env_ = false;

@@ -51,17 +51,33 @@ struct ColorParam {
   int texture = -1;  // >= 0: use textures[texture] instead of value
 };
 
-enum class BsdfType { kDiffuse, kConductor, kDielectric, kThinDielectric };
-
+// One <bsdf> element, described generically: its plugin name and every parameter the plugin
+// read (with defaults filled in), by parameter name. Only render/bsdfs/<type>.cc interprets
+// them (see render/bsdfs/registry.h); the scene hash hashes them all.
 struct BsdfDesc {
   std::string id;
-  BsdfType type = BsdfType::kDiffuse;
-  bool twosided = false;                 // set by a `twosided` wrapper
-  ColorParam reflectance;                // diffuse
-  Vec3 specular_reflectance{1, 1, 1};    // conductor, dielectric, thindielectric
-  Vec3 specular_transmittance{1, 1, 1};  // dielectric, thindielectric
-  float int_ior = 1.5046f, ext_ior = 1.000277f;
+  std::string type = "diffuse";               // Mitsuba plugin name
+  std::map<std::string, float> floats;        // numbers, iors, booleans (0 / 1)
+  std::map<std::string, std::string> strings;
+  std::map<std::string, ColorParam> colors;   // rgb values or bitmap textures
+  std::vector<int> nested;                    // nested bsdfs: indices into SceneDesc::bsdfs
   SourceLoc loc;
+
+  float Float(const std::string& name, float def) const {
+    const auto it = floats.find(name);
+    return it == floats.end() ? def : it->second;
+  }
+  std::string String(const std::string& name, const std::string& def) const {
+    const auto it = strings.find(name);
+    return it == strings.end() ? def : it->second;
+  }
+  ColorParam Color(const std::string& name, Vec3 def) const {
+    const auto it = colors.find(name);
+    if (it != colors.end()) return it->second;
+    ColorParam c;
+    c.value = def;
+    return c;
+  }
 };
 
 struct TriangleMesh {

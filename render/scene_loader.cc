@@ -26,6 +26,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "render/bsdfs/registry.h"
 #include "render/mesh_loader.h"
 
 #define LOADER_RETURN_IF_ERROR(expr)   \
@@ -185,6 +186,8 @@ class Parser {
   absl::Status ParseSensor(pugi::xml_node n);
   absl::Status ParseFilm(pugi::xml_node n);
   absl::Status ParseSampler(pugi::xml_node n);
+  class BsdfReader;
+  friend class BsdfReader;
   absl::StatusOr<BsdfDesc> ParseBsdf(pugi::xml_node n);
   absl::StatusOr<int> AddBsdf(pugi::xml_node n, BsdfDesc bsdf);
   absl::StatusOr<int> ParseTexture(pugi::xml_node n);
@@ -777,54 +780,86 @@ absl::Status Parser::ParseSampler(pugi::xml_node n) {
   return RegisterId(n, "sampler", -1);
 }
 
+// The BsdfParams a BSDF plugin reads its parameters through (see render/bsdfs/registry.h):
+// the Parser's getters on this element's Params, recording each value in the BsdfDesc.
+class Parser::BsdfReader final : public BsdfParams {
+ public:
+  BsdfReader(Parser& parser, Params& params, BsdfDesc& desc)
+      : parser_(parser), p_(params), d_(desc) {}
+
+  absl::StatusOr<float> Float(absl::string_view name, float def) override {
+    LOADER_ASSIGN_OR_RETURN(const float v, parser_.GetFloat(p_, name, def));
+    d_.floats[std::string(name)] = v;
+    return v;
+  }
+  absl::StatusOr<bool> Bool(absl::string_view name, bool def) override {
+    LOADER_ASSIGN_OR_RETURN(const bool v, parser_.GetBool(p_, name, def));
+    d_.floats[std::string(name)] = v ? 1.0f : 0.0f;
+    return v;
+  }
+  absl::StatusOr<std::string> String(absl::string_view name, absl::string_view def) override {
+    LOADER_ASSIGN_OR_RETURN(std::string v, parser_.GetString(p_, name, def));
+    d_.strings[std::string(name)] = v;
+    return v;
+  }
+  absl::StatusOr<Vec3> Rgb(absl::string_view name, Vec3 def) override {
+    LOADER_ASSIGN_OR_RETURN(const Vec3 v, parser_.GetRgb(p_, name, def));
+    d_.colors[std::string(name)].value = v;
+    return v;
+  }
+  absl::StatusOr<ColorParam> Color(absl::string_view name, Vec3 def) override {
+    LOADER_ASSIGN_OR_RETURN(const ColorParam v, parser_.GetColor(p_, name, def));
+    d_.colors[std::string(name)] = v;
+    return v;
+  }
+  absl::StatusOr<float> Ior(absl::string_view name, float def) override {
+    LOADER_ASSIGN_OR_RETURN(const float v, parser_.GetIor(p_, name, def));
+    d_.floats[std::string(name)] = v;
+    return v;
+  }
+  bool Has(absl::string_view name) const override {
+    for (const Entry& e : p_.entries)
+      if (e.name == name) return true;
+    return false;
+  }
+  absl::StatusOr<std::vector<int>> NestedBsdfs() override {
+    std::vector<int> out;
+    for (const Entry* e : parser_.TakeObjects(p_, "bsdf")) {
+      if (e->ref >= 0) {
+        out.push_back(e->ref);
+        continue;
+      }
+      LOADER_ASSIGN_OR_RETURN(BsdfDesc b, parser_.ParseBsdf(e->node));
+      LOADER_ASSIGN_OR_RETURN(const int index, parser_.AddBsdf(e->node, std::move(b)));
+      out.push_back(index);
+    }
+    d_.nested = out;
+    return out;
+  }
+  const BsdfDesc& Nested(int index) const override { return parser_.scene_.bsdfs[size_t(index)]; }
+  absl::Status Error(absl::string_view name, absl::string_view what) const override {
+    return parser_.Error(name.empty() ? p_.node : parser_.NodeOf(p_, name), what);
+  }
+  BsdfDesc& desc() override { return d_; }
+
+ private:
+  Parser& parser_;
+  Params& p_;
+  BsdfDesc& d_;
+};
+
 absl::StatusOr<BsdfDesc> Parser::ParseBsdf(pugi::xml_node n) {
-  LOADER_ASSIGN_OR_RETURN(
-      const std::string type,
-      PluginType(n, "bsdf", {"diffuse", "twosided", "conductor", "dielectric", "thindielectric"}));
+  LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
+  const BsdfPlugin* plugin = FindBsdfPlugin(type);
+  if (plugin == nullptr) {
+    return Error(n, absl::StrCat("unknown bsdf type '", type,
+                                 "' (supported: ", absl::StrJoin(BsdfPluginNames(), ", "), ")"));
+  }
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "bsdf"));
   BsdfDesc b;
-  if (type == "diffuse") {
-    b.type = BsdfType::kDiffuse;
-    LOADER_ASSIGN_OR_RETURN(b.reflectance, GetColor(p, "reflectance", Vec3(0.5f)));
-  } else if (type == "twosided") {
-    const std::vector<const Entry*> inner = TakeObjects(p, "bsdf");
-    if (inner.size() != 1) {
-      return Error(n,
-                   "twosided needs exactly one nested bsdf (different front and back bsdfs are "
-                   "not supported)");
-    }
-    if (inner[0]->ref >= 0) {
-      b = scene_.bsdfs[inner[0]->ref];
-    } else {
-      LOADER_ASSIGN_OR_RETURN(b, ParseBsdf(inner[0]->node));
-      if (inner[0]->node.attribute("id")) {
-        LOADER_RETURN_IF_ERROR(AddBsdf(inner[0]->node, b).status());
-      }
-    }
-    if (b.type != BsdfType::kDiffuse && b.type != BsdfType::kConductor) {
-      return Error(inner[0]->node,
-                   "twosided can only wrap a bsdf without transmission "
-                   "(diffuse or conductor)");
-    }
-    b.twosided = true;
-  } else if (type == "conductor") {
-    b.type = BsdfType::kConductor;
-    LOADER_ASSIGN_OR_RETURN(const std::string material, GetString(p, "material", "none"));
-    if (material != "none") {
-      return Error(NodeOf(p, "material"),
-                   absl::StrCat("conductor material '", material,
-                                "' is not supported (only \"none\": a perfect mirror scaled by "
-                                "specular_reflectance)"));
-    }
-    LOADER_ASSIGN_OR_RETURN(b.specular_reflectance, GetRgb(p, "specular_reflectance", Vec3(1.0f)));
-  } else {  // dielectric, thindielectric
-    b.type = type == "dielectric" ? BsdfType::kDielectric : BsdfType::kThinDielectric;
-    LOADER_ASSIGN_OR_RETURN(b.int_ior, GetIor(p, "int_ior", 1.5046f));    // bk7
-    LOADER_ASSIGN_OR_RETURN(b.ext_ior, GetIor(p, "ext_ior", 1.000277f));  // air
-    LOADER_ASSIGN_OR_RETURN(b.specular_reflectance, GetRgb(p, "specular_reflectance", Vec3(1.0f)));
-    LOADER_ASSIGN_OR_RETURN(b.specular_transmittance,
-                            GetRgb(p, "specular_transmittance", Vec3(1.0f)));
-  }
+  b.type = type;
+  BsdfReader reader(*this, p, b);
+  LOADER_RETURN_IF_ERROR(plugin->parse(reader));
   LOADER_RETURN_IF_ERROR(Finish(p));
   LOADER_ASSIGN_OR_RETURN(b.id, Attr(n, "id"));
   b.loc = Loc(n);
@@ -898,6 +933,8 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     if (default_bsdf_ < 0) {  // Mitsuba gives such shapes a diffuse 0.5
       default_bsdf_ = int(scene_.bsdfs.size());
       BsdfDesc b;
+      b.type = "diffuse";
+      b.colors["reflectance"].value = Vec3(0.5f);
       b.loc = Loc(n);
       scene_.bsdfs.push_back(b);
     }

@@ -17,6 +17,9 @@
 #include "render/mesh_loader.h"
 #include "render/scene_loader.h"
 
+#include "absl/strings/str_join.h"
+#include "render/bsdfs/registry.h"
+
 #ifndef IRFARM_TEST_DATA
 #error "IRFARM_TEST_DATA must name the test data folder"
 #endif
@@ -201,11 +204,11 @@ TEST(SceneLoaderErrorTest, PlyIndexOutOfRange) {
 }
 
 TEST(SceneLoaderErrorTest, UnknownPluginType) {
-  const auto r = Load("  <bsdf type=\"roughplastic\" id=\"x\"/>\n");
+  const auto r = Load("  <bsdf type=\"measured\" id=\"x\"/>\n");
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().message(),
-            "scene.xml:2: unknown bsdf type 'roughplastic' (supported: diffuse, twosided, "
-            "conductor, dielectric, thindielectric)");
+            "scene.xml:2: unknown bsdf type 'measured' (supported: " +
+                absl::StrJoin(BsdfPluginNames(), ", ") + ")");
   ExpectError(Load("\n  <shape type=\"mesh\"/>\n"), "scene.xml:3:", "unknown shape type 'mesh'");
   ExpectError(Load("  <emitter type=\"sky\"/>\n"), "scene.xml:2:", "unknown emitter type 'sky'");
   ExpectError(Load("  <integrator type=\"volpath\"/>\n"),
@@ -280,9 +283,9 @@ TEST(SceneLoaderErrorTest, UnsupportedFeatures) {
 )");
   ExpectError(LoadSceneString(gaussian, "s.xml", {}),
               "s.xml:4:", "unknown rfilter type 'gaussian' (supported: box)");
-  ExpectError(Load("  <bsdf type=\"conductor\">\n    <string name=\"material\" value=\"Au\"/>\n"
+  ExpectError(Load("  <bsdf type=\"conductor\">\n    <string name=\"material\" value=\"Xx\"/>\n"
                    "  </bsdf>\n"),
-              "scene.xml:3:", "conductor material 'Au' is not supported");
+              "scene.xml:3:", "unknown conductor material 'Xx' (supported: none, a-C, Ag,");
   ExpectError(Load("  <emitter type=\"area\"/>\n"), "scene.xml:2:", "must be nested in a <shape>");
   ExpectError(LoadSceneString("<scene version=\"3.0.0\">\n</scene>\n", "s.xml", {}),
               "s.xml:1:", "no <sensor>");
@@ -481,37 +484,40 @@ TEST(SceneLoaderTest, Materials) {
 )",
                           dir + "/scene.xml");
   ASSERT_TRUE(scene.ok()) << scene.status();
-  ASSERT_EQ(scene->bsdfs.size(), 7u);  // 6 + the default one of the first cube
+  // 6 + wood-2s's nested diffuse (added before it) + the default one of the first cube.
+  ASSERT_EQ(scene->bsdfs.size(), 8u);
   const BsdfDesc& red2s = scene->bsdfs[1];
   EXPECT_EQ(red2s.id, "red-2s");
-  EXPECT_TRUE(red2s.twosided);
-  EXPECT_FALSE(scene->bsdfs[0].twosided);
-  ExpectNear(red2s.reflectance.value, Vec3(0.7f, 0.1f, 0.1f));
-  const BsdfDesc& wood = scene->bsdfs[2];
+  EXPECT_EQ(red2s.type, "twosided");
+  ASSERT_EQ(red2s.nested, std::vector<int>{0});
+  EXPECT_EQ(scene->bsdfs[0].type, "diffuse");
+  ExpectNear(scene->bsdfs[0].Color("reflectance", Vec3()).value, Vec3(0.7f, 0.1f, 0.1f));
+  const BsdfDesc& wood = scene->bsdfs[3];
   EXPECT_EQ(wood.id, "wood-2s");
-  EXPECT_TRUE(wood.twosided);
-  ASSERT_EQ(wood.reflectance.texture, 0);
+  EXPECT_EQ(wood.type, "twosided");
+  ASSERT_EQ(wood.nested, std::vector<int>{2});
+  ASSERT_EQ(scene->bsdfs[2].Color("reflectance", Vec3()).texture, 0);
   const TextureDesc& tex = scene->textures[0];
   EXPECT_EQ(fs::path(tex.filename), fs::path(dir) / "textures/wood.png");
   EXPECT_EQ(tex.filter_type, "nearest");
   EXPECT_EQ(tex.wrap_mode, "repeat");
   EXPECT_TRUE(tex.raw);
-  EXPECT_EQ(scene->bsdfs[3].type, BsdfType::kConductor);
-  ExpectNear(scene->bsdfs[3].specular_reflectance, Vec3(0.9f));
-  EXPECT_EQ(scene->bsdfs[4].type, BsdfType::kDielectric);
-  EXPECT_FLOAT_EQ(scene->bsdfs[4].int_ior, 1.5f);
-  EXPECT_FLOAT_EQ(scene->bsdfs[4].ext_ior, 1.000277f);
-  EXPECT_EQ(scene->bsdfs[5].type, BsdfType::kThinDielectric);
-  EXPECT_FLOAT_EQ(scene->bsdfs[5].int_ior, 1.333f);
-  EXPECT_FLOAT_EQ(scene->bsdfs[5].ext_ior, 1);
+  EXPECT_EQ(scene->bsdfs[4].type, "conductor");
+  ExpectNear(scene->bsdfs[4].Color("specular_reflectance", Vec3()).value, Vec3(0.9f));
+  EXPECT_EQ(scene->bsdfs[5].type, "dielectric");
+  EXPECT_FLOAT_EQ(scene->bsdfs[5].Float("int_ior", 0), 1.5f);
+  EXPECT_FLOAT_EQ(scene->bsdfs[5].Float("ext_ior", 0), 1.000277f);
+  EXPECT_EQ(scene->bsdfs[6].type, "thindielectric");
+  EXPECT_FLOAT_EQ(scene->bsdfs[6].Float("int_ior", 0), 1.333f);
+  EXPECT_FLOAT_EQ(scene->bsdfs[6].Float("ext_ior", 0), 1);
   // A shape without a bsdf gets diffuse 0.5, as in Mitsuba.
   const BsdfDesc& fallback = scene->bsdfs.at(scene->shapes.at(0).bsdf);
-  EXPECT_EQ(fallback.type, BsdfType::kDiffuse);
-  ExpectNear(fallback.reflectance.value, Vec3(0.5f));
-  EXPECT_EQ(scene->shapes.at(1).bsdf, 2);
+  EXPECT_EQ(fallback.type, "diffuse");
+  ExpectNear(fallback.Color("reflectance", Vec3()).value, Vec3(0.5f));
+  EXPECT_EQ(scene->shapes.at(1).bsdf, 3);
 
   ExpectError(Load("  <bsdf type=\"twosided\">\n    <bsdf type=\"dielectric\"/>\n  </bsdf>\n"),
-              "scene.xml:3:", "twosided can only wrap");
+              "scene.xml:2:", "twosided can only wrap");
   ExpectError(Load("  <bsdf type=\"dielectric\">\n    <string name=\"int_ior\" value=\"glas\"/>\n"
                    "  </bsdf>\n"),
               "scene.xml:3:", "unknown index of refraction 'glas'");
