@@ -9,7 +9,10 @@ namespace irfarm {
   X(kConductorBsdf)            \
   X(kDielectricBsdf)           \
   X(kThinDielectricBsdf)       \
-  X(kTwoSidedBsdf)
+  X(kTwoSidedBsdf)             \
+  X(kRoughConductorBsdf)       \
+  X(kPlasticBsdf)              \
+  X(kRoughPlasticBsdf)
 
 #define IRFARM_DECLARE_PLUGIN(p) extern const BsdfPlugin p;
 IRFARM_BSDF_PLUGINS(IRFARM_DECLARE_PLUGIN)
