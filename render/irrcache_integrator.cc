@@ -175,6 +175,10 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) break;
     beta *= bs.weight;
     if (IsBlack(beta)) break;
+    if (bs.lobe == kNullTransmission) {  // passed through a mask: MIS state unchanged
+      ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
+      continue;
+    }
     if (depth >= settings_.path.rr_depth) {
       const float q = std::min(MaxComponent(beta), 0.95f);
       if (rng.Next() >= q) break;

@@ -32,6 +32,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
         L += beta * le * w;
       }
     }
+    const bool was_first = first;
     first = false;
     if (settings.max_depth >= 0 && depth >= settings.max_depth) break;
     const Bsdf& bsdf = scene.material(hit.material);
@@ -66,6 +67,11 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     // would pass through the surface (or be blocked by it): stop.
     if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) break;
     beta *= bs.weight;
+    if (bs.lobe == kNullTransmission) {  // passed through a mask: not a scattering vertex
+      first = was_first;
+      ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
+      continue;
+    }
     eta_scale *= bs.eta * bs.eta;
     prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
     if (IsBlack(beta)) break;

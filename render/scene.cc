@@ -49,6 +49,7 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc) {
       if (i < 0 || size_t(i) >= s->materials_.size())
         return absl::InternalError(b.loc.ToString() + ": nested bsdf index out of order");
     s->materials_.push_back(plugin->build(b, bsdf_ctx));
+    if (s->materials_.back()->Flags() & kNullTransmission) s->has_pass_through_ = true;
   }
   if (s->materials_.empty()) {
     BsdfDesc def;
@@ -288,6 +289,7 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
 }
 
 bool Scene::Occluded(const Ray& ray) const {
+  if (has_pass_through_) return OccludedPassThrough(ray);
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRay r;
@@ -304,6 +306,34 @@ bool Scene::Occluded(const Ray& ray) const {
   r.time = 0;
   rtcOccluded1(rtc_scene_, &ctx, &r);
   return r.tfar < 0;
+}
+
+// With masks: walk the hits along the segment; each pass-through surface lets the ray on with
+// its pass probability, decided by a hash of the ray and the hit (deterministic, so renders
+// repeat; uncorrelated between rays). The expected visibility is the product of the pass
+// probabilities, as for camera and bounce rays that sample the mask's null lobe.
+bool Scene::OccludedPassThrough(Ray ray) const {
+  const auto bits = [](float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, sizeof(u));
+    return uint64_t(u);
+  };
+  uint64_t h = HashCombine((bits(ray.origin.x) << 32) | bits(ray.origin.y),
+                           (bits(ray.origin.z) << 32) | bits(ray.dir.x + 3 * ray.dir.y + 7 * ray.dir.z));
+  for (int i = 0; i < 64; ++i) {
+    SurfaceHit hit;
+    if (!Intersect(ray, &hit)) return false;
+    const float pass = materials_[size_t(hit.material)]->PassThrough(BsdfContext{hit.u, hit.v});
+    if (!(pass > 0)) return true;
+    h = HashCombine(h, (uint64_t(hit.geom) << 32) | hit.prim);
+    if (Rng::ToUnitFloat(uint32_t(h >> 32)) >= pass) return true;
+    const Ray next = SpawnRay(hit.p, hit.ng, hit.error_scale, ray.dir);
+    const float used = Length(next.origin - ray.origin);
+    if (!(ray.tmax - used > 0)) return false;
+    ray.tmax = std::isfinite(ray.tmax) ? ray.tmax - used : INFINITY;
+    ray.origin = next.origin;
+  }
+  return true;
 }
 
 Ray Scene::SpawnRay(const Vec3& p, const Vec3& ng, float s, const Vec3& dir) {

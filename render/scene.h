@@ -141,6 +141,7 @@ class Scene {
     int material = 0;
     int light = -1;
   };
+  bool OccludedPassThrough(Ray ray) const;
   void SampleAreaLight(const Light& l, float u1, float u2, float u3, Vec3* q, Vec3* n,
                        float* scale) const;
 
@@ -152,6 +153,7 @@ class Scene {
   std::vector<Light> lights_;
   int num_local_ = 0;  // lights_[0, num_local_) are local; the rest are environment lights
   bool has_env_ = false;
+  bool has_pass_through_ = false;  // some material lets rays through (mask): see Occluded
   Camera camera_;
   Bounds3 bounds_;
   SceneStatsCounts counts_;

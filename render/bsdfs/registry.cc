@@ -12,7 +12,8 @@ namespace irfarm {
   X(kTwoSidedBsdf)             \
   X(kRoughConductorBsdf)       \
   X(kPlasticBsdf)              \
-  X(kRoughPlasticBsdf)
+  X(kRoughPlasticBsdf)         \
+  X(kMaskBsdf)
 
 #define IRFARM_DECLARE_PLUGIN(p) extern const BsdfPlugin p;
 IRFARM_BSDF_PLUGINS(IRFARM_DECLARE_PLUGIN)
