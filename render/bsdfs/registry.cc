@@ -13,7 +13,8 @@ namespace irfarm {
   X(kRoughConductorBsdf)       \
   X(kPlasticBsdf)              \
   X(kRoughPlasticBsdf)         \
-  X(kMaskBsdf)
+  X(kMaskBsdf)                 \
+  X(kRoughDielectricBsdf)
 
 #define IRFARM_DECLARE_PLUGIN(p) extern const BsdfPlugin p;
 IRFARM_BSDF_PLUGINS(IRFARM_DECLARE_PLUGIN)
