@@ -23,7 +23,10 @@ struct CameraDesc {
   Mat4 to_world;         // camera space: +z forward, +y up, +x image left (Mitsuba)
   float fov_x_deg = 45;  // horizontal field of view over the whole image, after fov_axis
   float near_clip = 0.01f, far_clip = 1e4f;  // accepted, not used for clipping
-  int width = 768, height = 576;
+  int width = 768, height = 576;  // the rendered image: the film's crop window (all of it)
+  // hdrfilm's crop_*: the full film is film_width x film_height (0 = width x height) and the
+  // image is its window at (crop_x, crop_y), as Mitsuba 3 renders it.
+  int film_width = 0, film_height = 0, crop_x = 0, crop_y = 0;
   int spp = 4;  // sampler sample_count
   SourceLoc loc;
 };

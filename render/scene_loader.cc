@@ -185,6 +185,7 @@ class Parser {
   absl::Status ParseIntegrator(pugi::xml_node n);
   absl::Status ParseSensor(pugi::xml_node n);
   absl::Status ParseFilm(pugi::xml_node n);
+  absl::Status UpgradeOldSyntax(pugi::xml_node root);
   absl::Status ParseSampler(pugi::xml_node n);
   class BsdfReader;
   friend class BsdfReader;
@@ -204,6 +205,7 @@ class Parser {
   SceneDesc scene_;
   pugi::xml_node sensor_, integrator_, environment_;  // to reject a second one
   int default_bsdf_ = -1;
+  bool upgraded_ = false;  // a Mitsuba 0.5/0.6 file, upgraded on load
 };
 
 int Parser::Line(pugi::xml_node n) const {
@@ -677,6 +679,13 @@ absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
     return Error(NodeOf(p, "max_depth"), "max_depth must be -1 (unbounded) or >= 0");
   }
   if (d.rr_depth < 1) return Error(NodeOf(p, "rr_depth"), "rr_depth must be >= 1");
+  LOADER_ASSIGN_OR_RETURN(const bool hide_emitters, GetBool(p, "hide_emitters", false));
+  if (hide_emitters) {
+    return Error(NodeOf(p, "hide_emitters"), "hide_emitters=true is not supported");
+  }
+  if (upgraded_) {  // Mitsuba 0.5's strictNormals: irfarm always checks both normals' sides
+    LOADER_RETURN_IF_ERROR(GetBool(p, "strict_normals", false).status());
+  }
   if (type == "irrcache") {
     LOADER_ASSIGN_OR_RETURN(d.params, TakeRestAsText(p));
   }
@@ -738,22 +747,73 @@ absl::Status Parser::ParseFilm(pugi::xml_node n) {
   LOADER_RETURN_IF_ERROR(PluginType(n, "film", {"hdrfilm"}).status());
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "film"));
   CameraDesc& cam = scene_.camera;
-  LOADER_ASSIGN_OR_RETURN(cam.width, GetInt(p, "width", 768));
-  LOADER_ASSIGN_OR_RETURN(cam.height, GetInt(p, "height", 576));
+  LOADER_ASSIGN_OR_RETURN(const int film_w, GetInt(p, "width", 768));
+  LOADER_ASSIGN_OR_RETURN(const int film_h, GetInt(p, "height", 576));
+  // Output format: irfarm always writes float32 RGB OpenEXR; other choices are accepted with a
+  // warning (they change the file, not the image).
+  LOADER_ASSIGN_OR_RETURN(const std::string file_format, GetString(p, "file_format", "openexr"));
+  LOADER_ASSIGN_OR_RETURN(const std::string pixel_format, GetString(p, "pixel_format", "rgb"));
+  LOADER_ASSIGN_OR_RETURN(const std::string component_format,
+                          GetString(p, "component_format", "float16"));
+  LOADER_RETURN_IF_ERROR(GetBool(p, "banner", false).status());
+  LOADER_RETURN_IF_ERROR(GetBool(p, "sample_border", false).status());
+  if (upgraded_) {  // Mitsuba 0.5/0.6 hdrfilm parameters that Mitsuba 3 no longer has
+    LOADER_RETURN_IF_ERROR(GetBool(p, "high_quality_edges", false).status());
+    LOADER_RETURN_IF_ERROR(GetBool(p, "attach_log", false).status());
+  }
+  LOADER_ASSIGN_OR_RETURN(cam.crop_x, GetInt(p, "crop_offset_x", 0));
+  LOADER_ASSIGN_OR_RETURN(cam.crop_y, GetInt(p, "crop_offset_y", 0));
+  LOADER_ASSIGN_OR_RETURN(cam.width, GetInt(p, "crop_width", film_w));
+  LOADER_ASSIGN_OR_RETURN(cam.height, GetInt(p, "crop_height", film_h));
   const std::vector<const Entry*> filters = TakeObjects(p, "rfilter");
   LOADER_RETURN_IF_ERROR(Finish(p));
-  if (cam.width <= 0 || cam.height <= 0) {
-    return Error(NodeOf(p, cam.width <= 0 ? "width" : "height"),
-                 absl::StrCat("film size must be positive, got ", cam.width, " x ", cam.height));
+  if (film_w <= 0 || film_h <= 0) {
+    return Error(NodeOf(p, film_w <= 0 ? "width" : "height"),
+                 absl::StrCat("film size must be positive, got ", film_w, " x ", film_h));
   }
+  if (!IsOneOf(file_format, {"openexr", "exr", "rgbe", "pfm"}))
+    return Error(NodeOf(p, "file_format"),
+                 absl::StrCat("unknown file_format '", file_format, "' (openexr, rgbe, pfm)"));
+  if (file_format != "openexr" && file_format != "exr")
+    Warn(NodeOf(p, "file_format"),
+         absl::StrCat("file_format '", file_format, "': irfarm writes OpenEXR"));
+  if (!IsOneOf(pixel_format, {"rgb", "rgba", "luminance", "luminance_alpha", "xyz", "xyza"}))
+    return Error(NodeOf(p, "pixel_format"), absl::StrCat("unknown pixel_format '", pixel_format,
+                                                         "'"));
+  if (pixel_format != "rgb")
+    Warn(NodeOf(p, "pixel_format"),
+         absl::StrCat("pixel_format '", pixel_format, "': irfarm writes rgb"));
+  if (!IsOneOf(component_format, {"float16", "float32", "uint32"}))
+    return Error(NodeOf(p, "component_format"),
+                 absl::StrCat("unknown component_format '", component_format, "'"));
+  if (cam.crop_x < 0 || cam.crop_y < 0 || cam.width <= 0 || cam.height <= 0 ||
+      cam.crop_x + cam.width > film_w || cam.crop_y + cam.height > film_h) {
+    return Error(NodeOf(p, "crop_width"),
+                 absl::StrCat("crop window ", cam.width, " x ", cam.height, " at (", cam.crop_x,
+                              ", ", cam.crop_y, ") is not inside the ", film_w, " x ", film_h,
+                              " film"));
+  }
+  cam.film_width = film_w;
+  cam.film_height = film_h;
   if (filters.size() > 1) return Error(filters[1]->node, "a film has at most one <rfilter>");
   if (filters.empty()) {
     Warn(n, "film has no <rfilter>: Mitsuba would use a gaussian filter, irfarm uses box");
   } else {
     const pugi::xml_node f = filters[0]->node;
-    LOADER_RETURN_IF_ERROR(PluginType(f, "rfilter", {"box"}).status());
-    LOADER_ASSIGN_OR_RETURN(const Params fp, Collect(f, "rfilter"));
+    LOADER_ASSIGN_OR_RETURN(const std::string type,
+                            PluginType(f, "rfilter", {"box", "gaussian", "tent"}));
+    LOADER_ASSIGN_OR_RETURN(Params fp, Collect(f, "rfilter"));
+    if (type == "gaussian") {
+      LOADER_ASSIGN_OR_RETURN(const float stddev, GetFloat(fp, "stddev", 0.5f));
+      if (!(stddev > 0)) return Error(NodeOf(fp, "stddev"), "stddev must be positive");
+    } else if (type == "tent") {
+      LOADER_ASSIGN_OR_RETURN(const float radius, GetFloat(fp, "radius", 1.0f));
+      if (!(radius > 0)) return Error(NodeOf(fp, "radius"), "radius must be positive");
+    }
     LOADER_RETURN_IF_ERROR(Finish(fp));
+    if (type != "box")
+      Warn(f, absl::StrCat("rfilter '", type,
+                           "' is treated as box (each sample counts for its own pixel only)"));
     LOADER_RETURN_IF_ERROR(RegisterId(f, "rfilter", -1));
   }
   return RegisterId(n, "film", -1);
@@ -763,7 +823,8 @@ absl::Status Parser::ParseSampler(pugi::xml_node n) {
   LOADER_ASSIGN_OR_RETURN(
       const std::string type,
       PluginType(n, "sampler",
-                 {"independent", "stratified", "multijitter", "orthogonal", "ldsampler"}));
+                 {"independent", "stratified", "multijitter", "orthogonal", "ldsampler",
+                  "sobol", "halton", "hammersley"}));
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "sampler"));
   LOADER_ASSIGN_OR_RETURN(scene_.camera.spp, GetInt(p, "sample_count", 4));
   LOADER_RETURN_IF_ERROR(GetInt(p, "seed", 0).status());  // irfarm seeds per job and pixel
@@ -1071,6 +1132,53 @@ absl::Status Parser::ParseEmitter(pugi::xml_node n) {
   return absl::OkStatus();
 }
 
+// Mitsuba 0.5 / 0.6 files (<scene version="0.x.y">) are upgraded as Mitsuba 3 does on load:
+// every parameter name (the `name` attribute of anything but <default>) goes from camelCase to
+// snake_case (toWorld -> to_world, intIOR -> int_ior, sampleCount -> sample_count) and
+// <lookAt> becomes <lookat>.
+std::string SnakeCase(absl::string_view s) {
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    const char c = s[i];
+    if (absl::ascii_isupper(c) && i > 0) {
+      const char prev = s[i - 1];
+      const bool next_lower = i + 1 < s.size() && absl::ascii_islower(s[i + 1]);
+      if (absl::ascii_islower(prev) || absl::ascii_isdigit(prev) ||
+          (absl::ascii_isupper(prev) && next_lower))
+        out += '_';
+    }
+    out += absl::ascii_tolower(c);
+  }
+  return out;
+}
+
+absl::Status Parser::UpgradeOldSyntax(pugi::xml_node root) {
+  const std::string version = root.attribute("version").value();
+  if (version.empty()) return absl::OkStatus();
+  int major = 0;
+  const auto [end, ec] = std::from_chars(version.data(), version.data() + version.size(), major);
+  if (ec != std::errc() || (end != version.data() + version.size() && *end != '.'))
+    return Error(root, absl::StrCat("malformed scene version '", version, "'"));
+  if (major >= 2) return absl::OkStatus();
+  upgraded_ = true;
+  Warn(root, absl::StrCat("scene version ", version,
+                          ": upgraded to Mitsuba 3 syntax (camelCase names -> snake_case)"));
+  std::vector<pugi::xml_node> stack = {root};
+  while (!stack.empty()) {
+    pugi::xml_node n = stack.back();
+    stack.pop_back();
+    for (pugi::xml_node c : n.children()) {
+      if (c.type() != pugi::node_element) continue;
+      if (absl::string_view(c.name()) == "lookAt") c.set_name("lookat");
+      pugi::xml_attribute name = c.attribute("name");
+      if (name && absl::string_view(c.name()) != "default")
+        name.set_value(SnakeCase(name.value()).c_str());
+      stack.push_back(c);
+    }
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
   for (size_t i = 0; i < xml.size(); ++i) {
     if (xml[i] == '\n') newlines_.push_back(i);
@@ -1093,6 +1201,7 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
     return Error(root, absl::StrCat("the root element must be <scene>, not <", root.name(), ">"));
   }
   LOADER_RETURN_IF_ERROR(CheckAttributes(root, {"version"}));
+  LOADER_RETURN_IF_ERROR(UpgradeOldSyntax(root));
 
   // <default>s first, so that $name works anywhere; then the -D defines override them.
   std::map<std::string, int> default_lines;

@@ -276,13 +276,13 @@ TEST(SceneLoaderErrorTest, UnsupportedFeatures) {
   const std::string gaussian = std::string(R"(<scene version="3.0.0">
   <sensor type="perspective">
     <film type="hdrfilm">
-      <rfilter type="gaussian"/>
+      <rfilter type="lanczos"/>
     </film>
   </sensor>
 </scene>
 )");
   ExpectError(LoadSceneString(gaussian, "s.xml", {}),
-              "s.xml:4:", "unknown rfilter type 'gaussian' (supported: box)");
+              "s.xml:4:", "unknown rfilter type 'lanczos' (supported: box, gaussian, tent)");
   ExpectError(Load("  <bsdf type=\"conductor\">\n    <string name=\"material\" value=\"Xx\"/>\n"
                    "  </bsdf>\n"),
               "scene.xml:3:", "unknown conductor material 'Xx' (supported: none, a-C, Ag,");
@@ -443,6 +443,72 @@ TEST(SceneLoaderTest, DefaultsAndDefines) {
   options.defines.erase("fov");
   ExpectError(LoadSceneString(kParameterized, "p.xml", options),
               "p.xml:8:", "undefined parameter '$fov'");
+}
+
+// A Mitsuba 0.5 file as Bitterli's downloads are written: camelCase names, hdrfilm's output
+// parameters, a tent filter, strictNormals; upgraded on load as Mitsuba 3 does.
+TEST(SceneLoaderTest, UpgradesMitsuba05Syntax) {
+  const auto scene = LoadSceneString(R"(<scene version="0.5.0">
+  <integrator type="path">
+    <integer name="maxDepth" value="65"/>
+    <boolean name="strictNormals" value="true"/>
+  </integrator>
+  <sensor type="perspective">
+    <float name="farClip" value="2800"/>
+    <float name="fov" value="90"/>
+    <string name="fovAxis" value="x"/>
+    <float name="nearClip" value="0.1"/>
+    <transform name="toWorld">
+      <lookAt origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/>
+    </transform>
+    <sampler type="sobol">
+      <integer name="sampleCount" value="64"/>
+    </sampler>
+    <film type="hdrfilm">
+      <integer name="width" value="64"/>
+      <integer name="height" value="32"/>
+      <integer name="cropOffsetX" value="8"/>
+      <integer name="cropWidth" value="16"/>
+      <string name="fileFormat" value="openexr"/>
+      <string name="pixelFormat" value="rgb"/>
+      <boolean name="banner" value="false"/>
+      <boolean name="highQualityEdges" value="false"/>
+      <rfilter type="tent"/>
+    </film>
+  </sensor>
+  <bsdf type="roughplastic" id="floor">
+    <float name="intIOR" value="1.5"/>
+    <float name="extIOR" value="1"/>
+    <string name="distribution" value="ggx"/>
+    <rgb name="diffuseReflectance" value="0.5, 0.4, 0.3"/>
+    <boolean name="nonlinear" value="true"/>
+  </bsdf>
+  <shape type="rectangle">
+    <ref id="floor"/>
+  </shape>
+</scene>
+)",
+                                     "old.xml", {});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->integrator.max_depth, 65);
+  EXPECT_EQ(scene->camera.spp, 64);
+  EXPECT_FLOAT_EQ(scene->camera.near_clip, 0.1f);
+  EXPECT_EQ(scene->camera.film_width, 64);
+  EXPECT_EQ(scene->camera.width, 16);
+  EXPECT_EQ(scene->camera.height, 32);
+  EXPECT_EQ(scene->camera.crop_x, 8);
+  ASSERT_EQ(scene->bsdfs.size(), 1u);
+  EXPECT_EQ(scene->bsdfs[0].type, "roughplastic");
+  EXPECT_FLOAT_EQ(scene->bsdfs[0].Float("int_ior", 0), 1.5f);
+  ExpectNear(scene->bsdfs[0].Color("diffuse_reflectance", Vec3()).value, Vec3(0.5f, 0.4f, 0.3f));
+  bool warned_tent = false;
+  for (const std::string& w : scene->warnings) warned_tent |= w.find("'tent'") != std::string::npos;
+  EXPECT_TRUE(warned_tent);
+  // The same names in a version 3 file are unknown parameters.
+  ExpectError(LoadSceneString("<scene version=\"3.0.0\">\n  <bsdf type=\"plastic\">\n"
+                              "    <float name=\"intIOR\" value=\"1.5\"/>\n  </bsdf>\n</scene>\n",
+                              "new.xml", {}),
+              "new.xml:3:", "unknown parameter 'intIOR'");
 }
 
 // ---------------------------------------------------------------- materials and emitters
