@@ -511,6 +511,56 @@ TEST(SceneLoaderTest, UpgradesMitsuba05Syntax) {
               "new.xml:3:", "unknown parameter 'intIOR'");
 }
 
+// The BSDFs beyond the subset: parameters recorded by name, named conductor materials, and
+// Mitsuba's errors (file:line) for contradictory or unknown parameters.
+TEST(SceneLoaderTest, GlossyMaterials) {
+  const auto scene = Load(R"(  <bsdf type="roughconductor" id="gold">
+    <string name="distribution" value="ggx"/>
+    <float name="alpha_u" value="0.1"/>
+    <float name="alpha_v" value="0.3"/>
+    <string name="material" value="Au"/>
+  </bsdf>
+  <bsdf type="mask" id="leaf">
+    <float name="opacity" value="0.25"/>
+    <bsdf type="roughplastic">
+      <float name="alpha" value="0.2"/>
+    </bsdf>
+  </bsdf>
+  <bsdf type="roughdielectric" id="frost">
+    <float name="alpha" value="0.3"/>
+    <string name="int_ior" value="bk7"/>
+  </bsdf>
+)");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->bsdfs.size(), 4u);  // gold, the mask's nested roughplastic, leaf, frost
+  const BsdfDesc& gold = scene->bsdfs[0];
+  EXPECT_EQ(gold.String("distribution", ""), "ggx");
+  EXPECT_FLOAT_EQ(gold.Color("alpha_v", Vec3()).value.x, 0.3f);
+  // Mitsuba 3.9.1's RGB eta of gold (scalar_rgb), see conductor_params.h.
+  EXPECT_NEAR(gold.Color("eta", Vec3()).value.x, 0.143036f, 1e-5f);
+  EXPECT_EQ(scene->bsdfs[1].type, "roughplastic");
+  EXPECT_EQ(scene->bsdfs[1].String("distribution", ""), "beckmann");  // Mitsuba's default
+  EXPECT_EQ(scene->bsdfs[2].nested, std::vector<int>{1});
+  EXPECT_FLOAT_EQ(scene->bsdfs[2].Color("opacity", Vec3()).value.x, 0.25f);
+  EXPECT_FLOAT_EQ(scene->bsdfs[3].Float("int_ior", 0), 1.5046f);
+
+  ExpectError(Load("  <bsdf type=\"roughconductor\">\n    <float name=\"alpha\" value=\"0.1\"/>\n"
+                   "    <float name=\"alpha_u\" value=\"0.1\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "give either alpha or alpha_u/alpha_v");
+  ExpectError(Load("  <bsdf type=\"conductor\">\n    <string name=\"material\" value=\"Au\"/>\n"
+                   "    <rgb name=\"eta\" value=\"1\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "give either material or eta/k");
+  ExpectError(Load("  <bsdf type=\"roughplastic\">\n    <string name=\"distribution\" "
+                   "value=\"phong\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "unknown microfacet distribution 'phong'");
+  ExpectError(Load("  <bsdf type=\"roughplastic\">\n    <float name=\"roughness\" "
+                   "value=\"0.1\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "unknown parameter 'roughness' for bsdf 'roughplastic'");
+  ExpectError(Load("  <bsdf type=\"mask\">\n    <float name=\"opacity\" value=\"0.5\"/>\n"
+                   "  </bsdf>\n"),
+              "scene.xml:2:", "mask needs exactly one nested bsdf");
+}
+
 // ---------------------------------------------------------------- materials and emitters
 
 TEST(SceneLoaderTest, Materials) {
