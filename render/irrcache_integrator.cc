@@ -6,6 +6,19 @@
 namespace irfarm {
 namespace {
 constexpr int kMaxSpecularChain = 64;  // delta bounces before a camera path is dropped
+// Up to this many local lights, every light that can reach a point gets its own samples; with
+// more, DirectLight picks lights by their expected contribution (LightSampler::Sample).
+constexpr int kAllLightsMax = 16;
+
+Vec3 Ratio(const Vec3& s, const Vec3& u) {
+  return Vec3(u.x > 0 ? s.x / u.x : 0, u.y > 0 ? s.y / u.y : 0, u.z > 0 ? s.z / u.z : 0);
+}
+}  // namespace
+
+Vec3 DirectTerms::Resolve() const {
+  Vec3 d;
+  for (int j = 0; j < kMaxLights; ++j) d += analytic[j] * Ratio(shadowed[j], unshadowed[j]);
+  return d;
 }
 
 IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cache,
@@ -15,6 +28,95 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
   const int n = std::max(4, settings.record_rays);
   strata_t_ = std::max(1, int(std::lround(std::sqrt(n / kPi))));
   strata_p_ = std::max(1, int(std::lround(double(n) / strata_t_)));
+  const LightSampler& ls = scene.light_sampler();
+  int slots = 0;
+  for (int i = 0; i < ls.num_local(); ++i) {
+    const Light& l = ls.lights()[i];
+    const bool rect = l.type == LightType::kArea && l.shape == AreaShape::kRect;
+    const bool ratio = rect && settings.analytic_direct && slots < DirectTerms::kMaxLights;
+    ratio_slot_.push_back(ratio ? slots++ : -1);
+  }
+}
+
+Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
+                                     const Vec3& weight, const LightStrata& strata, Rng& rng,
+                                     RenderCounters& counters, DirectTerms* terms) const {
+  const LightSampler& ls = scene_.light_sampler();
+  const int nl = ls.num_local();
+  const int k = std::max(1, settings_.light_samples);
+  const float wo_side = Dot(wo, hit.ng);
+  Vec3 L;
+  // u2, u3 of light sample j: the pixel's stratified points, else independent.
+  auto uv = [&](int j, float* u2, float* u3) {
+    if (strata.sampler) {
+      strata.sampler->Get(strata.first + j, u2, u3);
+    } else {
+      *u2 = rng.Next();
+      *u3 = rng.Next();
+    }
+  };
+  // Contribution of a light sample before visibility (0 below the shading horizon), and
+  // whether a shadow ray finds it unblocked.
+  auto visible = [&](const LightSample& s) {
+    if (Dot(s.wi, hit.ng) * wo_side <= 0) return false;  // below the geometric surface
+    ++counters.shadow_rays;
+    return !scene_.Occluded(Scene::SpawnShadowRay(hit, s));
+  };
+  if (nl > kAllLightsMax) {
+    for (int j = 0; j < k; ++j) {
+      const float u1 = rng.Next();
+      float u2, u3;
+      uv(j, &u2, &u3);
+      LightSample s;
+      int skipped = 0;
+      const bool ok = scene_.SampleLight(hit.p, nf, u1, u2, u3, false, &s, &skipped);
+      counters.lights_skipped += uint64_t(skipped);
+      if (!ok) continue;
+      const float cos_i = Dot(s.wi, nf);
+      if (cos_i > 0 && visible(s)) L += weight * s.value * (cos_i / float(k));
+    }
+    return L;
+  }
+  for (int i = 0; i < nl; ++i) {
+    const int slot = ratio_slot_[i];
+    // The analytic irradiance doubles as the reachability test of rectangles.
+    const Vec3 analytic = slot >= 0 ? ls.AnalyticIrradiance(i, hit.p, nf) : Vec3();
+    if (slot >= 0 ? IsBlack(analytic) : ls.Weight(i, hit.p, nf) <= 0) {
+      ++counters.lights_skipped;  // cannot reach: no sample, no shadow ray
+      continue;
+    }
+    const bool delta = ls.lights()[i].IsDelta();
+    const int n = delta ? 1 : k;  // a delta light's one sample is exact
+    Vec3 shadowed, unshadowed;
+    for (int j = 0; j < n; ++j) {
+      const float u1 = rng.Next();
+      float u2, u3;
+      uv(j, &u2, &u3);
+      LightSample s;
+      if (!ls.SampleOne(i, hit.p, u1, u2, u3, &s)) continue;
+      const float cos_i = Dot(s.wi, nf);
+      if (cos_i <= 0) continue;
+      const Vec3 c = weight * s.value * (cos_i / float(n));
+      if (!IsFinite(c)) {
+        ++counters.nonfinite_samples;
+        continue;
+      }
+      unshadowed += c;
+      if (visible(s)) shadowed += c;
+    }
+    if (slot < 0) {
+      L += shadowed;
+      continue;
+    }
+    if (terms) {
+      terms->analytic[slot] += weight * analytic;
+      terms->shadowed[slot] += shadowed;
+      terms->unshadowed[slot] += unshadowed;
+    } else {
+      L += weight * analytic * Ratio(shadowed, unshadowed);
+    }
+  }
+  return L;
 }
 
 bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* beta,
@@ -74,7 +176,10 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       ++counters.record_rays;
       float d = INFINITY;
       const Vec3 L = TracePath(scene_, ray, depth + 1, true, record_path, rng, counters, &d);
-      if (IsFinite(L)) sum += L;
+      if (IsFinite(L))
+        sum += L;
+      else
+        ++counters.nonfinite_samples;
       if (d > 0 && std::isfinite(d)) inv_dist_sum += 1.0 / d;
     }
   const int n = T * P;
@@ -121,21 +226,25 @@ Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int d
 }
 
 Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rng& rng,
-                            RenderCounters& counters, IrrcacheShade* shade) const {
+                            RenderCounters& counters, IrrcacheShade* shade,
+                            DirectTerms* terms) const {
   // The camera path: through delta and glossy lobes (path traced, light sampled with MIS at
   // glossy vertices), and at every vertex with a diffuse lobe that lobe is shaded from the
   // cache (ShadeDiffuse). A scene without glossy or delta materials makes one vertex per path.
+  // The pixel's direct-light terms (`terms`, the per-pixel shadow ratio) collect only the first
+  // diffuse vertex reached through delta lobes; later ones resolve their ratio per sample.
   Vec3 L, beta(1, 1, 1);
   const int max_depth = settings_.path.max_depth;
   float prev_pdf = 0;  // pdf of the glossy sample that made `ray`; 0 = delta lobe or camera
-  Vec3 prev_p;
+  Vec3 prev_p, prev_n;  // the previous vertex and its facing normal (light selection)
+  bool prev_glossy = false;  // a diffuse or glossy vertex lies before this one
   float distance = 0;
   Ray ray = camera_ray;
   for (int depth = 1; depth <= kMaxSpecularChain; ++depth) {
     SurfaceHit hit;
     if (!scene_.Intersect(ray, &hit)) {
       if (scene_.has_environment()) {
-        const float w = prev_pdf == 0 ? 1.0f : PowerHeuristic(prev_pdf, scene_.PdfEnvironment());
+        const float w = prev_pdf == 0 ? 1.0f : PowerHeuristic(prev_pdf, scene_.PdfEnvironment(prev_p, prev_n, ray.dir));
         L += beta * scene_.EvalEnvironment(ray.dir) * w;
       }
       break;
@@ -147,7 +256,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
       if (!IsBlack(le)) {
         const float w = prev_pdf == 0
                             ? 1.0f
-                            : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, hit, ray.dir));
+                            : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, prev_n, hit, ray.dir));
         L += beta * le * w;
       }
     }
@@ -159,12 +268,15 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     const Vec3 albedo = bsdf.DiffuseAlbedo(ctx, wo_l);
     if (!IsBlack(albedo)) {
       const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;
-      L += beta * ShadeDiffuse(hit, nf, wo, albedo, depth, distance, strata, rng, counters, shade);
+      L += ShadeDiffuse(hit, nf, wo, beta, albedo, depth, distance, strata, rng, counters, shade,
+                        prev_glossy ? nullptr : terms);
+      prev_glossy = true;  // later diffuse vertices do not share the pixel's ratio terms
     }
     if (!bsdf.HasNonDiffuse()) break;
     if (max_depth >= 0 && depth + 1 > max_depth) break;
     const bool glossy = (bsdf.Flags() & (kGlossyReflection | kGlossyTransmission)) != 0;
     if (glossy) {
+      prev_glossy = true;
       ++counters.glossy_bounces;
       L += beta * GlossyDirect(bsdf, ctx, frame, hit, wo, wo_l, rng, counters);
     }
@@ -186,6 +298,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     }
     prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
     prev_p = hit.p;
+    prev_n = wo_l.z >= 0 ? hit.ns : -hit.ns;
     ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
     ++counters.bounce_rays;
   }
@@ -201,7 +314,11 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
                                       RenderCounters& counters) const {
   LightSample ls;
   const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
-  if (!scene_.SampleLight(hit.p, u1, u2, u3, true, &ls)) return Vec3();
+  const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;  // as prev_n in Li (light selection)
+  int skipped = 0;
+  const bool sampled = scene_.SampleLight(hit.p, nf, u1, u2, u3, true, &ls, &skipped);
+  counters.lights_skipped += uint64_t(skipped);
+  if (!sampled) return Vec3();
   const Vec3 wi_l = frame.ToLocal(ls.wi);
   if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return Vec3();
   const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l, kNonDiffuseLobes);
@@ -213,47 +330,26 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
   return f * ls.value * w;
 }
 
-// The diffuse lobe at x: direct light from local lights by next-event estimation, plus the
-// cached indirect irradiance times albedo / pi.
+// The diffuse lobe at x, weighted by the path throughput beta: direct light from local lights
+// (DirectLight, Lambertian with the lobe's albedo; for plastic that takes the Fresnel
+// transmission towards the light as its hemispherical average, see plastic.cc), plus the cached
+// indirect irradiance times albedo / pi.
 Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
-                                      const Vec3& albedo, int depth, float distance,
-                                      const LightStrata& strata, Rng& rng,
-                                      RenderCounters& counters, IrrcacheShade* shade) const {
+                                      const Vec3& beta, const Vec3& albedo, int depth,
+                                      float distance, const LightStrata& strata, Rng& rng,
+                                      RenderCounters& counters, IrrcacheShade* shade,
+                                      DirectTerms* terms) const {
   Vec3 L;
   const int max_depth = settings_.path.max_depth;
-  const Bsdf& bsdf = scene_.material(hit.material);
-  const BsdfContext ctx{hit.u, hit.v};
-  const ShadingFrame frame(hit.ns);
-  const Vec3 wo_l = frame.ToLocal(wo);
   // Direct light from local lights, always explicit.
-  if (max_depth < 0 || depth + 1 <= max_depth) {
-    const int k = std::max(1, settings_.light_samples);
-    for (int i = 0; i < k; ++i) {
-      LightSample ls;
-      const float u1 = rng.Next();
-      float u2, u3;
-      if (strata.sampler) {
-        strata.sampler->Get(strata.first + i, &u2, &u3);
-      } else {
-        u2 = rng.Next();
-        u3 = rng.Next();
-      }
-      if (!scene_.SampleLight(hit.p, u1, u2, u3, false, &ls)) continue;
-      const float cos_i = Dot(ls.wi, nf);
-      if (cos_i <= 0 || Dot(ls.wi, hit.ng) * Dot(wo, hit.ng) <= 0) continue;
-      ++counters.shadow_rays;
-      if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) continue;
-      // f * cos of the diffuse lobe (albedo cos / pi for a plain diffuse surface).
-      const Vec3 f_cos = bsdf.Eval(ctx, wo_l, frame.ToLocal(ls.wi), kDiffuseLobe);
-      L += f_cos * ls.value * (1.0f / float(k));
-    }
-  }
+  if (max_depth < 0 || depth + 1 <= max_depth)
+    L += DirectLight(hit, nf, wo, beta * albedo * kInvPi, strata, rng, counters, terms);
   // Indirect irradiance from the cache.
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;
     const Vec3 E = Irradiance(hit, nf, depth, distance, true, rng, counters, &made);
     if (shade) shade->made_record = shade->made_record || made;
-    L += albedo * E * kInvPi;
+    L += beta * albedo * E * kInvPi;
   }
   return L;
 }

@@ -18,6 +18,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "cache/irradiance_cache.h"
 #include "render/path_tracer.h"
@@ -27,9 +28,12 @@
 namespace irfarm {
 
 struct IrrcacheSettings {
-  float accuracy = 0.1f;         // Ward's a: records count when eps_i < a (RADIANCE rtrace -aa 0.1)
-  int record_rays = 1536;        // rays per record, T x P with P ~ pi T (measured: see README)
-  int light_samples = 1;         // direct-light samples per shading point and camera sample
+  float accuracy = 0.1f;   // Ward's a: records count when eps_i < a (RADIANCE rtrace -aa 0.1)
+  int record_rays = 1536;  // rays per record, T x P with P ~ pi T (measured: see README)
+  int light_samples = 1;   // direct-light samples per shading point and camera sample
+  // Rectangles' direct light as analytic unoccluded irradiance times the pixel's shadow ratio
+  // (DirectTerms); false: the plain Monte Carlo estimate (for comparison).
+  bool analytic_direct = true;
   float min_spacing_px = 1.5f;   // validity radius a*R_i >= this many pixel footprints at x
   float max_spacing_px = 16.0f;  // ... and <= this many (Tabellion & Lamorlette: ~20 px)
   // Final pass only: a lookup that finds nothing at accuracy a is retried at a * relaxed_factor
@@ -44,6 +48,31 @@ struct IrrcacheShade {
   bool made_record = false;
 };
 
+// Direct light from lights with a closed-form unoccluded irradiance (rectangles), kept apart per
+// light so that a pixel's estimate can be formed as a ratio (Heitz, Hill and McGuire 2018,
+// "Combining analytic direct illumination and stochastic shadows"):
+//   D_j = (sum_s A_j,s) * (sum_s S_j,s) / (sum_s U_j,s)
+// with, per camera sample s, A the analytic unoccluded term (throughput * albedo/pi * E_j), and
+// S and U the Monte Carlo estimates of the same term with and without the shadow rays, from the
+// same light samples. Where the light is fully visible over the pixel S = U and D = sum A: no
+// noise from the light's shape; fully shadowed, S = 0 and D = 0; only penumbrae are noisy. The
+// ratio is consistent (its bias vanishes as the pixel's samples grow), not unbiased: with few
+// samples in a penumbra, and where albedo * irradiance varies inside the pixel together with the
+// shadow, it deviates by O(1/samples).
+struct DirectTerms {
+  static constexpr int kMaxLights = 8;  // rectangles beyond the 8th use the plain estimator
+  Vec3 analytic[kMaxLights], shadowed[kMaxLights], unshadowed[kMaxLights];
+  void Add(const DirectTerms& o) {
+    for (int j = 0; j < kMaxLights; ++j) {
+      analytic[j] += o.analytic[j];
+      shadowed[j] += o.shadowed[j];
+      unshadowed[j] += o.unshadowed[j];
+    }
+  }
+  // sum_j A_j * S_j / U_j, per channel (0 where U_j is 0).
+  Vec3 Resolve() const;
+};
+
 // Where this camera sample's direct-light samples come from: points k = first .. first + count-1
 // of the pixel's stratified set (see PixelSampler), so the pixel's light samples are stratified
 // over the light's area.
@@ -56,9 +85,11 @@ class IrrcacheIntegrator {
  public:
   IrrcacheIntegrator(const Scene& scene, IrradianceCache* cache, const IrrcacheSettings& settings);
 
-  // Radiance arriving at the camera along camera ray `ray`.
+  // Radiance arriving at the camera along camera ray `ray`. With `terms`, the direct light of
+  // rectangle lights goes there (for the pixel's ratio estimate, see DirectTerms) instead of
+  // into the returned value; without, each sample's own ratio is used.
   Vec3 Li(const Ray& ray, const LightStrata& strata, Rng& rng, RenderCounters& counters,
-          IrrcacheShade* shade) const;
+          IrrcacheShade* shade, DirectTerms* terms = nullptr) const;
   // Overture: makes sure the cache covers the first diffuse surface seen along `ray`, computing
   // a record there if none counts, and nothing else. Returns true when it computed one.
   bool Prime(const Ray& ray, Rng& rng, RenderCounters& counters) const;
@@ -74,9 +105,16 @@ class IrrcacheIntegrator {
   // lobe. Returns false when the path ends before that.
   bool FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* beta, SurfaceHit* hit,
                    Vec3* nf, int* depth, float* distance) const;
-  Vec3 ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo, const Vec3& albedo,
-                    int depth, float distance, const LightStrata& strata, Rng& rng,
-                    RenderCounters& counters, IrrcacheShade* shade) const;
+  // Direct light at a diffuse point: every local light that can reach it (up to
+  // kAllLightsMax lights; beyond, lights picked by expected contribution), each sampled by
+  // solid angle; `weight` = path throughput * albedo / pi.
+  Vec3 DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo, const Vec3& weight,
+                   const LightStrata& strata, Rng& rng, RenderCounters& counters,
+                   DirectTerms* terms) const;
+  Vec3 ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo, const Vec3& beta,
+                    const Vec3& albedo, int depth, float distance, const LightStrata& strata,
+                    Rng& rng, RenderCounters& counters, IrrcacheShade* shade,
+                    DirectTerms* terms) const;
   Vec3 GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx, const ShadingFrame& frame,
                     const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_l, Rng& rng,
                     RenderCounters& counters) const;
@@ -87,6 +125,7 @@ class IrrcacheIntegrator {
   IrradianceCache* cache_;
   IrrcacheSettings settings_;
   int strata_t_ = 1, strata_p_ = 1;
+  std::vector<int> ratio_slot_;  // per local light: its DirectTerms slot, or -1
 };
 
 }  // namespace irfarm

@@ -6,8 +6,8 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
                const PathSettings& settings, Rng& rng, RenderCounters& counters,
                float* first_distance) {
   Vec3 L, beta(1, 1, 1);
-  float prev_pdf = 0;  // solid-angle pdf of the BSDF sample that made `ray`; 0 = delta/camera
-  Vec3 prev_p;
+  float prev_pdf = 0;   // solid-angle pdf of the BSDF sample that made `ray`; 0 = delta/camera
+  Vec3 prev_p, prev_n;  // the previous vertex and its facing normal (light selection weights)
   float eta_scale = 1;
   bool first = true;
   for (;; ++depth) {
@@ -16,7 +16,9 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       if (first && first_distance) *first_distance = INFINITY;
       if (scene.has_environment()) {
         const bool skip_mis = prev_pdf == 0 || (first && skip_first_local_emission);
-        const float w = skip_mis ? 1.0f : PowerHeuristic(prev_pdf, scene.PdfEnvironment());
+        const float w =
+            skip_mis ? 1.0f
+                     : PowerHeuristic(prev_pdf, scene.PdfEnvironment(prev_p, prev_n, ray.dir));
         L += beta * scene.EvalEnvironment(ray.dir) * w;
       }
       break;
@@ -26,9 +28,10 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     if (hit.light >= 0 && !(first && skip_first_local_emission)) {
       const Vec3 le = scene.Emitted(hit, wo);
       if (!IsBlack(le)) {
-        const float w = prev_pdf == 0
-                            ? 1.0f
-                            : PowerHeuristic(prev_pdf, scene.PdfAreaLight(prev_p, hit, ray.dir));
+        const float w =
+            prev_pdf == 0
+                ? 1.0f
+                : PowerHeuristic(prev_pdf, scene.PdfAreaLight(prev_p, prev_n, hit, ray.dir));
         L += beta * le * w;
       }
     }
@@ -41,11 +44,16 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     const Vec3 wo_l = frame.ToLocal(wo);
     const bool can_extend = settings.max_depth < 0 || depth + 1 <= settings.max_depth;
     if (!can_extend) break;
+    // The facing normal: the side wo is on (light selection weighs lights by it).
+    const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;
 
     if (bsdf.HasSmooth()) {  // next-event estimation, MIS against BSDF sampling
       LightSample ls;
       const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
-      if (scene.SampleLight(hit.p, u1, u2, u3, true, &ls)) {
+      int skipped = 0;
+      const bool sampled = scene.SampleLight(hit.p, nf, u1, u2, u3, true, &ls, &skipped);
+      counters.lights_skipped += uint64_t(skipped);
+      if (sampled) {
         const Vec3 wi_l = frame.ToLocal(ls.wi);
         if (SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) {
           const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l);
@@ -81,6 +89,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       beta /= q;
     }
     prev_p = hit.p;
+    prev_n = nf;
     ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
     ++counters.bounce_rays;
   }

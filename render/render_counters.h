@@ -7,10 +7,12 @@
 namespace irfarm {
 
 struct RenderCounters {
-  uint64_t camera_rays = 0;  // primary rays
-  uint64_t bounce_rays = 0;  // BSDF-sampled continuation rays (incl. specular)
-  uint64_t shadow_rays = 0;  // next-event-estimation visibility rays
-  uint64_t record_rays = 0;  // first rays of irradiance-record hemispheres
+  uint64_t camera_rays = 0;        // primary rays
+  uint64_t bounce_rays = 0;        // BSDF-sampled continuation rays (incl. specular)
+  uint64_t shadow_rays = 0;        // next-event-estimation visibility rays
+  uint64_t nonfinite_samples = 0;  // samples (or light-sample terms) that were NaN or infinite
+  uint64_t lights_skipped = 0;     // lights that could not reach a shading point: no shadow ray
+  uint64_t record_rays = 0;        // first rays of irradiance-record hemispheres
   uint64_t glossy_bounces = 0;  // irrcache camera-path vertices shaded through a glossy lobe
   uint64_t records_computed = 0;
   uint64_t lookups = 0;              // irradiance-cache queries
@@ -23,6 +25,8 @@ struct RenderCounters {
     camera_rays += o.camera_rays;
     bounce_rays += o.bounce_rays;
     shadow_rays += o.shadow_rays;
+    lights_skipped += o.lights_skipped;
+    nonfinite_samples += o.nonfinite_samples;
     record_rays += o.record_rays;
     glossy_bounces += o.glossy_bounces;
     records_computed += o.records_computed;

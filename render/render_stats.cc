@@ -92,7 +92,8 @@ std::string RenderStats::ToJson() const {
   const uint64_t total_rays = c.camera_rays + c.bounce_rays + c.shadow_rays + c.record_rays;
   o << "  \"rays\": {\"camera\": " << c.camera_rays << ", \"bounce\": " << c.bounce_rays
     << ", \"shadow\": " << c.shadow_rays << ", \"record\": " << c.record_rays
-    << ", \"total\": " << total_rays << "},\n";
+    << ", \"total\": " << total_rays
+    << ", \"shadow_skipped_unreachable_light\": " << c.lights_skipped << "},\n";
   o << "  \"records\": {\"computed\": " << c.records_computed
     << ", \"computed_overture\": " << records_overture << ", \"received\": " << records_received
     << ", \"in_cache\": " << records_in_cache << ", \"used\": " << c.records_used

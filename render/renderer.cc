@@ -186,7 +186,10 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
         for (int y = tile.y0; y < tile.y1; ++y)
           for (int x = tile.x0; x < tile.x1; ++x) {
             Rng rng(HashCombine(settings.seed, uint64_t(y) * w + x), kStreamFinal);
-            Vec3 sum;
+            // Even and odd samples are kept apart (two interleaved half-images) so that their
+            // difference estimates the pixel's error; the pixel is their joint estimate.
+            Vec3 sum[2];
+            DirectTerms terms[2];
             bool made = false;
             const PixelSampler film(settings.spp, rng);
             const PixelSampler lights(settings.spp * light_samples, rng);
@@ -200,15 +203,22 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
               Vec3 L;
               if (irrcache) {
                 IrrcacheShade shade;
-                L = integrator.Li(ray, LightStrata{&lights, s * light_samples}, rng, c, &shade);
+                L = integrator.Li(ray, LightStrata{&lights, s * light_samples}, rng, c, &shade,
+                                  &terms[s & 1]);
                 made |= shade.made_record;
               } else {
                 L = TracePath(scene, ray, 1, false, path, rng, c);
               }
-              // A non-finite sample would poison the pixel; it is dropped (counted as black).
-              if (IsFinite(L)) sum += L;
+              // A non-finite sample would poison the pixel: it is counted and left out.
+              if (IsFinite(L))
+                sum[s & 1] += L;
+              else
+                ++c.nonfinite_samples;
             }
-            out.image.at(x - rect.x0, y - rect.y0) = sum / float(settings.spp);
+            DirectTerms all = terms[0];
+            all.Add(terms[1]);
+            out.image.at(x - rect.x0, y - rect.y0) =
+                (sum[0] + sum[1] + all.Resolve()) / float(settings.spp);
             if (made && !marks.empty()) marks[size_t(y - rect.y0) * rw + (x - rect.x0)] = 1;
           }
         progress.Tick();

@@ -18,6 +18,7 @@
 #include "absl/status/statusor.h"
 #include "render/bsdfs/bsdf.h"
 #include "render/camera.h"
+#include "render/light_sampler.h"
 #include "render/scene_desc.h"
 #include "render/texture.h"
 
@@ -42,41 +43,6 @@ struct SurfaceHit {
   unsigned geom = 0, prim = 0;
 };
 
-enum class LightType { kArea, kPoint, kSpot, kDirectional, kConstant, kEnvmap };
-
-struct Light {
-  LightType type = LightType::kArea;
-  Vec3 radiance;   // area, constant: emitted radiance
-  Vec3 intensity;  // point, spot (W/sr); directional: irradiance (W/m^2)
-  Vec3 position;   // point, spot
-  Vec3 direction;  // directional, spot: direction the light travels
-  float cos_cutoff = 0, cos_beam = 0, cutoff = 0, inv_transition = 0;  // spot
-  // Area: the emitting geometry and its triangles' cumulative areas (sampling by area).
-  unsigned geom = 0;
-  bool sphere = false;
-  Vec3 center;
-  float radius = 0;
-  std::vector<float> cdf;
-  float area = 0;
-  // Envmap
-  const Texture* envmap = nullptr;
-  Mat4 world_to_env;
-  float scale = 1;
-  bool IsDelta() const {
-    return type == LightType::kPoint || type == LightType::kSpot || type == LightType::kDirectional;
-  }
-  bool IsEnvironment() const { return type == LightType::kConstant || type == LightType::kEnvmap; }
-};
-
-struct LightSample {
-  Vec3 wi;                    // unit direction from the shading point to the light
-  float distance = INFINITY;  // to the light point (INFINITY for directional / environment)
-  Vec3 value;                 // Le * G / pdf, for delta lights I / d^2 (or E) / pselect
-  float pdf = 0;              // solid-angle pdf including light selection; 0 for delta lights
-  Vec3 light_point, light_normal;
-  float light_error_scale = 0;
-};
-
 struct SceneStatsCounts {
   long triangles = 0, spheres = 0, degenerate_dropped = 0;
 };
@@ -96,25 +62,33 @@ class Scene {
   // A shadow ray from the hit to a sampled light; the far end is offset as well.
   static Ray SpawnShadowRay(const SurfaceHit& hit, const LightSample& ls);
 
-  // Samples one light, chosen uniformly, as seen from shading point p; u1 picks the light.
+  // Picks a light by its expected contribution at (p, n) and samples it (LightSampler::Sample).
   // With include_env false only local lights (area, point, spot, directional) are chosen: the
-  // irradiance cache integrates environment light itself. False when the sample carries nothing.
-  bool SampleLight(const Vec3& p, float u1, float u2, float u3, bool include_env,
-                   LightSample* s) const;
-  // Solid-angle pdf (incl. selection among all lights) of SampleLight having produced the
+  // irradiance cache integrates environment light itself. False when the sample carries
+  // nothing. *skipped counts the lights that cannot reach p (no shadow ray is spent on them).
+  bool SampleLight(const Vec3& p, const Vec3& n, float u1, float u2, float u3, bool include_env,
+                   LightSample* s, int* skipped = nullptr) const {
+    return lights_.Sample(p, n, u1, u2, u3, include_env, s, skipped);
+  }
+  // Solid-angle pdf (incl. selection) of SampleLight(p, n, ..., true) having produced the
   // direction wi from p that hits the area light of `hit`, or that escapes (environment).
-  float PdfAreaLight(const Vec3& p, const SurfaceHit& hit, const Vec3& wi) const;
-  float PdfEnvironment() const;
-  int num_local_lights() const { return num_local_; }
+  float PdfAreaLight(const Vec3& p, const Vec3& n, const SurfaceHit& hit, const Vec3& wi) const {
+    return lights_.PdfArea(p, n, hit.light, hit.p, hit.ns, hit.prim, wi);
+  }
+  float PdfEnvironment(const Vec3& p, const Vec3& n, const Vec3& wi) const {
+    return lights_.PdfEnvironment(p, n, wi);
+  }
+  int num_local_lights() const { return lights_.num_local(); }
   // Radiance from the environment lights (constant + envmap) along direction d.
-  Vec3 EvalEnvironment(const Vec3& d) const;
+  Vec3 EvalEnvironment(const Vec3& d) const { return lights_.EvalEnvironment(d); }
   // Emitted radiance of the surface towards wo (front side only).
   Vec3 Emitted(const SurfaceHit& hit, const Vec3& wo) const;
 
   const Camera& camera() const { return camera_; }
   const Bsdf& material(int i) const { return *materials_[size_t(i)]; }
-  const std::vector<Light>& lights() const { return lights_; }
-  bool has_environment() const { return has_env_; }
+  const std::vector<Light>& lights() const { return lights_.lights(); }
+  const LightSampler& light_sampler() const { return lights_; }
+  bool has_environment() const { return lights_.has_environment(); }
   const Bounds3& bounds() const { return bounds_; }
   const SceneStatsCounts& counts() const { return counts_; }
 
@@ -142,17 +116,13 @@ class Scene {
     int light = -1;
   };
   bool OccludedPassThrough(Ray ray) const;
-  void SampleAreaLight(const Light& l, float u1, float u2, float u3, Vec3* q, Vec3* n,
-                       float* scale) const;
 
   RTCDevice device_ = nullptr;
   RTCScene rtc_scene_ = nullptr;
   std::vector<Mesh> meshes_;  // indexed by Embree geometry id
   std::vector<std::unique_ptr<Texture>> textures_;
   std::vector<std::unique_ptr<Bsdf>> materials_;  // SceneDesc::bsdfs, built
-  std::vector<Light> lights_;
-  int num_local_ = 0;  // lights_[0, num_local_) are local; the rest are environment lights
-  bool has_env_ = false;
+  LightSampler lights_;  // local lights first, then environment lights
   bool has_pass_through_ = false;  // some material lets rays through (mask): see Occluded
   Camera camera_;
   Bounds3 bounds_;

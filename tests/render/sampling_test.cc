@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/render/chi_square.h"
+
 #include <cmath>
 #include <cstdint>
 #include <functional>
@@ -13,24 +15,6 @@
 
 namespace irfarm {
 namespace {
-
-// z such that P(Z > z) = alpha for a standard normal Z, by bisection on erfc.
-double NormalUpperQuantile(double alpha) {
-  double lo = -10, hi = 10;
-  for (int i = 0; i < 200; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (0.5 * std::erfc(mid / std::sqrt(2.0)) > alpha ? lo : hi) = mid;
-  }
-  return 0.5 * (lo + hi);
-}
-
-// Critical value c with P(chi^2_k > c) = alpha, by the Wilson-Hilferty approximation:
-// (chi^2_k / k)^(1/3) is nearly normal with mean 1 - 2/(9k) and variance 2/(9k). Accurate to
-// well under 1% for k >= 30 at alpha = 1e-3 (see ChiSquareCriticalMatchesTables).
-double ChiSquareCritical(int k, double alpha) {
-  const double h = 2.0 / (9.0 * k);
-  return k * std::pow(1 - h + NormalUpperQuantile(alpha) * std::sqrt(h), 3);
-}
 
 constexpr double kSignificance = 1e-3;  // chance that a correct sampler fails a chi-square test
 constexpr int kCos2Bins = 10, kPhiBins = 20;

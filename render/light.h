@@ -1,0 +1,71 @@
+// The lights of a built scene, each self-contained (its own copy of the emitting geometry), so
+// that the light sampler needs nothing of the Embree scene. Local lights (area, point, spot,
+// directional) are sampled explicitly; environment lights (constant, envmap) act as one.
+#pragma once
+
+#include <cmath>
+#include <vector>
+
+#include "cache/math.h"
+#include "render/texture.h"
+
+namespace irfarm {
+
+enum class LightType { kArea, kPoint, kSpot, kDirectional, kConstant, kEnvmap };
+
+// The shape of an area light.
+enum class AreaShape { kRect, kSphere, kMesh };
+
+struct LightTriangle {
+  Vec3 p0, p1, p2;
+  Vec3 ng;          // unit geometric normal: the emitting side
+  Vec3 n0, n1, n2;  // vertex normals (shading); equal to ng when the mesh has none
+  float area = 0;
+  float error_scale = 0;  // magnitude of the vertex coordinates (ray offsets)
+};
+
+struct Light {
+  LightType type = LightType::kArea;
+  Vec3 radiance;   // area, constant: emitted radiance
+  Vec3 intensity;  // point, spot (W/sr); directional: irradiance (W/m^2)
+  Vec3 position;   // point, spot
+  Vec3 direction;  // directional, spot: direction the light travels
+  float cos_cutoff = 0, cos_beam = 0, cutoff = 0, inv_transition = 0;  // spot
+  // Area lights.
+  AreaShape shape = AreaShape::kMesh;
+  unsigned geom = 0;  // Embree geometry id of the emitting shape
+  // kRect: corner + two orthogonal edges; emits towards normal (= the triangles' ng).
+  Vec3 corner, edge_u, edge_v, normal;
+  // kSphere: emits outwards (inwards when flipped).
+  Vec3 center;
+  float radius = 0;
+  bool flip = false;
+  // kMesh (and kRect, whose two triangles are kept for the fallback): triangles and their
+  // cumulative areas, to pick one by area.
+  std::vector<LightTriangle> triangles;
+  std::vector<float> cdf;
+  float area = 0;
+  float error_scale = 0;
+  // Envmap
+  const Texture* envmap = nullptr;
+  Mat4 world_to_env;
+  float scale = 1;
+  Vec3 average_radiance;  // environment: mean radiance over the sphere (selection weights)
+
+  bool IsDelta() const {
+    return type == LightType::kPoint || type == LightType::kSpot || type == LightType::kDirectional;
+  }
+  bool IsEnvironment() const { return type == LightType::kConstant || type == LightType::kEnvmap; }
+};
+
+struct LightSample {
+  Vec3 wi;                    // unit direction from the shading point to the light
+  float distance = INFINITY;  // to the light point (INFINITY for directional / environment)
+  Vec3 value;                 // Le * G / pdf, for delta lights I / d^2 (or E) / pselect
+  float pdf = 0;              // solid-angle pdf including light selection; 0 for delta lights
+  Vec3 light_point, light_normal;
+  float light_error_scale = 0;
+  int light = -1;  // which light
+};
+
+}  // namespace irfarm

@@ -1,0 +1,415 @@
+#include "render/light_sampler.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "render/sampling.h"
+#include "render/solid_angle.h"
+
+namespace irfarm {
+namespace {
+
+// Meshes with at most this many triangles get their weight from the exact per-triangle
+// projected solid angles; larger ones from an estimate by area and distance.
+constexpr int kExactMeshTriangles = 8;
+
+bool HasNormal(const Vec3& n) { return !IsBlack(n); }
+
+// Cosine of the direction w against n, or 1 when there is no normal.
+float HorizonCos(const Vec3& n, const Vec3& w) { return HasNormal(n) ? Dot(n, w) : 1.0f; }
+
+[[maybe_unused]] void RectCorners(const Light& l, Vec3 c[4]) {
+  c[0] = l.corner;
+  c[1] = l.corner + l.edge_u;
+  c[2] = l.corner + l.edge_u + l.edge_v;
+  c[3] = l.corner + l.edge_v;
+}
+
+float SpotFalloff(const Light& l, const Vec3& wi) {
+  const float c = Dot(l.direction, -wi);
+  if (c <= l.cos_cutoff) return 0;
+  if (c >= l.cos_beam) return 1;
+  return (l.cutoff - std::acos(std::min(c, 1.0f))) * l.inv_transition;
+}
+
+// Area pdf converted to solid angle: d^2 / (|cos_l| A).
+float AreaToSolidAngle(float dist2, float cos_l, float area) {
+  return cos_l > 0 && area > 0 ? dist2 / (cos_l * area) : 0;
+}
+
+}  // namespace
+
+void LightSampler::Build(std::vector<Light> lights, int num_local) {
+  lights_ = std::move(lights);
+  num_local_ = num_local;
+}
+
+float LightSampler::Weight(int i, const Vec3& p, const Vec3& n) const {
+  const Light& l = lights_[i];
+  switch (l.type) {
+    case LightType::kArea: {
+      const float lum = Luminance(l.radiance);
+      if (l.shape == AreaShape::kRect) {
+        // Cheap: L A cos_l cos_p / d^2 at the centre, softened near the lamp; zero behind the
+        // emitting side or when all four corners are below p's horizon.
+        if (Dot(p - l.corner, l.normal) <= 0) return 0;  // behind its emitting side
+        const Vec3 d = l.corner + (l.edge_u + l.edge_v) * 0.5f - p;
+        const float d2 = LengthSquared(d), inv_d = 1 / std::sqrt(d2);
+        float cos_p = 1;
+        if (HasNormal(n)) {
+          const Vec3 c0 = l.corner - p;
+          const float a = Dot(n, c0), bu = Dot(n, l.edge_u), bv = Dot(n, l.edge_v);
+          if (std::max({a, a + bu, a + bv, a + bu + bv}) <= 0) return 0;  // below the horizon
+          cos_p = std::max(0.05f, Dot(n, d) * inv_d);
+        }
+        const float cos_l = std::max(0.01f, -Dot(d, l.normal) * inv_d);
+        return lum * l.area * cos_l * cos_p / (d2 + l.area * kInvPi);
+      }
+      if (l.shape == AreaShape::kSphere) {
+        const Vec3 d = l.center - p;
+        const float d2 = LengthSquared(d), r2 = l.radius * l.radius;
+        if (d2 <= r2) return l.flip ? lum * kPi : 0;  // inside: sees the inner side only
+        if (l.flip) return 0;
+        const float dist = std::sqrt(d2), sin_max = l.radius / dist;
+        const float c = HorizonCos(n, d / dist);
+        if (c <= -sin_max) return 0;  // the whole sphere is below the horizon
+        const float cos_factor = std::min(1.0f, (c + sin_max) / (1 + sin_max));
+        return lum * kPi * (r2 / d2) * cos_factor;
+      }
+      // Mesh.
+      if (int(l.triangles.size()) <= kExactMeshTriangles) {
+        float w = 0;
+        for (const LightTriangle& t : l.triangles) {
+          if (t.area <= 0 || Dot(p - t.p0, t.ng) <= 0) continue;
+          if (HasNormal(n)) {
+            const Vec3 v[3] = {t.p0, t.p1, t.p2};
+            w += float(PolygonProjectedSolidAngle(p, n, v, 3));
+          } else {
+            w += float(TriangleSolidAngle(p, t.p0, t.p1, t.p2));
+          }
+        }
+        return lum * w;
+      }
+      // Large mesh: its area over the squared distance to its centroid, softened near it.
+      Vec3 centroid;
+      for (const LightTriangle& t : l.triangles) centroid += (t.p0 + t.p1 + t.p2) * t.area;
+      centroid = centroid / (3 * l.area);
+      const float d2 = LengthSquared(centroid - p);
+      return lum * l.area / (d2 + l.area);
+    }
+    case LightType::kPoint:
+    case LightType::kSpot: {
+      const Vec3 d = l.position - p;
+      const float d2 = LengthSquared(d);
+      if (!(d2 > 0)) return 0;
+      const Vec3 wi = d / std::sqrt(d2);
+      const float c = HorizonCos(n, wi);
+      if (c <= 0) return 0;
+      const float falloff = l.type == LightType::kSpot ? SpotFalloff(l, wi) : 1.0f;
+      return Luminance(l.intensity) * falloff * c / d2;
+    }
+    case LightType::kDirectional: {
+      const float c = HorizonCos(n, -l.direction);
+      return c > 0 ? Luminance(l.intensity) * c : 0;
+    }
+    case LightType::kConstant:
+    case LightType::kEnvmap:
+      return 0;
+  }
+  return 0;
+}
+
+Vec3 LightSampler::AnalyticIrradiance(int i, const Vec3& p, const Vec3& n) const {
+  const Light& l = lights_[i];
+  if (l.type != LightType::kArea || l.shape != AreaShape::kRect) return Vec3(-1);
+  if (Dot(p - l.corner, l.normal) <= 0) return Vec3();
+  Vec3 c[4];
+  RectCorners(l, c);
+  return l.radiance * float(PolygonProjectedSolidAngle(p, n, c, 4));
+}
+
+bool LightSampler::SampleOne(int i, const Vec3& p, float u1, float u2, float u3,
+                             LightSample* s) const {
+  const Light& l = lights_[i];
+  s->light = i;
+  switch (l.type) {
+    case LightType::kArea: {
+      Vec3 q, nl;
+      float pdf = 0;
+      float scale = l.error_scale;
+      if (l.shape == AreaShape::kRect) {
+        if (Dot(p - l.corner, l.normal) <= 0) return false;
+        SphericalRect sr;
+        if (sr.Init(p, l.corner, l.edge_u, l.edge_v)) {
+          q = sr.Sample(u2, u3);
+          pdf = float(1 / sr.solid_angle());
+        } else {
+          q = l.corner + l.edge_u * u2 + l.edge_v * u3;
+          pdf = -1;  // area pdf, converted below
+        }
+        nl = l.normal;
+      } else if (l.shape == AreaShape::kSphere) {
+        const Vec3 d = l.center - p;
+        const float d2 = LengthSquared(d), r2 = l.radius * l.radius;
+        if (d2 > r2) {
+          if (l.flip) return false;
+          // Cone of directions towards the sphere; 1 - cos_max = sin^2 / (1 + cos) stays exact
+          // for a small far sphere.
+          const float dist = std::sqrt(d2);
+          const float sin2_max = r2 / d2;
+          const float cos_max = std::sqrt(std::max(0.0f, 1 - sin2_max));
+          const float one_minus = sin2_max / (1 + cos_max);
+          const float x = u2 * one_minus;  // 1 - cos(theta), uniform in solid angle
+          const float sin_t = std::sqrt(std::max(0.0f, x * (2 - x)));
+          const float cos_t = 1 - x;
+          const float phi = 2 * kPi * u3;
+          const Vec3 w = d / dist;
+          Vec3 a, b;
+          MakeFrame(w, &a, &b);
+          const Vec3 dir =
+              Normalize(a * (sin_t * std::cos(phi)) + b * (sin_t * std::sin(phi)) + w * cos_t);
+          // Nearest intersection with the sphere (grazing rays clamp to the tangent point).
+          const float bq = Dot(dir, d);
+          const float disc = std::max(0.0f, bq * bq - (d2 - r2));
+          const float t = bq - std::sqrt(disc);
+          q = p + dir * t;
+          nl = Normalize(q - l.center);
+          pdf = 1 / (2 * kPi * one_minus);
+        } else {
+          if (!l.flip) return false;
+          const Vec3 d2v = UniformSphere(u2, u3);
+          q = l.center + d2v * l.radius;
+          nl = -d2v;
+          pdf = -1;
+        }
+      } else {
+        const float target = u1 * l.area;
+        size_t ti = size_t(std::upper_bound(l.cdf.begin(), l.cdf.end(), target) - l.cdf.begin());
+        ti = std::min(ti, l.cdf.size() - 1);
+        const LightTriangle& t = l.triangles[ti];
+        if (t.area <= 0 || Dot(p - t.p0, t.ng) <= 0) return false;
+        const float pick = t.area / l.area;
+        SphericalTriangle st;
+        float b1, b2;
+        if (st.Init(p, t.p0, t.p1, t.p2)) {
+          const Vec3 dir = st.Sample(u2, u3);
+          const float dn = Dot(dir, t.ng);
+          if (!(dn < 0)) return false;
+          const float tt = Dot(t.p0 - p, t.ng) / dn;
+          q = p + dir * tt;
+          // Barycentrics of q for the shading normal.
+          const Vec3 e1 = t.p1 - t.p0, e2 = t.p2 - t.p0, dq = q - t.p0;
+          const Vec3 c = Cross(e1, e2);
+          const float inv = 1 / LengthSquared(c);
+          b1 = std::clamp(Dot(Cross(dq, e2), c) * inv, 0.0f, 1.0f);
+          b2 = std::clamp(Dot(Cross(e1, dq), c) * inv, 0.0f, 1.0f);
+          pdf = pick * float(1 / st.solid_angle());
+        } else {
+          float b0;
+          UniformTriangle(u2, u3, &b0, &b1);
+          b2 = 1 - b0 - b1;
+          q = t.p0 * b0 + t.p1 * b1 + t.p2 * b2;
+          pdf = -pick * l.area / t.area;  // negative: area pdf 1/area_t, converted below
+        }
+        const Vec3 ns = t.n0 * (1 - b1 - b2) + t.n1 * b1 + t.n2 * b2;
+        nl = LengthSquared(ns) > 0 ? Normalize(ns) : t.ng;
+        scale = t.error_scale;
+      }
+      const Vec3 d = q - p;
+      const float dist2 = LengthSquared(d);
+      if (!(dist2 > 0)) return false;
+      const float dist = std::sqrt(dist2);
+      s->wi = d / dist;
+      const float cos_l = -Dot(s->wi, nl);
+      if (cos_l <= 0) return false;  // back side emits nothing
+      if (pdf < 0) pdf = -pdf * AreaToSolidAngle(dist2, cos_l, l.area);
+      if (!(pdf > 0) || !std::isfinite(pdf)) return false;
+      s->distance = dist;
+      s->pdf = pdf;
+      s->value = l.radiance / pdf;
+      s->light_point = q;
+      s->light_normal = nl;
+      s->light_error_scale = scale;
+      return true;
+    }
+    case LightType::kPoint:
+    case LightType::kSpot: {
+      const Vec3 d = l.position - p;
+      const float dist2 = LengthSquared(d);
+      if (!(dist2 > 0)) return false;
+      const float dist = std::sqrt(dist2);
+      s->wi = d / dist;
+      s->distance = dist;
+      s->pdf = 0;
+      const float falloff = l.type == LightType::kSpot ? SpotFalloff(l, s->wi) : 1.0f;
+      if (falloff <= 0) return false;
+      s->value = l.intensity * (falloff / dist2);
+      s->light_point = l.position;
+      s->light_normal = -s->wi;
+      s->light_error_scale = 0;
+      return true;
+    }
+    case LightType::kDirectional:
+      s->wi = -l.direction;
+      s->distance = INFINITY;
+      s->pdf = 0;
+      s->value = l.intensity;
+      return true;
+    case LightType::kConstant:
+    case LightType::kEnvmap:
+      return false;
+  }
+  return false;
+}
+
+float LightSampler::PdfOne(int i, const Vec3& p, const Vec3& q, const Vec3& nq, unsigned prim,
+                           const Vec3& wi) const {
+  const Light& l = lights_[i];
+  if (l.type != LightType::kArea) return 0;
+  const float cos_l = -Dot(wi, nq);
+  if (cos_l <= 0) return 0;
+  const float dist2 = LengthSquared(q - p);
+  if (l.shape == AreaShape::kRect) {
+    if (Dot(p - l.corner, l.normal) <= 0) return 0;
+    SphericalRect sr;
+    if (sr.Init(p, l.corner, l.edge_u, l.edge_v)) return float(1 / sr.solid_angle());
+    return AreaToSolidAngle(dist2, cos_l, l.area);
+  }
+  if (l.shape == AreaShape::kSphere) {
+    const Vec3 d = l.center - p;
+    const float d2 = LengthSquared(d), r2 = l.radius * l.radius;
+    if (d2 > r2) {
+      if (l.flip) return 0;
+      const float sin2_max = r2 / d2;
+      const float cos_max = std::sqrt(std::max(0.0f, 1 - sin2_max));
+      return 1 / (2 * kPi * (sin2_max / (1 + cos_max)));
+    }
+    return l.flip ? AreaToSolidAngle(dist2, cos_l, l.area) : 0;
+  }
+  if (prim >= l.triangles.size()) return 0;
+  const LightTriangle& t = l.triangles[prim];
+  if (t.area <= 0 || Dot(p - t.p0, t.ng) <= 0) return 0;
+  const float pick = t.area / l.area;
+  SphericalTriangle st;
+  if (st.Init(p, t.p0, t.p1, t.p2)) return pick * float(1 / st.solid_angle());
+  return pick * AreaToSolidAngle(dist2, cos_l, t.area);
+}
+
+float LightSampler::EnvironmentWeight(const Vec3& n) const {
+  if (!has_environment()) return 0;
+  Vec3 avg;
+  for (size_t i = size_t(num_local_); i < lights_.size(); ++i) avg += lights_[i].average_radiance;
+  // Irradiance of a uniform sky on a surface (pi L); a point with no normal sees the sphere.
+  return Luminance(avg) * (HasNormal(n) ? kPi : 4 * kPi) + 1e-30f;
+}
+
+float LightSampler::SelectPdf(const Vec3& p, const Vec3& n, int index) const {
+  const int nl = num_local_;
+  const bool env = has_environment();
+  if (nl > kMaxSpatialLights) {  // uniform among local lights and the environment
+    return 1.0f / float(nl + (env ? 1 : 0));
+  }
+  float total = 0, mine = 0;
+  for (int i = 0; i < nl; ++i) {
+    const float w = Weight(i, p, n);
+    total += w;
+    if (i == index) mine = w;
+  }
+  if (env) {
+    const float w = EnvironmentWeight(n);
+    total += w;
+    if (index == nl) mine = w;
+  }
+  return total > 0 ? mine / total : 0;
+}
+
+bool LightSampler::Sample(const Vec3& p, const Vec3& n, float u1, float u2, float u3,
+                          bool include_env, LightSample* s, int* skipped) const {
+  const int nl = num_local_;
+  const bool env = include_env && has_environment();
+  const int count = nl + (env ? 1 : 0);
+  if (count == 0) return false;
+  int chosen = -1;
+  float psel = 0, u1r = 0;
+  if (nl > kMaxSpatialLights) {
+    chosen = std::min(count - 1, int(u1 * float(count)));
+    psel = 1.0f / float(count);
+    u1r = u1 * float(count) - float(chosen);
+  } else {
+    float w[kMaxSpatialLights + 1];
+    float total = 0;
+    int zero = 0;
+    for (int i = 0; i < nl; ++i) {
+      w[i] = Weight(i, p, n);
+      zero += w[i] <= 0;
+      total += w[i];
+    }
+    if (env) {
+      w[nl] = EnvironmentWeight(n);
+      total += w[nl];
+    }
+    if (skipped) *skipped += zero;
+    if (!(total > 0)) return false;
+    const float target = u1 * total;
+    float acc = 0;
+    for (int i = 0; i < count; ++i) {
+      if (w[i] <= 0) continue;
+      chosen = i;
+      if (target < acc + w[i]) break;
+      acc += w[i];
+    }
+    psel = w[chosen] / total;
+    u1r = std::clamp((target - acc) / w[chosen], 0.0f, 0x1.fffffep-1f);
+  }
+  if (chosen == nl) {  // the environment
+    if (HasNormal(n)) {
+      Vec3 a, b;
+      MakeFrame(n, &a, &b);
+      const Vec3 local = CosineHemisphere(u2, u3);
+      s->wi = a * local.x + b * local.y + n * local.z;
+    } else {
+      s->wi = UniformSphere(u2, u3);
+    }
+    s->distance = INFINITY;
+    s->pdf = psel * (HasNormal(n) ? std::max(0.0f, Dot(s->wi, n)) * kInvPi : 0.25f * kInvPi);
+    if (!(s->pdf > 0)) return false;
+    s->value = EvalEnvironment(s->wi) / s->pdf;
+    s->light = -1;
+    return !IsBlack(s->value);
+  }
+  if (!SampleOne(chosen, p, u1r, u2, u3, s)) return false;
+  s->pdf *= psel;
+  s->value = s->value / psel;
+  return true;
+}
+
+float LightSampler::PdfArea(const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
+                            unsigned prim, const Vec3& wi) const {
+  if (light < 0 || light >= num_local_) return 0;
+  const float one = PdfOne(light, p, q, nq, prim, wi);
+  return one > 0 ? one * SelectPdf(p, n, light) : 0;
+}
+
+float LightSampler::PdfEnvironment(const Vec3& p, const Vec3& n, const Vec3& wi) const {
+  if (!has_environment()) return 0;
+  const float dir = HasNormal(n) ? std::max(0.0f, Dot(wi, n)) * kInvPi : 0.25f * kInvPi;
+  return dir > 0 ? dir * SelectPdf(p, n, num_local_) : 0;
+}
+
+Vec3 LightSampler::EvalEnvironment(const Vec3& d) const {
+  Vec3 L;
+  for (size_t i = size_t(num_local_); i < lights_.size(); ++i) {
+    const Light& l = lights_[i];
+    if (l.type == LightType::kConstant) {
+      L += l.radiance;
+    } else {
+      const Vec3 v = Normalize(l.world_to_env.ApplyVector(d));
+      const float u = std::atan2(v.x, -v.z) * (0.5f * kInvPi);
+      const float w = std::acos(std::clamp(v.y, -1.0f, 1.0f)) * kInvPi;
+      L += l.envmap->Eval(u - std::floor(u), w) * l.scale;
+    }
+  }
+  return L;
+}
+
+}  // namespace irfarm

@@ -1,0 +1,79 @@
+// Picks and samples the scene's lights as seen from a shading point (p, n).
+//
+// Selection: each light gets a weight, an estimate of its unoccluded contribution at p (power,
+// distance, orientation, the spot's cone; for rectangles the exact unoccluded irradiance by
+// Lambert's formula); lights that cannot reach p (behind p's horizon, p behind their emitting
+// side, outside a spot's cone) get weight 0 and so no sample and no shadow ray. With more than
+// kMaxSpatialLights local lights the weights are not evaluated per point (that would cost
+// O(lights) per sample) and the choice is uniform.
+//
+// Sampling one light: rectangles by solid angle (spherical rectangles), spheres by their cone of
+// directions, emissive meshes by a triangle picked by area and then sampled by solid angle
+// (spherical triangles); by area only where the solid angle is too small to sample that way
+// (far away, where the area pdf is harmless). The environment (all constant + envmap lights
+// together) is sampled cosine-weighted around n (uniformly over the sphere when n is zero).
+//
+// n may be the zero vector: no horizon test (points that also transmit light).
+#pragma once
+
+#include <vector>
+
+#include "render/light.h"
+
+namespace irfarm {
+
+class LightSampler {
+ public:
+  static constexpr int kMaxSpatialLights = 64;
+
+  // `lights`: local lights first, then environment lights.
+  void Build(std::vector<Light> lights, int num_local);
+
+  const std::vector<Light>& lights() const { return lights_; }
+  int num_local() const { return num_local_; }
+  bool has_environment() const { return int(lights_.size()) > num_local_; }
+
+  // Selection weight of local light i at (p, n); 0 exactly when it cannot reach p.
+  float Weight(int i, const Vec3& p, const Vec3& n) const;
+  // Unoccluded irradiance at (p, n) from area light i when it has a closed form (rectangles),
+  // else a negative value. n must be a unit normal.
+  Vec3 AnalyticIrradiance(int i, const Vec3& p, const Vec3& n) const;
+
+  // Samples local light i alone from p: s->pdf is the solid-angle pdf of this light alone (0 for
+  // delta lights), s->value = Le / pdf (delta lights: I / d^2, or E). False: nothing reaches p.
+  bool SampleOne(int i, const Vec3& p, float u1, float u2, float u3, LightSample* s) const;
+  // Solid-angle pdf of SampleOne(i, p, ...) giving direction wi that reaches point q (shading
+  // normal nq, triangle prim) of area light i.
+  float PdfOne(int i, const Vec3& p, const Vec3& q, const Vec3& nq, unsigned prim,
+               const Vec3& wi) const;
+
+  // Picks a light by weight (the environment too when include_env) and samples it; pdf and
+  // value include the selection probability. *skipped (if given) counts the local lights that
+  // got weight 0 (no shadow ray is spent on them).
+  bool Sample(const Vec3& p, const Vec3& n, float u1, float u2, float u3, bool include_env,
+              LightSample* s, int* skipped = nullptr) const;
+  // Probability that Sample(p, n, ..., include_env = true) picks local light `index`, or the
+  // environment for index == num_local().
+  float SelectionProbability(const Vec3& p, const Vec3& n, int index) const {
+    return SelectPdf(p, n, index);
+  }
+  // Solid-angle pdf, including selection, of Sample(p, n, ..., include_env = true) having
+  // produced direction wi towards point q of area light `light`.
+  float PdfArea(const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
+                unsigned prim, const Vec3& wi) const;
+  // ... and of it having produced the environment direction wi.
+  float PdfEnvironment(const Vec3& p, const Vec3& n, const Vec3& wi) const;
+
+  // Radiance from the environment lights (constant + envmap) along direction d.
+  Vec3 EvalEnvironment(const Vec3& d) const;
+
+ private:
+  // Selection probability of candidate `index` (num_local_ = the environment).
+  float SelectPdf(const Vec3& p, const Vec3& n, int index) const;
+  float EnvironmentWeight(const Vec3& n) const;
+
+  std::vector<Light> lights_;
+  int num_local_ = 0;
+};
+
+}  // namespace irfarm
