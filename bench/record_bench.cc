@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "render/bsdf.h"
+#include "render/bsdfs/bsdf.h"
 #include "render/irrcache_integrator.h"
 #include "render/renderer.h"
 #include "render/sampling.h"
@@ -69,8 +69,12 @@ std::unique_ptr<Fixture> MakeFixture(const std::string& name, int grid) {
           cam.Direction((gx + 0.5f) * cam.width() / grid, (gy + 0.5f) * cam.height() / grid);
       RecordPoint p;
       if (!f->scene->Intersect(Ray{cam.origin(), dir, INFINITY}, &p.hit)) continue;
-      const Material& m = f->scene->material(p.hit.material);
-      if (m.IsDelta() || !FacingNormal(m, p.hit.ns, -dir, &p.nf)) continue;
+      // Points with a diffuse lobe seen from its front (where records are made).
+      const Bsdf& m = f->scene->material(p.hit.material);
+      const ShadingFrame frame(p.hit.ns);
+      const Vec3 wo_l = frame.ToLocal(-dir);
+      if (IsBlack(m.DiffuseAlbedo(BsdfContext{p.hit.u, p.hit.v}, wo_l))) continue;
+      p.nf = wo_l.z >= 0 ? p.hit.ns : -p.hit.ns;
       p.pixel_spread = cam.PixelSpread(p.hit.t);
       f->points.push_back(p);
     }

@@ -12,27 +12,37 @@ namespace irfarm {
 class Camera {
  public:
   Camera() = default;
-  explicit Camera(const CameraDesc& d) : width_(d.width), height_(d.height) {
+  explicit Camera(const CameraDesc& d)
+      : width_(d.width),
+        height_(d.height),
+        film_w_(d.film_width > 0 ? d.film_width : d.width),
+        film_h_(d.film_height > 0 ? d.film_height : d.height),
+        crop_x_(float(d.crop_x)),
+        crop_y_(float(d.crop_y)) {
     origin_ = d.to_world.ApplyPoint(Vec3(0, 0, 0));
     forward_ = Normalize(d.to_world.ApplyVector(Vec3(0, 0, 1)));
     right_ = Normalize(d.to_world.ApplyVector(Vec3(-1, 0, 0)));
     up_ = Normalize(d.to_world.ApplyVector(Vec3(0, 1, 0)));
     tan_x_ = std::tan(d.fov_x_deg * kPi / 360.0f);
-    tan_y_ = tan_x_ * float(height_) / float(width_);
+    tan_y_ = tan_x_ * float(film_h_) / float(film_w_);
   }
-  // Unit direction of the ray through film point (x, y) in pixels.
+  // Unit direction of the ray through image point (x, y) in pixels (of the crop window).
   Vec3 Direction(float x, float y) const {
-    return Normalize(forward_ + right_ * ((2 * x / width_ - 1) * tan_x_) +
-                     up_ * ((1 - 2 * y / height_) * tan_y_));
+    x += crop_x_;
+    y += crop_y_;
+    return Normalize(forward_ + right_ * ((2 * x / film_w_ - 1) * tan_x_) +
+                     up_ * ((1 - 2 * y / film_h_) * tan_y_));
   }
   const Vec3& origin() const { return origin_; }
   int width() const { return width_; }
   int height() const { return height_; }
   // Width of one pixel's footprint on a surface at distance d straight ahead (scene units).
-  float PixelSpread(float distance) const { return distance * 2 * tan_x_ / width_; }
+  float PixelSpread(float distance) const { return distance * 2 * tan_x_ / film_w_; }
 
  private:
   int width_ = 1, height_ = 1;
+  int film_w_ = 1, film_h_ = 1;
+  float crop_x_ = 0, crop_y_ = 0;
   Vec3 origin_, forward_{0, 0, 1}, right_{-1, 0, 0}, up_{0, 1, 0};
   float tan_x_ = 1, tan_y_ = 1;
 };

@@ -120,27 +120,31 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
   return L;
 }
 
-bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* L,
-                                     Vec3* beta, SurfaceHit* hit, Vec3* nf, int* depth,
+bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* beta,
+                                     SurfaceHit* hit, Vec3* nf, int* depth,
                                      float* distance) const {
   const int max_depth = settings_.path.max_depth;
   *distance = 0;
   for (*depth = 1; *depth <= kMaxSpecularChain; ++*depth) {
-    if (!scene_.Intersect(ray, hit)) {
-      if (L) *L += *beta * scene_.EvalEnvironment(ray.dir);
-      return false;
-    }
+    if (!scene_.Intersect(ray, hit)) return false;
     *distance += hit->t;
     const Vec3 wo = -ray.dir;
-    if (L && hit->light >= 0) *L += *beta * scene_.Emitted(*hit, wo);
     if (max_depth >= 0 && *depth >= max_depth) return false;
-    const Material& mat = scene_.material(hit->material);
-    if (!FacingNormal(mat, hit->ns, wo, nf)) return false;
-    if (!mat.IsDelta()) return true;
-    const BsdfSample bs = SampleDelta(mat, hit->ns, wo, rng.Next());
+    const Bsdf& bsdf = scene_.material(hit->material);
+    const BsdfContext ctx{hit->u, hit->v};
+    const ShadingFrame frame(hit->ns);
+    const Vec3 wo_l = frame.ToLocal(wo);
+    if (!IsBlack(bsdf.DiffuseAlbedo(ctx, wo_l))) {
+      *nf = wo_l.z >= 0 ? hit->ns : -hit->ns;
+      return true;
+    }
+    const BsdfSample bs =
+        bsdf.Sample(ctx, wo_l, rng.Next(), rng.Next(), rng.Next(), kNonDiffuseLobes);
+    if (IsBlack(bs.weight)) return false;
+    const Vec3 wi = frame.ToWorld(bs.wi);
+    if (!SidesAgree(wo, wi, hit->ng, wo_l.z, bs.wi.z)) return false;
     *beta *= bs.weight;
-    if (IsBlack(*beta)) return false;
-    ray = Scene::SpawnRay(hit->p, hit->ng, hit->error_scale, bs.wi);
+    ray = Scene::SpawnRay(hit->p, hit->ng, hit->error_scale, wi);
     ++counters.bounce_rays;
   }
   return false;
@@ -189,8 +193,8 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   r.irradiance = sum * (kPi / float(n));
   if (half_difference) {
     const int n0 = (n + 1) / 2, n1 = n / 2;
-    *half_difference =
-        half_sum[0] * (kPi / float(std::max(1, n0))) - half_sum[1] * (kPi / float(std::max(1, n1)));
+    *half_difference = half_sum[0] * (kPi / float(std::max(1, n0))) -
+                       half_sum[1] * (kPi / float(std::max(1, n1)));
   }
   const float a = settings_.accuracy;
   // Harmonic mean distance, then clamps on the validity radius a*R in pixel footprints at x.
@@ -230,59 +234,180 @@ Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int d
   return r.irradiance;
 }
 
-Vec3 IrrcacheIntegrator::Li(const Ray& ray, const LightStrata& strata, Rng& rng,
+Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rng& rng,
                             RenderCounters& counters, IrrcacheShade* shade,
                             DirectTerms* terms, SampleAov* aov) const {
+  // The camera path: through delta and glossy lobes (path traced, light sampled with MIS at
+  // glossy vertices), and at every vertex with a diffuse lobe that lobe is shaded from the
+  // cache (ShadeDiffuse). A scene without glossy or delta materials makes one vertex per path.
+  // The pixel's direct-light terms (`terms`, the per-pixel shadow ratio) collect only the first
+  // diffuse vertex reached through delta lobes; later ones resolve their ratio per sample.
   Vec3 L, beta(1, 1, 1);
-  SurfaceHit hit;
-  Vec3 nf;
-  int depth;
-  float distance;
-  if (!FindDiffuse(ray, rng, counters, &L, &beta, &hit, &nf, &depth, &distance)) {
-    if (aov) *aov = SampleAov{L, L, Vec3(), Vec3(), Vec3(), 0};
-    return L;
-  }
   const int max_depth = settings_.path.max_depth;
-  const Material& mat = scene_.material(hit.material);
-  const Vec3 albedo = mat.Albedo(hit.u, hit.v);
-  const Vec3 wo = -ray.dir;
-  if (aov) *aov = SampleAov{L, Vec3(), Vec3(), beta * albedo, nf, distance};
+  float prev_pdf = 0;  // pdf of the glossy sample that made `ray`; 0 = delta lobe or camera
+  Vec3 prev_p, prev_n;  // the previous vertex and its facing normal (light selection)
+  bool prev_glossy = false;  // a diffuse or glossy vertex lies before this one
+  // AOVs: the first vertex with a diffuse lobe (-1: not reached); what comes before it and its
+  // direct light (and light its glossy sample hits) is direct, its cached term and everything
+  // after is indirect.
+  int first_diffuse = -1;
+  if (aov) *aov = SampleAov{};
+  const auto add = [&](const Vec3& c, int d, bool cached) {
+    L += c;
+    if (!aov) return;
+    if (first_diffuse < 0) aov->emission += c;
+    const bool direct = !cached && (first_diffuse < 0 || d <= first_diffuse + 1);
+    (direct ? aov->direct : aov->indirect) += c;
+  };
+  float distance = 0;
+  Ray ray = camera_ray;
+  for (int depth = 1; depth <= kMaxSpecularChain; ++depth) {
+    SurfaceHit hit;
+    if (!scene_.Intersect(ray, &hit)) {
+      if (scene_.has_environment()) {
+        const float w = prev_pdf == 0 ? 1.0f : PowerHeuristic(prev_pdf, scene_.PdfEnvironment(prev_p, prev_n, ray.dir));
+        add(beta * scene_.EvalEnvironment(ray.dir) * w, depth, false);
+      }
+      break;
+    }
+    distance += hit.t;
+    const Vec3 wo = -ray.dir;
+    if (hit.light >= 0) {
+      const Vec3 le = scene_.Emitted(hit, wo);
+      if (!IsBlack(le)) {
+        const float w = prev_pdf == 0
+                            ? 1.0f
+                            : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, prev_n, hit, ray.dir));
+        add(beta * le * w, depth, false);
+      }
+    }
+    if (max_depth >= 0 && depth >= max_depth) break;
+    const Bsdf& bsdf = scene_.material(hit.material);
+    const BsdfContext ctx{hit.u, hit.v};
+    const ShadingFrame frame(hit.ns);
+    const Vec3 wo_l = frame.ToLocal(wo);
+    const Vec3 albedo = bsdf.DiffuseAlbedo(ctx, wo_l);
+    if (!IsBlack(albedo)) {
+      const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;
+      if (aov && first_diffuse < 0) {
+        first_diffuse = depth;
+        aov->albedo = beta * albedo;
+        aov->normal = nf;
+        aov->depth = distance;
+      }
+      Vec3 cached;
+      const Vec3 shaded = ShadeDiffuse(hit, nf, wo, beta, albedo, depth, distance, strata, rng,
+                                       counters, shade, prev_glossy ? nullptr : terms, &cached);
+      add(shaded - cached, depth, false);
+      add(cached, depth, true);
+      prev_glossy = true;  // later diffuse vertices do not share the pixel's ratio terms
+    }
+    if (!bsdf.HasNonDiffuse()) break;
+    if (max_depth >= 0 && depth + 1 > max_depth) break;
+    const bool glossy = (bsdf.Flags() & (kGlossyReflection | kGlossyTransmission)) != 0;
+    if (glossy) {
+      prev_glossy = true;
+      ++counters.glossy_bounces;
+      add(beta * GlossyDirect(bsdf, ctx, frame, hit, wo, wo_l, rng, counters), depth, false);
+    }
+    const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+    const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3, kNonDiffuseLobes);
+    if (IsBlack(bs.weight)) break;
+    const Vec3 wi = frame.ToWorld(bs.wi);
+    if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) break;
+    beta *= bs.weight;
+    if (IsBlack(beta)) break;
+    if (bs.lobe == kNullTransmission) {  // passed through a mask: MIS state unchanged
+      ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
+      continue;
+    }
+    if (depth >= settings_.path.rr_depth) {
+      const float q = std::min(MaxComponent(beta), 0.95f);
+      if (rng.Next() >= q) break;
+      beta /= q;
+    }
+    prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
+    prev_p = hit.p;
+    prev_n = wo_l.z >= 0 ? hit.ns : -hit.ns;
+    ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
+    ++counters.bounce_rays;
+  }
+  return L;
+}
+
+// Direct light through the non-diffuse (glossy) lobes at a camera-path vertex: one light sample
+// over all lights (environment included: the cache serves only the diffuse lobe), MIS-weighted
+// against the glossy sample that continues the path.
+Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
+                                      const ShadingFrame& frame, const SurfaceHit& hit,
+                                      const Vec3& wo, const Vec3& wo_l, Rng& rng,
+                                      RenderCounters& counters) const {
+  LightSample ls;
+  const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+  const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;  // as prev_n in Li (light selection)
+  int skipped = 0;
+  const bool sampled = scene_.SampleLight(hit.p, nf, u1, u2, u3, true, &ls, &skipped);
+  counters.lights_skipped += uint64_t(skipped);
+  if (!sampled) return Vec3();
+  const Vec3 wi_l = frame.ToLocal(ls.wi);
+  if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return Vec3();
+  const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l, kNonDiffuseLobes);
+  if (IsBlack(f)) return Vec3();
+  ++counters.shadow_rays;
+  if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) return Vec3();
+  const float w =
+      ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l, kNonDiffuseLobes));
+  return f * ls.value * w;
+}
+
+// The diffuse lobe at x, weighted by the path throughput beta: direct light from local lights
+// (DirectLight, Lambertian with the lobe's albedo; for plastic that takes the Fresnel
+// transmission towards the light as its hemispherical average, see plastic.cc), plus the cached
+// indirect irradiance times albedo / pi.
+Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
+                                      const Vec3& beta, const Vec3& albedo, int depth,
+                                      float distance, const LightStrata& strata, Rng& rng,
+                                      RenderCounters& counters, IrrcacheShade* shade,
+                                      DirectTerms* terms, Vec3* cached) const {
+  Vec3 L;
+  *cached = Vec3();
+  const int max_depth = settings_.path.max_depth;
   // Direct light from local lights, always explicit.
   if (max_depth < 0 || depth + 1 <= max_depth)
     L += DirectLight(hit, nf, wo, beta * albedo * kInvPi, strata, rng, counters, terms);
-  if (aov) aov->direct = L;  // AOV split: all above is direct, the cached term below indirect
   // Indirect irradiance from the cache.
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;
     const Vec3 E = Irradiance(hit, nf, depth, distance, true, rng, counters, &made);
-    if (shade) shade->made_record = made;
-    const Vec3 indirect = beta * albedo * E * kInvPi;
-    L += indirect;
-    if (aov) aov->indirect = indirect;
+    if (shade) shade->made_record = shade->made_record || made;
+    *cached = beta * albedo * E * kInvPi;
+    L += *cached;
   }
   return L;
 }
 
 bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& counters,
                                     double* error) const {
-  Vec3 beta(1, 1, 1), L;
+  Vec3 beta(1, 1, 1);
   SurfaceHit hit;
   Vec3 nf;
   int depth;
   float distance;
-  if (!FindDiffuse(ray, rng, counters, &L, &beta, &hit, &nf, &depth, &distance)) return false;
+  if (!FindDiffuse(ray, rng, counters, &beta, &hit, &nf, &depth, &distance)) return false;
   const int max_depth = settings_.path.max_depth;
   if (!(max_depth < 0 || depth + 2 <= max_depth)) return false;
   Vec3 interp;
   LookupInfo info;
   if (!cache_->Lookup(hit.p, nf, settings_.accuracy, &interp, &info)) return false;
   Vec3 half_diff;
-  const IrradianceRecord fresh = ComputeRecord(
-      hit, nf, depth, scene_.camera().PixelSpread(distance), rng, counters, &half_diff);
-  const Material& mat = scene_.material(hit.material);
-  const Vec3 w = beta * mat.Albedo(hit.u, hit.v) * kInvPi;
+  const IrradianceRecord fresh = ComputeRecord(hit, nf, depth, scene_.camera().PixelSpread(distance),
+                                               rng, counters, &half_diff);
+  const Bsdf& bsdf = scene_.material(hit.material);
+  const ShadingFrame frame(hit.ns);
+  const Vec3 w = beta * bsdf.DiffuseAlbedo(BsdfContext{hit.u, hit.v}, frame.ToLocal(-ray.dir)) *
+                 kInvPi;
   const Vec3 direct = DirectLight(hit, nf, -ray.dir, w, LightStrata{}, rng, counters, nullptr);
-  const Vec3 v = L + direct + w * interp;
+  const Vec3 v = direct + w * interp;  // the point's radiance (emission on the way left out)
   double e = 0;
   for (int c = 0; c < 3; ++c) {
     const double d = double(w[c]) * (double(interp[c]) - double(fresh.irradiance[c]));
@@ -300,7 +425,7 @@ bool IrrcacheIntegrator::Prime(const Ray& ray, Rng& rng, RenderCounters& counter
   Vec3 nf;
   int depth;
   float distance;
-  if (!FindDiffuse(ray, rng, counters, nullptr, &beta, &hit, &nf, &depth, &distance)) return false;
+  if (!FindDiffuse(ray, rng, counters, &beta, &hit, &nf, &depth, &distance)) return false;
   const int max_depth = settings_.path.max_depth;
   if (!(max_depth < 0 || depth + 2 <= max_depth)) return false;
   bool made = false;

@@ -117,16 +117,23 @@ class IrrcacheIntegrator {
   int strata_phi() const { return strata_p_; }
 
  private:
-  // Follows `ray` through delta surfaces to the first diffuse hit; adds emission seen on the way
-  // to *L (if L is given) weighted by *beta. Returns false when the path ends before that.
-  bool FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* L, Vec3* beta,
-                   SurfaceHit* hit, Vec3* nf, int* depth, float* distance) const;
+  // Follows `ray` through non-diffuse lobes (one sample each) to the first hit with a diffuse
+  // lobe. Returns false when the path ends before that.
+  bool FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* beta, SurfaceHit* hit,
+                   Vec3* nf, int* depth, float* distance) const;
   // Direct light at a diffuse point: every local light that can reach it (up to
   // kAllLightsMax lights; beyond, lights picked by expected contribution), each sampled by
   // solid angle; `weight` = path throughput * albedo / pi.
   Vec3 DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo, const Vec3& weight,
                    const LightStrata& strata, Rng& rng, RenderCounters& counters,
                    DirectTerms* terms) const;
+  Vec3 ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo, const Vec3& beta,
+                    const Vec3& albedo, int depth, float distance, const LightStrata& strata,
+                    Rng& rng, RenderCounters& counters, IrrcacheShade* shade,
+                    DirectTerms* terms, Vec3* cached) const;
+  Vec3 GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx, const ShadingFrame& frame,
+                    const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_l, Rng& rng,
+                    RenderCounters& counters) const;
   Vec3 Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth, float distance, bool relax,
                   Rng& rng, RenderCounters& counters, bool* made) const;
 

@@ -47,61 +47,59 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
         add(beta * le * w, depth);
       }
     }
+    const bool was_first = first;
     first = false;
     if (settings.max_depth >= 0 && depth >= settings.max_depth) break;
-    const Material& mat = scene.material(hit.material);
-    Vec3 nf;
-    if (!FacingNormal(mat, hit.ns, wo, &nf)) break;  // one-sided surface seen from the back
-
-    Vec3 wi;
+    const Bsdf& bsdf = scene.material(hit.material);
+    const BsdfContext ctx{hit.u, hit.v};
+    const ShadingFrame frame(hit.ns);
+    const Vec3 wo_l = frame.ToLocal(wo);
     const bool can_extend = settings.max_depth < 0 || depth + 1 <= settings.max_depth;
-    if (mat.IsDelta()) {
-      const BsdfSample bs = SampleDelta(mat, hit.ns, wo, rng.Next());
-      beta *= bs.weight;
-      eta_scale *= bs.eta * bs.eta;
-      wi = bs.wi;
-      prev_pdf = 0;
-    } else {
-      const Vec3 albedo = mat.Albedo(hit.u, hit.v);
-      if (aov && diffuse_depth < 0) {
-        diffuse_depth = depth;
-        aov->albedo = beta * albedo;
-        aov->normal = nf;
-        aov->depth = path_length;
-      }
-      if (can_extend) {  // next-event estimation
-        LightSample ls;
-        const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
-        int skipped = 0;
-        const bool sampled = scene.SampleLight(hit.p, nf, u1, u2, u3, true, &ls, &skipped);
-        counters.lights_skipped += uint64_t(skipped);
-        if (sampled) {
-          const float cos_i = Dot(ls.wi, nf);
-          if (cos_i > 0 && Dot(ls.wi, hit.ng) * Dot(wo, hit.ng) > 0) {
+    if (!can_extend) break;
+    // The facing normal: the side wo is on (light selection weighs lights by it).
+    const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;
+
+    if (aov && diffuse_depth < 0 && bsdf.HasSmooth()) {  // the first non-specular surface
+      diffuse_depth = depth;
+      aov->albedo = beta * bsdf.DiffuseAlbedo(ctx, wo_l);
+      aov->normal = nf;
+      aov->depth = path_length;
+    }
+    if (bsdf.HasSmooth()) {  // next-event estimation, MIS against BSDF sampling
+      LightSample ls;
+      const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+      int skipped = 0;
+      const bool sampled = scene.SampleLight(hit.p, nf, u1, u2, u3, true, &ls, &skipped);
+      counters.lights_skipped += uint64_t(skipped);
+      if (sampled) {
+        const Vec3 wi_l = frame.ToLocal(ls.wi);
+        if (SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) {
+          const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l);
+          if (!IsBlack(f)) {
             ++counters.shadow_rays;
             if (!scene.Occluded(Scene::SpawnShadowRay(hit, ls))) {
-              const float bsdf_pdf = cos_i * kInvPi;
-              const float w = ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf_pdf);
-              add(beta * albedo * ls.value * (cos_i * kInvPi * w), depth);
+              const float w = ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l));
+              add(beta * f * ls.value * w, depth);
             }
           }
         }
       }
-      Vec3 s, t;
-      MakeFrame(nf, &s, &t);
-      const float u = rng.Next();
-      const float v = rng.Next();  // drawn in order: argument evaluation order is unspecified
-      const Vec3 local = CosineHemisphere(u, v);
-      wi = s * local.x + t * local.y + nf * local.z;
-      prev_pdf = local.z * kInvPi;
-      beta *= albedo;
     }
-    if (!can_extend) break;
-    // A direction on the other side of the geometric surface than the shading normal promised
-    // would pass through the surface: stop (reflection) unless the material transmits.
-    const bool transmits = Dot(wi, hit.ng) * Dot(wo, hit.ng) < 0;
-    if (transmits && mat.type != BsdfType::kDielectric && mat.type != BsdfType::kThinDielectric)
-      break;
+    const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+    const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3);
+    if (IsBlack(bs.weight)) break;  // failed sample, or a one-sided surface seen from the back
+    const Vec3 wi = frame.ToWorld(bs.wi);
+    // A direction on the other side of the geometric surface than the shading frame promised
+    // would pass through the surface (or be blocked by it): stop.
+    if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) break;
+    beta *= bs.weight;
+    if (bs.lobe == kNullTransmission) {  // passed through a mask: not a scattering vertex
+      first = was_first;
+      ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
+      continue;
+    }
+    eta_scale *= bs.eta * bs.eta;
+    prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
     if (IsBlack(beta)) break;
     if (depth >= settings.rr_depth) {
       const float q = std::min(MaxComponent(beta) * eta_scale, 0.95f);

@@ -102,7 +102,8 @@ std::string RenderStats::ToJson() const {
   o << "  \"cache\": {\"lookups\": " << c.lookups << ", \"hits\": " << c.lookup_hits
     << ", \"hit_rate\": " << Num(c.lookups ? double(c.lookup_hits) / double(c.lookups) : 0)
     << ", \"records_per_hit\": "
-    << Num(c.lookup_hits ? double(c.records_used) / double(c.lookup_hits) : 0) << "},\n";
+    << Num(c.lookup_hits ? double(c.records_used) / double(c.lookup_hits) : 0)
+    << ", \"glossy_bounces\": " << c.glossy_bounces << "},\n";
   o << "  \"sampling\": {\"spp_min\": " << spp_min << ", \"spp_mean\": " << Num(spp_mean)
     << ", \"spp_max\": " << spp_max << ", \"pixels_stopped_early\": " << pixels_stopped_early
     << ", \"adaptive_rounds\": " << adaptive_rounds

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstring>
 
+#include "render/bsdfs/registry.h"
 #include "render/sampling.h"
 
 namespace irfarm {
@@ -148,18 +149,24 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc) {
     if (!tex.ok()) return tex.status();
     s->textures_.push_back(std::make_unique<Texture>(std::move(*tex)));
   }
+  BsdfBuildContext bsdf_ctx;
+  bsdf_ctx.textures = &s->textures_;
+  bsdf_ctx.bsdfs = &s->materials_;
   for (const BsdfDesc& b : desc.bsdfs) {
-    Material m;
-    m.type = b.type;
-    m.twosided = b.twosided;
-    m.reflectance = b.reflectance.value;
-    if (b.reflectance.texture >= 0) m.texture = s->textures_[b.reflectance.texture].get();
-    m.specular_reflectance = b.specular_reflectance;
-    m.specular_transmittance = b.specular_transmittance;
-    m.eta = b.int_ior / b.ext_ior;
-    s->materials_.push_back(m);
+    const BsdfPlugin* plugin = FindBsdfPlugin(b.type);
+    if (plugin == nullptr)
+      return absl::InvalidArgumentError(b.loc.ToString() + ": unknown bsdf type '" + b.type + "'");
+    for (const int i : b.nested)
+      if (i < 0 || size_t(i) >= s->materials_.size())
+        return absl::InternalError(b.loc.ToString() + ": nested bsdf index out of order");
+    s->materials_.push_back(plugin->build(b, bsdf_ctx));
+    if (s->materials_.back()->Flags() & kNullTransmission) s->has_pass_through_ = true;
   }
-  if (s->materials_.empty()) s->materials_.push_back(Material());
+  if (s->materials_.empty()) {
+    BsdfDesc def;
+    def.colors["reflectance"].value = Vec3(0.5f);
+    s->materials_.push_back(FindBsdfPlugin("diffuse")->build(def, bsdf_ctx));
+  }
 
   s->rtc_scene_ = rtcNewScene(s->device_);
   // No RTC_SCENE_FLAG_ROBUST: it cost 12% of path-tracing time and changed no test image
@@ -389,6 +396,7 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
 }
 
 bool Scene::Occluded(const Ray& ray) const {
+  if (has_pass_through_) return OccludedPassThrough(ray);
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRay r;
@@ -405,6 +413,34 @@ bool Scene::Occluded(const Ray& ray) const {
   r.time = 0;
   rtcOccluded1(rtc_scene_, &ctx, &r);
   return r.tfar < 0;
+}
+
+// With masks: walk the hits along the segment; each pass-through surface lets the ray on with
+// its pass probability, decided by a hash of the ray and the hit (deterministic, so renders
+// repeat; uncorrelated between rays). The expected visibility is the product of the pass
+// probabilities, as for camera and bounce rays that sample the mask's null lobe.
+bool Scene::OccludedPassThrough(Ray ray) const {
+  const auto bits = [](float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, sizeof(u));
+    return uint64_t(u);
+  };
+  uint64_t h = HashCombine((bits(ray.origin.x) << 32) | bits(ray.origin.y),
+                           (bits(ray.origin.z) << 32) | bits(ray.dir.x + 3 * ray.dir.y + 7 * ray.dir.z));
+  for (int i = 0; i < 64; ++i) {
+    SurfaceHit hit;
+    if (!Intersect(ray, &hit)) return false;
+    const float pass = materials_[size_t(hit.material)]->PassThrough(BsdfContext{hit.u, hit.v});
+    if (!(pass > 0)) return true;
+    h = HashCombine(h, (uint64_t(hit.geom) << 32) | hit.prim);
+    if (Rng::ToUnitFloat(uint32_t(h >> 32)) >= pass) return true;
+    const Ray next = SpawnRay(hit.p, hit.ng, hit.error_scale, ray.dir);
+    const float used = Length(next.origin - ray.origin);
+    if (!(ray.tmax - used > 0)) return false;
+    ray.tmax = std::isfinite(ray.tmax) ? ray.tmax - used : INFINITY;
+    ray.origin = next.origin;
+  }
+  return true;
 }
 
 Ray Scene::SpawnRay(const Vec3& p, const Vec3& ng, float s, const Vec3& dir) {

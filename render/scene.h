@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "render/bsdf.h"
+#include "render/bsdfs/bsdf.h"
 #include "render/camera.h"
 #include "render/light_sampler.h"
 #include "render/scene_desc.h"
@@ -85,7 +85,7 @@ class Scene {
   Vec3 Emitted(const SurfaceHit& hit, const Vec3& wo) const;
 
   const Camera& camera() const { return camera_; }
-  const Material& material(int i) const { return materials_[i]; }
+  const Bsdf& material(int i) const { return *materials_[size_t(i)]; }
   const std::vector<Light>& lights() const { return lights_.lights(); }
   const LightSampler& light_sampler() const { return lights_; }
   bool has_environment() const { return lights_.has_environment(); }
@@ -117,13 +117,15 @@ class Scene {
     int material = 0;
     int light = -1;
   };
+  bool OccludedPassThrough(Ray ray) const;
 
   RTCDevice device_ = nullptr;
   RTCScene rtc_scene_ = nullptr;
   std::vector<Mesh> meshes_;  // indexed by Embree geometry id
   std::vector<std::unique_ptr<Texture>> textures_;
-  std::vector<Material> materials_;
+  std::vector<std::unique_ptr<Bsdf>> materials_;  // SceneDesc::bsdfs, built
   LightSampler lights_;  // local lights first, then environment lights
+  bool has_pass_through_ = false;  // some material lets rays through (mask): see Occluded
   Camera camera_;
   Bounds3 bounds_;
   SceneStatsCounts counts_;

@@ -23,7 +23,10 @@ struct CameraDesc {
   Mat4 to_world;         // camera space: +z forward, +y up, +x image left (Mitsuba)
   float fov_x_deg = 45;  // horizontal field of view over the whole image, after fov_axis
   float near_clip = 0.01f, far_clip = 1e4f;  // accepted, not used for clipping
-  int width = 768, height = 576;
+  int width = 768, height = 576;  // the rendered image: the film's crop window (all of it)
+  // hdrfilm's crop_*: the full film is film_width x film_height (0 = width x height) and the
+  // image is its window at (crop_x, crop_y), as Mitsuba 3 renders it.
+  int film_width = 0, film_height = 0, crop_x = 0, crop_y = 0;
   int spp = 4;  // sampler sample_count
   SourceLoc loc;
 };
@@ -51,17 +54,33 @@ struct ColorParam {
   int texture = -1;  // >= 0: use textures[texture] instead of value
 };
 
-enum class BsdfType { kDiffuse, kConductor, kDielectric, kThinDielectric };
-
+// One <bsdf> element, described generically: its plugin name and every parameter the plugin
+// read (with defaults filled in), by parameter name. Only render/bsdfs/<type>.cc interprets
+// them (see render/bsdfs/registry.h); the scene hash hashes them all.
 struct BsdfDesc {
   std::string id;
-  BsdfType type = BsdfType::kDiffuse;
-  bool twosided = false;                 // set by a `twosided` wrapper
-  ColorParam reflectance;                // diffuse
-  Vec3 specular_reflectance{1, 1, 1};    // conductor, dielectric, thindielectric
-  Vec3 specular_transmittance{1, 1, 1};  // dielectric, thindielectric
-  float int_ior = 1.5046f, ext_ior = 1.000277f;
+  std::string type = "diffuse";               // Mitsuba plugin name
+  std::map<std::string, float> floats;        // numbers, iors, booleans (0 / 1)
+  std::map<std::string, std::string> strings;
+  std::map<std::string, ColorParam> colors;   // rgb values or bitmap textures
+  std::vector<int> nested;                    // nested bsdfs: indices into SceneDesc::bsdfs
   SourceLoc loc;
+
+  float Float(const std::string& name, float def) const {
+    const auto it = floats.find(name);
+    return it == floats.end() ? def : it->second;
+  }
+  std::string String(const std::string& name, const std::string& def) const {
+    const auto it = strings.find(name);
+    return it == strings.end() ? def : it->second;
+  }
+  ColorParam Color(const std::string& name, Vec3 def) const {
+    const auto it = colors.find(name);
+    if (it != colors.end()) return it->second;
+    ColorParam c;
+    c.value = def;
+    return c;
+  }
 };
 
 struct TriangleMesh {

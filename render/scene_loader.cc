@@ -26,6 +26,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "render/bsdfs/registry.h"
 #include "render/mesh_loader.h"
 
 #define LOADER_RETURN_IF_ERROR(expr)   \
@@ -184,7 +185,10 @@ class Parser {
   absl::Status ParseIntegrator(pugi::xml_node n);
   absl::Status ParseSensor(pugi::xml_node n);
   absl::Status ParseFilm(pugi::xml_node n);
+  absl::Status UpgradeOldSyntax(pugi::xml_node root);
   absl::Status ParseSampler(pugi::xml_node n);
+  class BsdfReader;
+  friend class BsdfReader;
   absl::StatusOr<BsdfDesc> ParseBsdf(pugi::xml_node n);
   absl::StatusOr<int> AddBsdf(pugi::xml_node n, BsdfDesc bsdf);
   absl::StatusOr<int> ParseTexture(pugi::xml_node n);
@@ -201,6 +205,7 @@ class Parser {
   SceneDesc scene_;
   pugi::xml_node sensor_, integrator_, environment_;  // to reject a second one
   int default_bsdf_ = -1;
+  bool upgraded_ = false;  // a Mitsuba 0.5/0.6 file, upgraded on load
 };
 
 int Parser::Line(pugi::xml_node n) const {
@@ -674,6 +679,13 @@ absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
     return Error(NodeOf(p, "max_depth"), "max_depth must be -1 (unbounded) or >= 0");
   }
   if (d.rr_depth < 1) return Error(NodeOf(p, "rr_depth"), "rr_depth must be >= 1");
+  LOADER_ASSIGN_OR_RETURN(const bool hide_emitters, GetBool(p, "hide_emitters", false));
+  if (hide_emitters) {
+    return Error(NodeOf(p, "hide_emitters"), "hide_emitters=true is not supported");
+  }
+  if (upgraded_) {  // Mitsuba 0.5's strictNormals: irfarm always checks both normals' sides
+    LOADER_RETURN_IF_ERROR(GetBool(p, "strict_normals", false).status());
+  }
   if (type == "irrcache") {
     LOADER_ASSIGN_OR_RETURN(d.params, TakeRestAsText(p));
   }
@@ -735,22 +747,73 @@ absl::Status Parser::ParseFilm(pugi::xml_node n) {
   LOADER_RETURN_IF_ERROR(PluginType(n, "film", {"hdrfilm"}).status());
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "film"));
   CameraDesc& cam = scene_.camera;
-  LOADER_ASSIGN_OR_RETURN(cam.width, GetInt(p, "width", 768));
-  LOADER_ASSIGN_OR_RETURN(cam.height, GetInt(p, "height", 576));
+  LOADER_ASSIGN_OR_RETURN(const int film_w, GetInt(p, "width", 768));
+  LOADER_ASSIGN_OR_RETURN(const int film_h, GetInt(p, "height", 576));
+  // Output format: irfarm always writes float32 RGB OpenEXR; other choices are accepted with a
+  // warning (they change the file, not the image).
+  LOADER_ASSIGN_OR_RETURN(const std::string file_format, GetString(p, "file_format", "openexr"));
+  LOADER_ASSIGN_OR_RETURN(const std::string pixel_format, GetString(p, "pixel_format", "rgb"));
+  LOADER_ASSIGN_OR_RETURN(const std::string component_format,
+                          GetString(p, "component_format", "float16"));
+  LOADER_RETURN_IF_ERROR(GetBool(p, "banner", false).status());
+  LOADER_RETURN_IF_ERROR(GetBool(p, "sample_border", false).status());
+  if (upgraded_) {  // Mitsuba 0.5/0.6 hdrfilm parameters that Mitsuba 3 no longer has
+    LOADER_RETURN_IF_ERROR(GetBool(p, "high_quality_edges", false).status());
+    LOADER_RETURN_IF_ERROR(GetBool(p, "attach_log", false).status());
+  }
+  LOADER_ASSIGN_OR_RETURN(cam.crop_x, GetInt(p, "crop_offset_x", 0));
+  LOADER_ASSIGN_OR_RETURN(cam.crop_y, GetInt(p, "crop_offset_y", 0));
+  LOADER_ASSIGN_OR_RETURN(cam.width, GetInt(p, "crop_width", film_w));
+  LOADER_ASSIGN_OR_RETURN(cam.height, GetInt(p, "crop_height", film_h));
   const std::vector<const Entry*> filters = TakeObjects(p, "rfilter");
   LOADER_RETURN_IF_ERROR(Finish(p));
-  if (cam.width <= 0 || cam.height <= 0) {
-    return Error(NodeOf(p, cam.width <= 0 ? "width" : "height"),
-                 absl::StrCat("film size must be positive, got ", cam.width, " x ", cam.height));
+  if (film_w <= 0 || film_h <= 0) {
+    return Error(NodeOf(p, film_w <= 0 ? "width" : "height"),
+                 absl::StrCat("film size must be positive, got ", film_w, " x ", film_h));
   }
+  if (!IsOneOf(file_format, {"openexr", "exr", "rgbe", "pfm"}))
+    return Error(NodeOf(p, "file_format"),
+                 absl::StrCat("unknown file_format '", file_format, "' (openexr, rgbe, pfm)"));
+  if (file_format != "openexr" && file_format != "exr")
+    Warn(NodeOf(p, "file_format"),
+         absl::StrCat("file_format '", file_format, "': irfarm writes OpenEXR"));
+  if (!IsOneOf(pixel_format, {"rgb", "rgba", "luminance", "luminance_alpha", "xyz", "xyza"}))
+    return Error(NodeOf(p, "pixel_format"), absl::StrCat("unknown pixel_format '", pixel_format,
+                                                         "'"));
+  if (pixel_format != "rgb")
+    Warn(NodeOf(p, "pixel_format"),
+         absl::StrCat("pixel_format '", pixel_format, "': irfarm writes rgb"));
+  if (!IsOneOf(component_format, {"float16", "float32", "uint32"}))
+    return Error(NodeOf(p, "component_format"),
+                 absl::StrCat("unknown component_format '", component_format, "'"));
+  if (cam.crop_x < 0 || cam.crop_y < 0 || cam.width <= 0 || cam.height <= 0 ||
+      cam.crop_x + cam.width > film_w || cam.crop_y + cam.height > film_h) {
+    return Error(NodeOf(p, "crop_width"),
+                 absl::StrCat("crop window ", cam.width, " x ", cam.height, " at (", cam.crop_x,
+                              ", ", cam.crop_y, ") is not inside the ", film_w, " x ", film_h,
+                              " film"));
+  }
+  cam.film_width = film_w;
+  cam.film_height = film_h;
   if (filters.size() > 1) return Error(filters[1]->node, "a film has at most one <rfilter>");
   if (filters.empty()) {
     Warn(n, "film has no <rfilter>: Mitsuba would use a gaussian filter, irfarm uses box");
   } else {
     const pugi::xml_node f = filters[0]->node;
-    LOADER_RETURN_IF_ERROR(PluginType(f, "rfilter", {"box"}).status());
-    LOADER_ASSIGN_OR_RETURN(const Params fp, Collect(f, "rfilter"));
+    LOADER_ASSIGN_OR_RETURN(const std::string type,
+                            PluginType(f, "rfilter", {"box", "gaussian", "tent"}));
+    LOADER_ASSIGN_OR_RETURN(Params fp, Collect(f, "rfilter"));
+    if (type == "gaussian") {
+      LOADER_ASSIGN_OR_RETURN(const float stddev, GetFloat(fp, "stddev", 0.5f));
+      if (!(stddev > 0)) return Error(NodeOf(fp, "stddev"), "stddev must be positive");
+    } else if (type == "tent") {
+      LOADER_ASSIGN_OR_RETURN(const float radius, GetFloat(fp, "radius", 1.0f));
+      if (!(radius > 0)) return Error(NodeOf(fp, "radius"), "radius must be positive");
+    }
     LOADER_RETURN_IF_ERROR(Finish(fp));
+    if (type != "box")
+      Warn(f, absl::StrCat("rfilter '", type,
+                           "' is treated as box (each sample counts for its own pixel only)"));
     LOADER_RETURN_IF_ERROR(RegisterId(f, "rfilter", -1));
   }
   return RegisterId(n, "film", -1);
@@ -760,7 +823,8 @@ absl::Status Parser::ParseSampler(pugi::xml_node n) {
   LOADER_ASSIGN_OR_RETURN(
       const std::string type,
       PluginType(n, "sampler",
-                 {"independent", "stratified", "multijitter", "orthogonal", "ldsampler"}));
+                 {"independent", "stratified", "multijitter", "orthogonal", "ldsampler",
+                  "sobol", "halton", "hammersley"}));
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "sampler"));
   LOADER_ASSIGN_OR_RETURN(scene_.camera.spp, GetInt(p, "sample_count", 4));
   LOADER_RETURN_IF_ERROR(GetInt(p, "seed", 0).status());  // irfarm seeds per job and pixel
@@ -777,54 +841,86 @@ absl::Status Parser::ParseSampler(pugi::xml_node n) {
   return RegisterId(n, "sampler", -1);
 }
 
+// The BsdfParams a BSDF plugin reads its parameters through (see render/bsdfs/registry.h):
+// the Parser's getters on this element's Params, recording each value in the BsdfDesc.
+class Parser::BsdfReader final : public BsdfParams {
+ public:
+  BsdfReader(Parser& parser, Params& params, BsdfDesc& desc)
+      : parser_(parser), p_(params), d_(desc) {}
+
+  absl::StatusOr<float> Float(absl::string_view name, float def) override {
+    LOADER_ASSIGN_OR_RETURN(const float v, parser_.GetFloat(p_, name, def));
+    d_.floats[std::string(name)] = v;
+    return v;
+  }
+  absl::StatusOr<bool> Bool(absl::string_view name, bool def) override {
+    LOADER_ASSIGN_OR_RETURN(const bool v, parser_.GetBool(p_, name, def));
+    d_.floats[std::string(name)] = v ? 1.0f : 0.0f;
+    return v;
+  }
+  absl::StatusOr<std::string> String(absl::string_view name, absl::string_view def) override {
+    LOADER_ASSIGN_OR_RETURN(std::string v, parser_.GetString(p_, name, def));
+    d_.strings[std::string(name)] = v;
+    return v;
+  }
+  absl::StatusOr<Vec3> Rgb(absl::string_view name, Vec3 def) override {
+    LOADER_ASSIGN_OR_RETURN(const Vec3 v, parser_.GetRgb(p_, name, def));
+    d_.colors[std::string(name)].value = v;
+    return v;
+  }
+  absl::StatusOr<ColorParam> Color(absl::string_view name, Vec3 def) override {
+    LOADER_ASSIGN_OR_RETURN(const ColorParam v, parser_.GetColor(p_, name, def));
+    d_.colors[std::string(name)] = v;
+    return v;
+  }
+  absl::StatusOr<float> Ior(absl::string_view name, float def) override {
+    LOADER_ASSIGN_OR_RETURN(const float v, parser_.GetIor(p_, name, def));
+    d_.floats[std::string(name)] = v;
+    return v;
+  }
+  bool Has(absl::string_view name) const override {
+    for (const Entry& e : p_.entries)
+      if (e.name == name) return true;
+    return false;
+  }
+  absl::StatusOr<std::vector<int>> NestedBsdfs() override {
+    std::vector<int> out;
+    for (const Entry* e : parser_.TakeObjects(p_, "bsdf")) {
+      if (e->ref >= 0) {
+        out.push_back(e->ref);
+        continue;
+      }
+      LOADER_ASSIGN_OR_RETURN(BsdfDesc b, parser_.ParseBsdf(e->node));
+      LOADER_ASSIGN_OR_RETURN(const int index, parser_.AddBsdf(e->node, std::move(b)));
+      out.push_back(index);
+    }
+    d_.nested = out;
+    return out;
+  }
+  const BsdfDesc& Nested(int index) const override { return parser_.scene_.bsdfs[size_t(index)]; }
+  absl::Status Error(absl::string_view name, absl::string_view what) const override {
+    return parser_.Error(name.empty() ? p_.node : parser_.NodeOf(p_, name), what);
+  }
+  BsdfDesc& desc() override { return d_; }
+
+ private:
+  Parser& parser_;
+  Params& p_;
+  BsdfDesc& d_;
+};
+
 absl::StatusOr<BsdfDesc> Parser::ParseBsdf(pugi::xml_node n) {
-  LOADER_ASSIGN_OR_RETURN(
-      const std::string type,
-      PluginType(n, "bsdf", {"diffuse", "twosided", "conductor", "dielectric", "thindielectric"}));
+  LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
+  const BsdfPlugin* plugin = FindBsdfPlugin(type);
+  if (plugin == nullptr) {
+    return Error(n, absl::StrCat("unknown bsdf type '", type,
+                                 "' (supported: ", absl::StrJoin(BsdfPluginNames(), ", "), ")"));
+  }
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "bsdf"));
   BsdfDesc b;
-  if (type == "diffuse") {
-    b.type = BsdfType::kDiffuse;
-    LOADER_ASSIGN_OR_RETURN(b.reflectance, GetColor(p, "reflectance", Vec3(0.5f)));
-  } else if (type == "twosided") {
-    const std::vector<const Entry*> inner = TakeObjects(p, "bsdf");
-    if (inner.size() != 1) {
-      return Error(n,
-                   "twosided needs exactly one nested bsdf (different front and back bsdfs are "
-                   "not supported)");
-    }
-    if (inner[0]->ref >= 0) {
-      b = scene_.bsdfs[inner[0]->ref];
-    } else {
-      LOADER_ASSIGN_OR_RETURN(b, ParseBsdf(inner[0]->node));
-      if (inner[0]->node.attribute("id")) {
-        LOADER_RETURN_IF_ERROR(AddBsdf(inner[0]->node, b).status());
-      }
-    }
-    if (b.type != BsdfType::kDiffuse && b.type != BsdfType::kConductor) {
-      return Error(inner[0]->node,
-                   "twosided can only wrap a bsdf without transmission "
-                   "(diffuse or conductor)");
-    }
-    b.twosided = true;
-  } else if (type == "conductor") {
-    b.type = BsdfType::kConductor;
-    LOADER_ASSIGN_OR_RETURN(const std::string material, GetString(p, "material", "none"));
-    if (material != "none") {
-      return Error(NodeOf(p, "material"),
-                   absl::StrCat("conductor material '", material,
-                                "' is not supported (only \"none\": a perfect mirror scaled by "
-                                "specular_reflectance)"));
-    }
-    LOADER_ASSIGN_OR_RETURN(b.specular_reflectance, GetRgb(p, "specular_reflectance", Vec3(1.0f)));
-  } else {  // dielectric, thindielectric
-    b.type = type == "dielectric" ? BsdfType::kDielectric : BsdfType::kThinDielectric;
-    LOADER_ASSIGN_OR_RETURN(b.int_ior, GetIor(p, "int_ior", 1.5046f));    // bk7
-    LOADER_ASSIGN_OR_RETURN(b.ext_ior, GetIor(p, "ext_ior", 1.000277f));  // air
-    LOADER_ASSIGN_OR_RETURN(b.specular_reflectance, GetRgb(p, "specular_reflectance", Vec3(1.0f)));
-    LOADER_ASSIGN_OR_RETURN(b.specular_transmittance,
-                            GetRgb(p, "specular_transmittance", Vec3(1.0f)));
-  }
+  b.type = type;
+  BsdfReader reader(*this, p, b);
+  LOADER_RETURN_IF_ERROR(plugin->parse(reader));
   LOADER_RETURN_IF_ERROR(Finish(p));
   LOADER_ASSIGN_OR_RETURN(b.id, Attr(n, "id"));
   b.loc = Loc(n);
@@ -898,6 +994,8 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     if (default_bsdf_ < 0) {  // Mitsuba gives such shapes a diffuse 0.5
       default_bsdf_ = int(scene_.bsdfs.size());
       BsdfDesc b;
+      b.type = "diffuse";
+      b.colors["reflectance"].value = Vec3(0.5f);
       b.loc = Loc(n);
       scene_.bsdfs.push_back(b);
     }
@@ -1034,6 +1132,53 @@ absl::Status Parser::ParseEmitter(pugi::xml_node n) {
   return absl::OkStatus();
 }
 
+// Mitsuba 0.5 / 0.6 files (<scene version="0.x.y">) are upgraded as Mitsuba 3 does on load:
+// every parameter name (the `name` attribute of anything but <default>) goes from camelCase to
+// snake_case (toWorld -> to_world, intIOR -> int_ior, sampleCount -> sample_count) and
+// <lookAt> becomes <lookat>.
+std::string SnakeCase(absl::string_view s) {
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    const char c = s[i];
+    if (absl::ascii_isupper(c) && i > 0) {
+      const char prev = s[i - 1];
+      const bool next_lower = i + 1 < s.size() && absl::ascii_islower(s[i + 1]);
+      if (absl::ascii_islower(prev) || absl::ascii_isdigit(prev) ||
+          (absl::ascii_isupper(prev) && next_lower))
+        out += '_';
+    }
+    out += absl::ascii_tolower(c);
+  }
+  return out;
+}
+
+absl::Status Parser::UpgradeOldSyntax(pugi::xml_node root) {
+  const std::string version = root.attribute("version").value();
+  if (version.empty()) return absl::OkStatus();
+  int major = 0;
+  const auto [end, ec] = std::from_chars(version.data(), version.data() + version.size(), major);
+  if (ec != std::errc() || (end != version.data() + version.size() && *end != '.'))
+    return Error(root, absl::StrCat("malformed scene version '", version, "'"));
+  if (major >= 2) return absl::OkStatus();
+  upgraded_ = true;
+  Warn(root, absl::StrCat("scene version ", version,
+                          ": upgraded to Mitsuba 3 syntax (camelCase names -> snake_case)"));
+  std::vector<pugi::xml_node> stack = {root};
+  while (!stack.empty()) {
+    pugi::xml_node n = stack.back();
+    stack.pop_back();
+    for (pugi::xml_node c : n.children()) {
+      if (c.type() != pugi::node_element) continue;
+      if (absl::string_view(c.name()) == "lookAt") c.set_name("lookat");
+      pugi::xml_attribute name = c.attribute("name");
+      if (name && absl::string_view(c.name()) != "default")
+        name.set_value(SnakeCase(name.value()).c_str());
+      stack.push_back(c);
+    }
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
   for (size_t i = 0; i < xml.size(); ++i) {
     if (xml[i] == '\n') newlines_.push_back(i);
@@ -1056,6 +1201,7 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
     return Error(root, absl::StrCat("the root element must be <scene>, not <", root.name(), ">"));
   }
   LOADER_RETURN_IF_ERROR(CheckAttributes(root, {"version"}));
+  LOADER_RETURN_IF_ERROR(UpgradeOldSyntax(root));
 
   // <default>s first, so that $name works anywhere; then the -D defines override them.
   std::map<std::string, int> default_lines;

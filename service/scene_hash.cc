@@ -42,15 +42,23 @@ uint64_t SceneHash(const SceneDesc& desc) {
     h.Str(t.filename.substr(t.filename.find_last_of('/') + 1));
     h.Pod(t.raw);
   }
-  for (const BsdfDesc& b : desc.bsdfs) {
-    h.Pod(int(b.type));
-    h.Pod(b.twosided);
-    h.V(b.reflectance.value);
-    h.Pod(b.reflectance.texture);
-    h.V(b.specular_reflectance);
-    h.V(b.specular_transmittance);
-    h.Pod(b.int_ior);
-    h.Pod(b.ext_ior);
+  for (const BsdfDesc& b : desc.bsdfs) {  // every parameter, in name order (std::map)
+    h.Str(b.type);
+    for (const auto& [name, v] : b.floats) {
+      h.Str(name);
+      h.Pod(v);
+    }
+    for (const auto& [name, v] : b.strings) {
+      h.Str(name);
+      h.Str(v);
+    }
+    for (const auto& [name, c] : b.colors) {
+      h.Str(name);
+      h.V(c.value);
+      h.Pod(c.texture);
+    }
+    h.Pod(b.nested.size());
+    for (const int i : b.nested) h.Pod(i);
   }
   for (const ShapeDesc& s : desc.shapes) {
     h.Pod(int(s.type));

@@ -32,7 +32,7 @@ cat > "$tmp/bad/scene.xml" <<'XML'
     <sensor type="perspective">
         <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/><rfilter type="box"/></film>
     </sensor>
-    <bsdf type="roughplastic" id="x"/>
+    <bsdf type="measured" id="x"/>
 </scene>
 XML
 set +e
@@ -40,7 +40,7 @@ err=$("$irfarm" render "$tmp/bad/scene.xml" -o "$tmp/bad/out.exr" -q 2>&1)
 code=$?
 set -e
 [[ $code -ne 0 ]] || fail "bad scene exited 0"
-[[ $err == *"scene.xml:5: "*"roughplastic"* ]] || fail "unexpected error: $err"
+[[ $err == *"scene.xml:5: "*"measured"* ]] || fail "unexpected error: $err"
 [[ $(printf '%s\n' "$err" | wc -l) -eq 1 ]] || fail "error is not one line: $err"
 [[ ! -e $tmp/bad/out.exr ]] || fail "bad scene wrote an image"
 

@@ -17,6 +17,9 @@
 #include "render/mesh_loader.h"
 #include "render/scene_loader.h"
 
+#include "absl/strings/str_join.h"
+#include "render/bsdfs/registry.h"
+
 #ifndef IRFARM_TEST_DATA
 #error "IRFARM_TEST_DATA must name the test data folder"
 #endif
@@ -201,11 +204,11 @@ TEST(SceneLoaderErrorTest, PlyIndexOutOfRange) {
 }
 
 TEST(SceneLoaderErrorTest, UnknownPluginType) {
-  const auto r = Load("  <bsdf type=\"roughplastic\" id=\"x\"/>\n");
+  const auto r = Load("  <bsdf type=\"measured\" id=\"x\"/>\n");
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().message(),
-            "scene.xml:2: unknown bsdf type 'roughplastic' (supported: diffuse, twosided, "
-            "conductor, dielectric, thindielectric)");
+            "scene.xml:2: unknown bsdf type 'measured' (supported: " +
+                absl::StrJoin(BsdfPluginNames(), ", ") + ")");
   ExpectError(Load("\n  <shape type=\"mesh\"/>\n"), "scene.xml:3:", "unknown shape type 'mesh'");
   ExpectError(Load("  <emitter type=\"sky\"/>\n"), "scene.xml:2:", "unknown emitter type 'sky'");
   ExpectError(Load("  <integrator type=\"volpath\"/>\n"),
@@ -273,16 +276,16 @@ TEST(SceneLoaderErrorTest, UnsupportedFeatures) {
   const std::string gaussian = std::string(R"(<scene version="3.0.0">
   <sensor type="perspective">
     <film type="hdrfilm">
-      <rfilter type="gaussian"/>
+      <rfilter type="lanczos"/>
     </film>
   </sensor>
 </scene>
 )");
   ExpectError(LoadSceneString(gaussian, "s.xml", {}),
-              "s.xml:4:", "unknown rfilter type 'gaussian' (supported: box)");
-  ExpectError(Load("  <bsdf type=\"conductor\">\n    <string name=\"material\" value=\"Au\"/>\n"
+              "s.xml:4:", "unknown rfilter type 'lanczos' (supported: box, gaussian, tent)");
+  ExpectError(Load("  <bsdf type=\"conductor\">\n    <string name=\"material\" value=\"Xx\"/>\n"
                    "  </bsdf>\n"),
-              "scene.xml:3:", "conductor material 'Au' is not supported");
+              "scene.xml:3:", "unknown conductor material 'Xx' (supported: none, a-C, Ag,");
   ExpectError(Load("  <emitter type=\"area\"/>\n"), "scene.xml:2:", "must be nested in a <shape>");
   ExpectError(LoadSceneString("<scene version=\"3.0.0\">\n</scene>\n", "s.xml", {}),
               "s.xml:1:", "no <sensor>");
@@ -442,6 +445,122 @@ TEST(SceneLoaderTest, DefaultsAndDefines) {
               "p.xml:8:", "undefined parameter '$fov'");
 }
 
+// A Mitsuba 0.5 file as Bitterli's downloads are written: camelCase names, hdrfilm's output
+// parameters, a tent filter, strictNormals; upgraded on load as Mitsuba 3 does.
+TEST(SceneLoaderTest, UpgradesMitsuba05Syntax) {
+  const auto scene = LoadSceneString(R"(<scene version="0.5.0">
+  <integrator type="path">
+    <integer name="maxDepth" value="65"/>
+    <boolean name="strictNormals" value="true"/>
+  </integrator>
+  <sensor type="perspective">
+    <float name="farClip" value="2800"/>
+    <float name="fov" value="90"/>
+    <string name="fovAxis" value="x"/>
+    <float name="nearClip" value="0.1"/>
+    <transform name="toWorld">
+      <lookAt origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/>
+    </transform>
+    <sampler type="sobol">
+      <integer name="sampleCount" value="64"/>
+    </sampler>
+    <film type="hdrfilm">
+      <integer name="width" value="64"/>
+      <integer name="height" value="32"/>
+      <integer name="cropOffsetX" value="8"/>
+      <integer name="cropWidth" value="16"/>
+      <string name="fileFormat" value="openexr"/>
+      <string name="pixelFormat" value="rgb"/>
+      <boolean name="banner" value="false"/>
+      <boolean name="highQualityEdges" value="false"/>
+      <rfilter type="tent"/>
+    </film>
+  </sensor>
+  <bsdf type="roughplastic" id="floor">
+    <float name="intIOR" value="1.5"/>
+    <float name="extIOR" value="1"/>
+    <string name="distribution" value="ggx"/>
+    <rgb name="diffuseReflectance" value="0.5, 0.4, 0.3"/>
+    <boolean name="nonlinear" value="true"/>
+  </bsdf>
+  <shape type="rectangle">
+    <ref id="floor"/>
+  </shape>
+</scene>
+)",
+                                     "old.xml", {});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->integrator.max_depth, 65);
+  EXPECT_EQ(scene->camera.spp, 64);
+  EXPECT_FLOAT_EQ(scene->camera.near_clip, 0.1f);
+  EXPECT_EQ(scene->camera.film_width, 64);
+  EXPECT_EQ(scene->camera.width, 16);
+  EXPECT_EQ(scene->camera.height, 32);
+  EXPECT_EQ(scene->camera.crop_x, 8);
+  ASSERT_EQ(scene->bsdfs.size(), 1u);
+  EXPECT_EQ(scene->bsdfs[0].type, "roughplastic");
+  EXPECT_FLOAT_EQ(scene->bsdfs[0].Float("int_ior", 0), 1.5f);
+  ExpectNear(scene->bsdfs[0].Color("diffuse_reflectance", Vec3()).value, Vec3(0.5f, 0.4f, 0.3f));
+  bool warned_tent = false;
+  for (const std::string& w : scene->warnings) warned_tent |= w.find("'tent'") != std::string::npos;
+  EXPECT_TRUE(warned_tent);
+  // The same names in a version 3 file are unknown parameters.
+  ExpectError(LoadSceneString("<scene version=\"3.0.0\">\n  <bsdf type=\"plastic\">\n"
+                              "    <float name=\"intIOR\" value=\"1.5\"/>\n  </bsdf>\n</scene>\n",
+                              "new.xml", {}),
+              "new.xml:3:", "unknown parameter 'intIOR'");
+}
+
+// The BSDFs beyond the subset: parameters recorded by name, named conductor materials, and
+// Mitsuba's errors (file:line) for contradictory or unknown parameters.
+TEST(SceneLoaderTest, GlossyMaterials) {
+  const auto scene = Load(R"(  <bsdf type="roughconductor" id="gold">
+    <string name="distribution" value="ggx"/>
+    <float name="alpha_u" value="0.1"/>
+    <float name="alpha_v" value="0.3"/>
+    <string name="material" value="Au"/>
+  </bsdf>
+  <bsdf type="mask" id="leaf">
+    <float name="opacity" value="0.25"/>
+    <bsdf type="roughplastic">
+      <float name="alpha" value="0.2"/>
+    </bsdf>
+  </bsdf>
+  <bsdf type="roughdielectric" id="frost">
+    <float name="alpha" value="0.3"/>
+    <string name="int_ior" value="bk7"/>
+  </bsdf>
+)");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->bsdfs.size(), 4u);  // gold, the mask's nested roughplastic, leaf, frost
+  const BsdfDesc& gold = scene->bsdfs[0];
+  EXPECT_EQ(gold.String("distribution", ""), "ggx");
+  EXPECT_FLOAT_EQ(gold.Color("alpha_v", Vec3()).value.x, 0.3f);
+  // Mitsuba 3.9.1's RGB eta of gold (scalar_rgb), see conductor_params.h.
+  EXPECT_NEAR(gold.Color("eta", Vec3()).value.x, 0.143036f, 1e-5f);
+  EXPECT_EQ(scene->bsdfs[1].type, "roughplastic");
+  EXPECT_EQ(scene->bsdfs[1].String("distribution", ""), "beckmann");  // Mitsuba's default
+  EXPECT_EQ(scene->bsdfs[2].nested, std::vector<int>{1});
+  EXPECT_FLOAT_EQ(scene->bsdfs[2].Color("opacity", Vec3()).value.x, 0.25f);
+  EXPECT_FLOAT_EQ(scene->bsdfs[3].Float("int_ior", 0), 1.5046f);
+
+  ExpectError(Load("  <bsdf type=\"roughconductor\">\n    <float name=\"alpha\" value=\"0.1\"/>\n"
+                   "    <float name=\"alpha_u\" value=\"0.1\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "give either alpha or alpha_u/alpha_v");
+  ExpectError(Load("  <bsdf type=\"conductor\">\n    <string name=\"material\" value=\"Au\"/>\n"
+                   "    <rgb name=\"eta\" value=\"1\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "give either material or eta/k");
+  ExpectError(Load("  <bsdf type=\"roughplastic\">\n    <string name=\"distribution\" "
+                   "value=\"phong\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "unknown microfacet distribution 'phong'");
+  ExpectError(Load("  <bsdf type=\"roughplastic\">\n    <float name=\"roughness\" "
+                   "value=\"0.1\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "unknown parameter 'roughness' for bsdf 'roughplastic'");
+  ExpectError(Load("  <bsdf type=\"mask\">\n    <float name=\"opacity\" value=\"0.5\"/>\n"
+                   "  </bsdf>\n"),
+              "scene.xml:2:", "mask needs exactly one nested bsdf");
+}
+
 // ---------------------------------------------------------------- materials and emitters
 
 TEST(SceneLoaderTest, Materials) {
@@ -481,37 +600,40 @@ TEST(SceneLoaderTest, Materials) {
 )",
                           dir + "/scene.xml");
   ASSERT_TRUE(scene.ok()) << scene.status();
-  ASSERT_EQ(scene->bsdfs.size(), 7u);  // 6 + the default one of the first cube
+  // 6 + wood-2s's nested diffuse (added before it) + the default one of the first cube.
+  ASSERT_EQ(scene->bsdfs.size(), 8u);
   const BsdfDesc& red2s = scene->bsdfs[1];
   EXPECT_EQ(red2s.id, "red-2s");
-  EXPECT_TRUE(red2s.twosided);
-  EXPECT_FALSE(scene->bsdfs[0].twosided);
-  ExpectNear(red2s.reflectance.value, Vec3(0.7f, 0.1f, 0.1f));
-  const BsdfDesc& wood = scene->bsdfs[2];
+  EXPECT_EQ(red2s.type, "twosided");
+  ASSERT_EQ(red2s.nested, std::vector<int>{0});
+  EXPECT_EQ(scene->bsdfs[0].type, "diffuse");
+  ExpectNear(scene->bsdfs[0].Color("reflectance", Vec3()).value, Vec3(0.7f, 0.1f, 0.1f));
+  const BsdfDesc& wood = scene->bsdfs[3];
   EXPECT_EQ(wood.id, "wood-2s");
-  EXPECT_TRUE(wood.twosided);
-  ASSERT_EQ(wood.reflectance.texture, 0);
+  EXPECT_EQ(wood.type, "twosided");
+  ASSERT_EQ(wood.nested, std::vector<int>{2});
+  ASSERT_EQ(scene->bsdfs[2].Color("reflectance", Vec3()).texture, 0);
   const TextureDesc& tex = scene->textures[0];
   EXPECT_EQ(fs::path(tex.filename), fs::path(dir) / "textures/wood.png");
   EXPECT_EQ(tex.filter_type, "nearest");
   EXPECT_EQ(tex.wrap_mode, "repeat");
   EXPECT_TRUE(tex.raw);
-  EXPECT_EQ(scene->bsdfs[3].type, BsdfType::kConductor);
-  ExpectNear(scene->bsdfs[3].specular_reflectance, Vec3(0.9f));
-  EXPECT_EQ(scene->bsdfs[4].type, BsdfType::kDielectric);
-  EXPECT_FLOAT_EQ(scene->bsdfs[4].int_ior, 1.5f);
-  EXPECT_FLOAT_EQ(scene->bsdfs[4].ext_ior, 1.000277f);
-  EXPECT_EQ(scene->bsdfs[5].type, BsdfType::kThinDielectric);
-  EXPECT_FLOAT_EQ(scene->bsdfs[5].int_ior, 1.333f);
-  EXPECT_FLOAT_EQ(scene->bsdfs[5].ext_ior, 1);
+  EXPECT_EQ(scene->bsdfs[4].type, "conductor");
+  ExpectNear(scene->bsdfs[4].Color("specular_reflectance", Vec3()).value, Vec3(0.9f));
+  EXPECT_EQ(scene->bsdfs[5].type, "dielectric");
+  EXPECT_FLOAT_EQ(scene->bsdfs[5].Float("int_ior", 0), 1.5f);
+  EXPECT_FLOAT_EQ(scene->bsdfs[5].Float("ext_ior", 0), 1.000277f);
+  EXPECT_EQ(scene->bsdfs[6].type, "thindielectric");
+  EXPECT_FLOAT_EQ(scene->bsdfs[6].Float("int_ior", 0), 1.333f);
+  EXPECT_FLOAT_EQ(scene->bsdfs[6].Float("ext_ior", 0), 1);
   // A shape without a bsdf gets diffuse 0.5, as in Mitsuba.
   const BsdfDesc& fallback = scene->bsdfs.at(scene->shapes.at(0).bsdf);
-  EXPECT_EQ(fallback.type, BsdfType::kDiffuse);
-  ExpectNear(fallback.reflectance.value, Vec3(0.5f));
-  EXPECT_EQ(scene->shapes.at(1).bsdf, 2);
+  EXPECT_EQ(fallback.type, "diffuse");
+  ExpectNear(fallback.Color("reflectance", Vec3()).value, Vec3(0.5f));
+  EXPECT_EQ(scene->shapes.at(1).bsdf, 3);
 
   ExpectError(Load("  <bsdf type=\"twosided\">\n    <bsdf type=\"dielectric\"/>\n  </bsdf>\n"),
-              "scene.xml:3:", "twosided can only wrap");
+              "scene.xml:2:", "twosided can only wrap");
   ExpectError(Load("  <bsdf type=\"dielectric\">\n    <string name=\"int_ior\" value=\"glas\"/>\n"
                    "  </bsdf>\n"),
               "scene.xml:3:", "unknown index of refraction 'glas'");

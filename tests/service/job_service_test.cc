@@ -99,7 +99,7 @@ TEST_F(JobServiceTest, UnknownJobIsNotFound) {
 TEST_F(JobServiceTest, MalformedSceneIsInvalidArgumentWithFileLine) {
   v1::SubmitJobRequest req = GoodRequest();
   req.mutable_scene()->mutable_bundle()->mutable_files(0)->set_content(
-      "<scene version=\"3.0.0\">\n  <bsdf type=\"roughplastic\" id=\"x\"/>\n</scene>\n");
+      "<scene version=\"3.0.0\">\n  <bsdf type=\"measured\" id=\"x\"/>\n</scene>\n");
   v1::SubmitJobResponse resp;
   const grpc::Status st = Submit(req, &resp);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);

@@ -1,0 +1,182 @@
+// `roughplastic`: Mitsuba 3's rough plastic. A rough dielectric coating (GGX or Beckmann,
+// isotropic alpha) over a diffuse base with internal scattering:
+//   specular: f cos = F(o.m) D(m) G(o, i, m) / (4 cos_o) * specular_reflectance, m = half vector;
+//   diffuse:  f cos = Base * T(cos_o) T(cos_i) cos_i / (pi eta^2),
+// where T(mu) is the energy the rough interface transmits at incidence mu and Base (see
+// plastic_params.h) uses `internal` = the cosine-weighted average of the rough interface's
+// reflectance for light from inside. Mitsuba precomputes both the same way (a 64-entry table of
+// T over mu, linearly interpolated); we compute them at build time by stratified quadrature
+// over sampled microfacet normals (32 x 32 per table entry), single scattering, with
+//   T(mu) = E_m[(1 - F(wi.m)) G1(wt, m)],   R_in(mu) = E_m[F(wi.m, 1/eta) G1(wr, m)]
+// over visible normals m (wt refracted, wr reflected). Lobes are sampled in proportion to
+// (1 - T(cos_o)) specular_weight and T(cos_o) (1 - specular_weight), as Mitsuba does.
+// One-sided. For the irradiance cache the diffuse albedo takes T(cos_i) as its cosine-weighted
+// average.
+#include <array>
+#include <cmath>
+
+#include "render/bsdfs/fresnel.h"
+#include "render/bsdfs/microfacet.h"
+#include "render/bsdfs/plastic_params.h"
+#include "render/sampling.h"
+
+namespace irfarm {
+namespace {
+
+constexpr int kTableSize = 64;  // entries of T over mu in [0, 1], as Mitsuba
+constexpr int kQuad = 32;       // quadrature samples per axis
+
+// E over normals m visible from w (w.z > 0) of g(m), estimated with kQuad^2 stratified samples
+// from mf.Sample reweighted to the visible-normal density.
+template <typename G>
+float VisibleNormalMean(const Microfacet& mf, const Vec3& w, G g) {
+  double sum = 0;
+  for (int i = 0; i < kQuad; ++i)
+    for (int j = 0; j < kQuad; ++j) {
+      const float u = (float(i) + 0.5f) / kQuad, v = (float(j) + 0.5f) / kQuad;
+      const Vec3 m = mf.Sample(w, u, v);
+      const float pdf = mf.Pdf(w, m);
+      if (!(pdf > 0)) continue;
+      const float dwm = Dot(w, m);
+      if (dwm <= 0) continue;
+      const float visible = mf.G1(w, m) * dwm * mf.D(m) / w.z;
+      sum += double(visible / pdf) * double(g(m, dwm));
+    }
+  return float(sum / (kQuad * kQuad));
+}
+
+class RoughPlasticBsdf final : public Bsdf {
+ public:
+  RoughPlasticBsdf(const PlasticParams& p, MicrofacetType type, float alpha)
+      : p_(p), mf_(type, alpha, alpha), inv_eta2_(1 / (p.eta * p.eta)) {
+    const float eta = p.eta;
+    double t_avg = 0, r_in = 0;
+    for (int k = 0; k < kTableSize; ++k) {
+      const float mu = std::max(1e-6f, float(k) / (kTableSize - 1));
+      const Vec3 w(std::sqrt(std::max(0.0f, 1 - mu * mu)), 0, mu);
+      table_[k] = VisibleNormalMean(mf_, w, [&](const Vec3& m, float c) {
+        float cos_t;
+        const float f = FresnelDielectric(c, eta, &cos_t);
+        if (f >= 1) return 0.0f;
+        const Vec3 wt = -w / eta + m * (c / eta - cos_t);
+        return (1 - f) * mf_.G1(wt, m);
+      });
+      const float r = VisibleNormalMean(mf_, w, [&](const Vec3& m, float c) {
+        const Vec3 wr = m * (2 * c) - w;
+        return FresnelDielectric(c, 1 / eta) * mf_.G1(wr, m);
+      });
+      // Trapezoid weights over mu for the cosine-weighted averages (integrand * 2 mu).
+      const double wgt = (k == 0 || k == kTableSize - 1) ? 0.5 : 1.0;
+      t_avg += wgt * table_[k] * 2 * mu;
+      r_in += wgt * r * 2 * mu;
+    }
+    t_avg_ = float(t_avg / (kTableSize - 1));
+    internal_ = float(r_in / (kTableSize - 1));
+  }
+
+  uint32_t Flags() const override { return kGlossyReflection | kDiffuseReflection; }
+
+  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
+            uint32_t lobes) const override {
+    if (wo.z <= 0 || wi.z <= 0) return Vec3();
+    Vec3 f;
+    if (lobes & kGlossyReflection) {
+      const Vec3 m = Normalize(wo + wi);
+      const float d = mf_.D(m);
+      if (d > 0)
+        f += p_.specular.Eval(ctx) *
+             (FresnelDielectric(Dot(wo, m), p_.eta) * d * mf_.G(wo, wi, m) / (4 * wo.z));
+    }
+    if (lobes & kDiffuseReflection)
+      f += p_.Base(ctx, internal_) *
+           (inv_eta2_ * Transmittance(wo.z) * Transmittance(wi.z) * wi.z * kInvPi);
+    return f;
+  }
+
+  float Pdf(const BsdfContext&, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
+    if (wo.z <= 0 || wi.z <= 0) return 0;
+    const float ps = ProbSpecular(wo, lobes);
+    float pdf = 0;
+    if (ps > 0) {
+      const Vec3 m = Normalize(wo + wi);
+      const float dot = Dot(wo, m);
+      if (dot > 0) pdf += ps * mf_.Pdf(wo, m) / (4 * dot);
+    }
+    if (ps < 1) pdf += (1 - ps) * wi.z * kInvPi;
+    return pdf;
+  }
+
+  BsdfSample Sample(const BsdfContext& ctx, const Vec3& wo, float u1, float u2, float u3,
+                    uint32_t lobes) const override {
+    BsdfSample s;
+    if (wo.z <= 0 || !(lobes & (kDiffuseReflection | kGlossyReflection))) return s;
+    const float ps = ProbSpecular(wo, lobes);
+    if (u1 < ps) {
+      const Vec3 m = mf_.Sample(wo, u2, u3);
+      const float dot = Dot(wo, m);
+      if (dot <= 0) return s;
+      s.wi = m * (2 * dot) - wo;
+      s.lobe = kGlossyReflection;
+    } else {
+      s.wi = CosineHemisphere(u2, u3);
+      s.lobe = kDiffuseReflection;
+    }
+    if (s.wi.z <= 0) return s;
+    s.pdf = Pdf(ctx, wo, s.wi, lobes);
+    if (!(s.pdf > 0)) return s;
+    s.weight = Eval(ctx, wo, s.wi, lobes) / s.pdf;
+    return s;
+  }
+
+  Vec3 DiffuseAlbedo(const BsdfContext& ctx, const Vec3& wo) const override {
+    if (wo.z <= 0) return Vec3();
+    return p_.Base(ctx, internal_) * (inv_eta2_ * Transmittance(wo.z) * t_avg_);
+  }
+
+ private:
+  float Transmittance(float mu) const {
+    const float x = std::clamp(mu, 0.0f, 1.0f) * (kTableSize - 1);
+    const int i = std::min(int(x), kTableSize - 2);
+    const float t = x - float(i);
+    return table_[size_t(i)] * (1 - t) + table_[size_t(i) + 1] * t;
+  }
+  float ProbSpecular(const Vec3& wo, uint32_t lobes) const {
+    if (!(lobes & kDiffuseReflection)) return 1;
+    if (!(lobes & kGlossyReflection)) return 0;
+    const float t = Transmittance(wo.z);
+    const float s = (1 - t) * p_.specular_weight, d = t * (1 - p_.specular_weight);
+    return s + d > 0 ? s / (s + d) : 0;
+  }
+
+  PlasticParams p_;
+  Microfacet mf_;
+  float inv_eta2_;
+  std::array<float, kTableSize> table_{};
+  float t_avg_ = 1, internal_ = 0;
+};
+
+absl::Status Parse(BsdfParams& p) {
+  absl::StatusOr<std::string> dist = p.String("distribution", "beckmann");
+  if (!dist.ok()) return dist.status();
+  if (*dist != "beckmann" && *dist != "ggx")
+    return p.Error("distribution", "unknown microfacet distribution '" + *dist +
+                                       "' (supported: beckmann, ggx)");
+  absl::StatusOr<float> alpha = p.Float("alpha", 0.1f);  // a number in Mitsuba 3 too
+  if (!alpha.ok()) return alpha.status();
+  if (!(*alpha > 0)) return p.Error("alpha", "alpha must be positive");
+  if (absl::Status s = p.Bool("sample_visible", true).status(); !s.ok()) return s;
+  return ParsePlasticParams(p);
+}
+
+std::unique_ptr<Bsdf> Build(const BsdfDesc& d, const BsdfBuildContext& ctx) {
+  const MicrofacetType type = d.String("distribution", "beckmann") == "ggx"
+                                  ? MicrofacetType::kGgx
+                                  : MicrofacetType::kBeckmann;
+  return std::make_unique<RoughPlasticBsdf>(PlasticParams(d, ctx), type, d.Float("alpha", 0.1f));
+}
+
+}  // namespace
+
+extern const BsdfPlugin kRoughPlasticBsdf = {"roughplastic", Parse, Build};
+
+}  // namespace irfarm
