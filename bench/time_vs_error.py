@@ -19,6 +19,8 @@ the two measured points around it (never extrapolated: a relMSE outside a curve'
 is reported as '> t_max' or '< t_min'), and the ratios.
 
   python3 bench/time_vs_error.py --irfarm build/irfarm --out bench-out [--scenes room-a,...]
+      [--mitsuba-live 16,64,256]   # Mitsuba 3 in the same run (pip install mitsuba; llvm_ad_rgb
+                                   # needs DRJIT_LIBLLVM_PATH, e.g. Debian's libllvm19)
 """
 import argparse
 import json
@@ -77,6 +79,26 @@ def mitsuba_curve(scene_dir):
     return [(p.get("seconds_median", p.get("seconds")), p["relmse_mean"], p["spp"]) for p in pts]
 
 
+def mitsuba_live(scene_dir, ladder, variant):
+    """Mitsuba 3 rendered in this run: [(seconds, relMSE, spp)], mi.render wall seconds after a
+    warm-up render at the same spp (JIT compilation), relMSE against the same reference."""
+    import time
+    import numpy as np
+    import mitsuba as mi
+    mi.set_variant(variant)
+    ref = np.array(mi.Bitmap(os.path.join(scene_dir, "reference.exr")), dtype=np.float64)[:, :, :3]
+    scene = mi.load_file(os.path.join(scene_dir, "scene.xml"))
+    pts = []
+    for spp in ladder:
+        mi.render(scene, spp=spp, seed=7)
+        t = time.time()
+        img = np.array(mi.render(scene, spp=spp, seed=1000 + spp), dtype=np.float64)[:, :, :3]
+        secs = time.time() - t
+        pts.append((secs, float(np.mean((img - ref) ** 2 / (ref ** 2 + 0.01))), spp))
+        print(f"  mitsuba live {spp:4d} spp {secs:8.2f} s relMSE {pts[-1][1]:.3e}", flush=True)
+    return pts
+
+
 def plot(scene, runs, mitsuba, path):
     try:
         import matplotlib
@@ -94,8 +116,7 @@ def plot(scene, runs, mitsuba, path):
         ax.plot([r["seconds"] for r in rs], [r["relmse"] for r in rs], styles.get(name, "o-"),
                 label="irfarm " + name)
     if mitsuba:
-        ax.plot([m[0] for m in mitsuba], [m[1] for m in mitsuba], "d--",
-                label="Mitsuba 3 (its curve file)")
+        ax.plot([m[0] for m in mitsuba], [m[1] for m in mitsuba], "d--", label="Mitsuba 3")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("wall seconds (2 cores)")
@@ -120,6 +141,10 @@ def main():
     ap.add_argument("--targets", default="4e-3,1e-3")
     ap.add_argument("--irrcache-spp", default="16,64", help="fixed-spp irrcache runs")
     ap.add_argument("--out", default="bench-out")
+    ap.add_argument("--mitsuba-live", default="",
+                    help="render Mitsuba 3 in this run at these spp (e.g. 16,64,256) with "
+                         "--mitsuba-variant (needs `pip install mitsuba`) instead of its curve file")
+    ap.add_argument("--mitsuba-variant", default="llvm_ad_rgb")
     a = ap.parse_args()
 
     names = a.scenes.split(",") if a.scenes else sorted(
@@ -128,7 +153,7 @@ def main():
         and os.path.exists(os.path.join(a.scenes_dir, n, "mitsuba-curve.json")))
     os.makedirs(a.out, exist_ok=True)
     summary = ["| scene | irrcache default: relMSE, s | path time at that relMSE | "
-               "Mitsuba time at that relMSE (its curve) | Mitsuba 256 spp relMSE | "
+               "Mitsuba time at that relMSE | Mitsuba 256 spp relMSE | "
                "vs path | vs Mitsuba | baseline default: relMSE, s | target 4e-3 / 1e-3: "
                "measured (estimate) |",
                "|---|---|---|---|---|---|---|---|---|"]
@@ -146,7 +171,7 @@ def main():
 
         try:
             add("irrcache", render(a.irfarm, d, [], tmp, name + "-irr"))
-            for spp in a.irrcache_spp.split(","):
+            for spp in [x for x in a.irrcache_spp.split(",") if x]:
                 add("irrcache", render(a.irfarm, d, ["--spp", spp, "--adaptive", "off"], tmp,
                                        name + "-irr" + spp))
             for t in a.targets.split(","):
@@ -161,6 +186,14 @@ def main():
             print(f"{name}: {e.stderr.strip()}", file=sys.stderr)
             continue
         mit = mitsuba_curve(d)
+        mit_source = "curve file"
+        if a.mitsuba_live:
+            try:
+                mit = mitsuba_live(d, [int(x) for x in a.mitsuba_live.split(",")],
+                                   a.mitsuba_variant)
+                mit_source = "live, this run"
+            except Exception as e:  # no mitsuba package, or no LLVM for the variant
+                print(f"{name}: Mitsuba live failed ({e}); using its curve file", file=sys.stderr)
         default = runs[0]
         path_curve = [(r["seconds"], r["relmse"]) for r in runs if r["method"] == "path"]
         t_path, path_flag = time_for(path_curve, default["relmse"])
@@ -171,7 +204,7 @@ def main():
         targets = [r for r in runs if r["method"] == "irrcache-target"]
         summary.append(
             f"| {name} | {default['relmse']:.2e}, {default['seconds']:.2f} s | "
-            f"{path_flag}{t_path:.2f} s | {mit_flag}{t_mit:.2f} s | {mit256:.2e} | "
+            f"{path_flag}{t_path:.2f} s | {mit_flag}{t_mit:.2f} s ({mit_source}) | {mit256:.2e} | "
             f"{path_flag}{t_path / default['seconds']:.1f}x | "
             f"{mit_flag}{t_mit / default['seconds']:.1f}x | " +
             (f"{base['relmse']:.2e}, {base['seconds']:.2f} s" if base else "-") + " | " +
@@ -179,7 +212,7 @@ def main():
         with open(os.path.join(a.out, name + ".json"), "w") as f:
             json.dump({"scene": name, "runs": runs,
                        "mitsuba_curve": [{"seconds": m[0], "relmse": m[1], "spp": m[2]}
-                                         for m in mit],
+                                         for m in mit], "mitsuba_source": mit_source,
                        "equal_error": {"irrcache_default_relmse": default["relmse"],
                                        "irrcache_default_seconds": default["seconds"],
                                        "path_seconds": t_path, "path_flag": path_flag,
