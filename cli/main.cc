@@ -38,7 +38,7 @@ struct RenderArgs {
   float accuracy = 0, min_spacing = 0, max_spacing = 0;
   uint64_t seed = 0;
   bool no_overture = false, quiet = false;
-  bool aovs = false;  // write the AOV layers (render/aov.h) into the output EXR
+  bool aovs = false;     // write the AOV layers (render/aov.h) into the output EXR
   bool denoise = false;  // OUT.exr denoised (render/denoiser.h), OUT.noisy.exr as rendered
   // Empty: measured best per integrator (docs/denoise/summary.txt, 9 scenes): the whole image for
   // irrcache (better in 15 of 18 cases), demodulated for path (11 of 18; geo-mean relMSE 0.92x).
@@ -313,9 +313,10 @@ int main(int argc, char** argv) {
                    "to the EXR");
   render->add_flag("--denoise", ra.denoise,
                    "denoise with Open Image Denoise (OUT.exr), keep the render as OUT.noisy.exr");
-  render->add_option("--denoise-mode", ra.denoise_mode,
-                     "image (default for irrcache), demodulated (by albedo; default for path) "
-                     "or indirect (only)")
+  render
+      ->add_option("--denoise-mode", ra.denoise_mode,
+                   "image (default for irrcache), demodulated (by albedo; default for path) "
+                   "or indirect (only)")
       ->check(CLI::IsMember({"image", "demodulated", "indirect"}));
   render->add_option("--cache-in", ra.cache_in, "warm-start from this cache snapshot file")
       ->check(CLI::ExistingFile);
@@ -351,6 +352,14 @@ int main(int argc, char** argv) {
   submit->add_option("--seed", sa.seed, "random seed");
   submit->add_flag("--no-share", sa.no_share, "do not share records between workers");
   submit->add_flag("--no-overture", sa.no_overture, "irrcache: skip the per-tile prepass");
+  submit
+      ->add_option("--target-error", sa.target_error,
+                   "each tile stops adding samples when its estimated relMSE reaches this")
+      ->check(CLI::Range(0.0, 1.0));
+  submit
+      ->add_option("--time-limit", sa.tile_time_limit,
+                   "wall seconds a worker may spend on one tile")
+      ->check(CLI::Range(0.0, 1e6));
   submit->add_flag("--denoise", sa.denoise,
                    "the coordinator denoises the image (Open Image Denoise); the EXR keeps the "
                    "render as layer 'noisy'");
@@ -403,8 +412,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   if (render->parsed()) return irfarm::RunRender(ra);
   if (compare->parsed()) return irfarm::RunCompare(cmp_test, cmp_ref);
-  if (denoise->parsed())
-    return irfarm::RunDenoise(dn_in, dn_out, dn_mode, dn_prefilter);
+  if (denoise->parsed()) return irfarm::RunDenoise(dn_in, dn_out, dn_mode, dn_prefilter);
   if (downsample->parsed()) return irfarm::RunDownsample(ds_in, ds_out, ds_factor);
   if (submit->parsed()) return irfarm::RunSubmit(sa);
   if (status->parsed()) return irfarm::RunStatus(conn, job_id, status_json, status_workers);

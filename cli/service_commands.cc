@@ -143,6 +143,8 @@ int RunSubmit(const SubmitArgs& args) {
     s->set_seed(args.seed);
     s->set_no_overture(args.no_overture);
     s->set_denoise(args.denoise);
+    s->set_target_error(args.target_error);
+    s->set_tile_time_limit(args.tile_time_limit);
     for (const std::string& d : args.defines) {
       const size_t eq = d.find('=');
       if (eq == std::string::npos || eq == 0) {
@@ -225,7 +227,9 @@ int RunStatus(const ServiceConnection& coordinator, const std::string& job_id, b
                           : "";
       std::printf("worker %-4u %-24s %-9s %-14s failures %u  violations %u  heard %.1f s ago%s\n",
                   w.id(), w.name().c_str(), w.has_lease() ? "leased" : "idle",
-                  w.quarantined() ? "QUARANTINED" : w.silent() ? "SILENT" : "ok",
+                  w.quarantined() ? "QUARANTINED"
+                  : w.silent()    ? "SILENT"
+                                  : "ok",
                   w.consecutive_failures(), w.violations(), w.seconds_since_heard(), left.c_str());
     }
     std::printf("auth failures %llu, invalid worker messages %llu, workers disconnected %llu\n",
@@ -290,8 +294,7 @@ int RunFetch(const ServiceConnection& coordinator, const std::string& job_id,
   v1::GetResultRequest req;
   req.set_job_id(job_id);
   return StreamToFile<v1::GetResultResponse>(
-      [&](grpc::ClientContext* c) { return client.stub->GetResult(c, req); }, output,
-      client.token);
+      [&](grpc::ClientContext* c) { return client.stub->GetResult(c, req); }, output, client.token);
 }
 
 int RunSnapshot(const ServiceConnection& coordinator, const std::string& job_id,

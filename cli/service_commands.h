@@ -32,7 +32,8 @@ struct SubmitArgs {
   float accuracy = 0;
   uint64_t seed = 0;
   bool no_share = false, shared_path = false, no_overture = false;
-  bool denoise = false;  // the coordinator denoises the assembled image
+  bool denoise = false;                          // the coordinator denoises the assembled image
+  double target_error = 0, tile_time_limit = 0;  // adaptive sampling towards an error, per tile
   std::vector<std::string> defines;
 };
 

@@ -247,7 +247,7 @@ cmd_run() {
       -D) submit_args+=("$1" "${2:?}"); shift 2 ;;
       -*) # other `irfarm submit` options; those taking a value get it too
         case $1 in
-          --priority|--cache-in|--integrator|--spp|--accuracy|--record-rays|--tile-size|--seed)
+          --priority|--cache-in|--integrator|--spp|--accuracy|--record-rays|--tile-size|--seed|--target-error|--time-limit)
             submit_args+=("$1" "${2:?}"); shift 2 ;;
           *) submit_args+=("$1"); shift ;;
         esac ;;

@@ -32,6 +32,10 @@ absl::StatusOr<RenderSettings> MakeRenderSettings(const SceneDesc& desc,
   if (settings.tile_size() < 0 || settings.tile_size() > 4096 ||
       (settings.tile_size() > 0 && settings.tile_size() < 4))
     return absl::InvalidArgumentError("tile_size must be 0 (default) or in [4, 4096]");
+  if (!(settings.target_error() >= 0 && settings.target_error() <= 1))
+    return absl::InvalidArgumentError("target_error must be in [0, 1]");
+  if (!(settings.tile_time_limit() >= 0 && settings.tile_time_limit() <= 1e6))
+    return absl::InvalidArgumentError("tile_time_limit must be in [0, 1e6] seconds");
   absl::StatusOr<RenderSettings> s = SettingsForScene(desc, integrator);
   if (!s.ok()) return s.status();
   if (settings.spp() > 0) s->spp = settings.spp();
@@ -40,6 +44,11 @@ absl::StatusOr<RenderSettings> MakeRenderSettings(const SceneDesc& desc,
   s->seed = settings.seed();
   s->threads = threads;
   s->overture = !settings.no_overture();
+  if (settings.target_error() > 0) {
+    s->target_error = settings.target_error();
+    s->adaptive = true;
+  }
+  s->time_limit = settings.tile_time_limit();
   s->aovs = settings.denoise();  // the tiles carry the denoiser's guides
   // Inside a job tile the renderer's own sub-tiles spread the tile over the worker's threads.
   s->tile_size = 16;

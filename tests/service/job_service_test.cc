@@ -107,6 +107,29 @@ TEST_F(JobServiceTest, MalformedSceneIsInvalidArgumentWithFileLine) {
   EXPECT_EQ(NumJobs(), 0);
 }
 
+TEST_F(JobServiceTest, TargetErrorAndTimeLimitOutOfRangeAreInvalidArgument) {
+  for (int k = 0; k < 3; ++k) {
+    v1::SubmitJobRequest req = GoodRequest();
+    if (k == 0) req.mutable_settings()->set_target_error(2);
+    if (k == 1) req.mutable_settings()->set_target_error(std::nan(""));
+    if (k == 2) req.mutable_settings()->set_tile_time_limit(-1);
+    v1::SubmitJobResponse resp;
+    const grpc::Status st = Submit(req, &resp);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << k;
+    EXPECT_NE(st.error_message().find(k == 2 ? "tile_time_limit" : "target_error"),
+              std::string::npos)
+        << st.error_message();
+  }
+  EXPECT_EQ(NumJobs(), 0);
+  // In range, the job is taken.
+  v1::SubmitJobRequest req = GoodRequest();
+  req.mutable_settings()->set_target_error(2e-3);
+  req.mutable_settings()->set_tile_time_limit(30);
+  v1::SubmitJobResponse resp;
+  EXPECT_TRUE(Submit(req, &resp).ok());
+  EXPECT_EQ(NumJobs(), 1);
+}
+
 TEST_F(JobServiceTest, BundlePathLeavingTheBundleIsInvalidArgument) {
   for (const std::string path : {"../etc/passwd", "/etc/passwd", "meshes/../../x.obj"}) {
     v1::SubmitJobRequest req = GoodRequest();
