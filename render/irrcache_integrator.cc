@@ -10,9 +10,6 @@ constexpr int kMaxSpecularChain = 64;  // delta bounces before a camera path is 
 // more, DirectLight picks lights by their expected contribution (LightSampler::Sample).
 constexpr int kAllLightsMax = 16;
 
-Vec3 Ratio(const Vec3& s, const Vec3& u) {
-  return Vec3(u.x > 0 ? s.x / u.x : 0, u.y > 0 ? s.y / u.y : 0, u.z > 0 ? s.z / u.z : 0);
-}
 }  // namespace
 
 Vec3 DirectTerms::Resolve() const {
@@ -114,7 +111,7 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
       terms->shadowed[slot] += shadowed;
       terms->unshadowed[slot] += unshadowed;
     } else {
-      L += weight * analytic * Ratio(shadowed, unshadowed);
+      L += weight * analytic * DirectTerms::Ratio(shadowed, unshadowed);
     }
   }
   return L;

@@ -72,6 +72,10 @@ struct DirectTerms {
   }
   // sum_j A_j * S_j / U_j, per channel (0 where U_j is 0).
   Vec3 Resolve() const;
+  // s / u per channel, 0 where u is 0: the shadow ratio of one light's sums.
+  static Vec3 Ratio(const Vec3& s, const Vec3& u) {
+    return Vec3(u.x > 0 ? s.x / u.x : 0, u.y > 0 ? s.y / u.y : 0, u.z > 0 ? s.z / u.z : 0);
+  }
 };
 
 // Where this camera sample's direct-light samples come from: points k = first .. first + count-1

@@ -18,7 +18,7 @@ bool HasNormal(const Vec3& n) { return !IsBlack(n); }
 // Cosine of the direction w against n, or 1 when there is no normal.
 float HorizonCos(const Vec3& n, const Vec3& w) { return HasNormal(n) ? Dot(n, w) : 1.0f; }
 
-[[maybe_unused]] void RectCorners(const Light& l, Vec3 c[4]) {
+void RectCorners(const Light& l, Vec3 c[4]) {
   c[0] = l.corner;
   c[1] = l.corner + l.edge_u;
   c[2] = l.corner + l.edge_u + l.edge_v;

@@ -1,12 +1,6 @@
 #include "render/sample_film.h"
 
 namespace irfarm {
-namespace {
-Vec3 Ratio(const Vec3& s, const Vec3& u) {
-  return Vec3(u.x > 0 ? s.x / u.x : 0, u.y > 0 ? s.y / u.y : 0, u.z > 0 ? s.z / u.z : 0);
-}
-}  // namespace
-
 SampleFilm::SampleFilm(size_t pixels, int slots)
     : slots_(slots),
       stride_(1 + 3 * size_t(slots)),
@@ -33,7 +27,7 @@ Vec3 SampleFilm::Resolve(const Vec3* a, const Vec3* b, int n) const {
     const Vec3 A = b ? a[1 + 3 * j] + b[1 + 3 * j] : a[1 + 3 * j];
     const Vec3 S = b ? a[2 + 3 * j] + b[2 + 3 * j] : a[2 + 3 * j];
     const Vec3 U = b ? a[3 + 3 * j] + b[3 + 3 * j] : a[3 + 3 * j];
-    v += A * Ratio(S, U);
+    v += A * DirectTerms::Ratio(S, U);
   }
   return v / float(n);
 }
