@@ -15,9 +15,9 @@ namespace irfarm {
 namespace {
 
 // From OIDN 2's include/OpenImageDenoise/oidn.h (enum values and signatures of the C API).
-constexpr int kOidnDeviceTypeCpu = 1;   // OIDN_DEVICE_TYPE_CPU
-constexpr int kOidnFormatFloat3 = 3;    // OIDN_FORMAT_FLOAT3
-constexpr int kOidnErrorNone = 0;       // OIDN_ERROR_NONE
+constexpr int kOidnDeviceTypeCpu = 1;  // OIDN_DEVICE_TYPE_CPU
+constexpr int kOidnFormatFloat3 = 3;   // OIDN_FORMAT_FLOAT3
+constexpr int kOidnErrorNone = 0;      // OIDN_ERROR_NONE
 constexpr const char* kOidnLibrary = "libOpenImageDenoise.so.2";
 
 }  // namespace
@@ -30,9 +30,9 @@ struct Denoiser::Api {
   void (*ReleaseDevice)(void* device);
   int (*GetDeviceError)(void* device, const char** message);
   void* (*NewFilter)(void* device, const char* type);
-  void (*SetSharedFilterImage)(void* filter, const char* name, void* ptr, int format,
-                               size_t width, size_t height, size_t byte_offset,
-                               size_t pixel_byte_stride, size_t row_byte_stride);
+  void (*SetSharedFilterImage)(void* filter, const char* name, void* ptr, int format, size_t width,
+                               size_t height, size_t byte_offset, size_t pixel_byte_stride,
+                               size_t row_byte_stride);
   void (*SetFilterBool)(void* filter, const char* name, bool value);
   void (*CommitFilter)(void* filter);
   void (*ExecuteFilter)(void* filter);
@@ -95,8 +95,8 @@ absl::StatusOr<std::unique_ptr<Denoiser>> Denoiser::OpenFrom(
                                   " lacks OIDN 2 C functions (not OIDN 2?)");
   d->device_ = a.NewDevice(kOidnDeviceTypeCpu);
   if (!d->device_)
-    return absl::UnavailableError("denoiser unavailable: OIDN has no CPU device (" +
-                                  d->library_ + ")");
+    return absl::UnavailableError("denoiser unavailable: OIDN has no CPU device (" + d->library_ +
+                                  ")");
   if (threads > 0) a.SetDeviceInt(d->device_, "numThreads", threads);
   // Do not pin threads to cores: the render's TBB workers and other processes share them.
   a.SetDeviceBool(d->device_, "setAffinity", false);
@@ -128,10 +128,9 @@ absl::StatusOr<Image> Denoiser::Denoise(const Image& color, const Image* albedo,
       return absl::InvalidArgumentError("denoiser: guide image size differs from the image");
   const Api& a = *api_;
   const auto set = [&](void* filter, const char* name, const Image& image) {
-    a.SetSharedFilterImage(filter, name,
-                           const_cast<void*>(static_cast<const void*>(image.pixels.data())),
-                           kOidnFormatFloat3, size_t(w), size_t(h), 0, sizeof(Vec3),
-                           sizeof(Vec3) * size_t(w));
+    a.SetSharedFilterImage(
+        filter, name, const_cast<void*>(static_cast<const void*>(image.pixels.data())),
+        kOidnFormatFloat3, size_t(w), size_t(h), 0, sizeof(Vec3), sizeof(Vec3) * size_t(w));
   };
   // Prefiltered guides are written to copies (the caller's AOVs stay as rendered).
   Image clean_albedo, clean_normal;
@@ -210,13 +209,12 @@ absl::StatusOr<Image> DenoiseRender(const Denoiser& denoiser, const Image& image
   Image out(image.width, image.height);
   for (size_t i = 0; i < n; ++i) {
     const Vec3& alb = aovs.albedo.pixels[i];
-    const Vec3 kept = mode == DenoiseMode::kIndirect ? aovs.direct.pixels[i]
-                                                     : aovs.emission.pixels[i];
+    const Vec3 kept =
+        mode == DenoiseMode::kIndirect ? aovs.direct.pixels[i] : aovs.emission.pixels[i];
     const Vec3 part = mode == DenoiseMode::kIndirect ? aovs.indirect.pixels[i]
                                                      : image.pixels[i] - aovs.emission.pixels[i];
     for (int c = 0; c < 3; ++c)
-      out.pixels[i][c] =
-          kept[c] + (alb[c] > kMinAlbedo ? den->pixels[i][c] * alb[c] : part[c]);
+      out.pixels[i][c] = kept[c] + (alb[c] > kMinAlbedo ? den->pixels[i][c] * alb[c] : part[c]);
   }
   return out;
 }

@@ -118,8 +118,7 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
 }
 
 bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* beta,
-                                     SurfaceHit* hit, Vec3* nf, int* depth,
-                                     float* distance) const {
+                                     SurfaceHit* hit, Vec3* nf, int* depth, float* distance) const {
   const int max_depth = settings_.path.max_depth;
   *distance = 0;
   for (*depth = 1; *depth <= kMaxSpecularChain; ++*depth) {
@@ -190,8 +189,8 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   r.irradiance = sum * (kPi / float(n));
   if (half_difference) {
     const int n0 = (n + 1) / 2, n1 = n / 2;
-    *half_difference = half_sum[0] * (kPi / float(std::max(1, n0))) -
-                       half_sum[1] * (kPi / float(std::max(1, n1)));
+    *half_difference =
+        half_sum[0] * (kPi / float(std::max(1, n0))) - half_sum[1] * (kPi / float(std::max(1, n1)));
   }
   const float a = settings_.accuracy;
   // Harmonic mean distance, then clamps on the validity radius a*R in pixel footprints at x.
@@ -232,8 +231,8 @@ Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int d
 }
 
 Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rng& rng,
-                            RenderCounters& counters, IrrcacheShade* shade,
-                            DirectTerms* terms, SampleAov* aov) const {
+                            RenderCounters& counters, IrrcacheShade* shade, DirectTerms* terms,
+                            SampleAov* aov) const {
   // The camera path: through delta and glossy lobes (path traced, light sampled with MIS at
   // glossy vertices), and at every vertex with a diffuse lobe that lobe is shaded from the
   // cache (ShadeDiffuse). A scene without glossy or delta materials makes one vertex per path.
@@ -241,8 +240,8 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
   // diffuse vertex reached through delta lobes; later ones resolve their ratio per sample.
   Vec3 L, beta(1, 1, 1);
   const int max_depth = settings_.path.max_depth;
-  float prev_pdf = 0;  // pdf of the glossy sample that made `ray`; 0 = delta lobe or camera
-  Vec3 prev_p, prev_n;  // the previous vertex and its facing normal (light selection)
+  float prev_pdf = 0;        // pdf of the glossy sample that made `ray`; 0 = delta lobe or camera
+  Vec3 prev_p, prev_n;       // the previous vertex and its facing normal (light selection)
   bool prev_glossy = false;  // a diffuse or glossy vertex lies before this one
   // AOVs: the first vertex with a diffuse lobe (-1: not reached); what comes before it and its
   // direct light (and light its glossy sample hits) is direct, its cached term and everything
@@ -262,7 +261,10 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     SurfaceHit hit;
     if (!scene_.Intersect(ray, &hit)) {
       if (scene_.has_environment()) {
-        const float w = prev_pdf == 0 ? 1.0f : PowerHeuristic(prev_pdf, scene_.PdfEnvironment(prev_p, prev_n, ray.dir));
+        const float w =
+            prev_pdf == 0
+                ? 1.0f
+                : PowerHeuristic(prev_pdf, scene_.PdfEnvironment(prev_p, prev_n, ray.dir));
         add(beta * scene_.EvalEnvironment(ray.dir) * w, depth, false);
       }
       break;
@@ -272,9 +274,10 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     if (hit.light >= 0) {
       const Vec3 le = scene_.Emitted(hit, wo);
       if (!IsBlack(le)) {
-        const float w = prev_pdf == 0
-                            ? 1.0f
-                            : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, prev_n, hit, ray.dir));
+        const float w =
+            prev_pdf == 0
+                ? 1.0f
+                : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, prev_n, hit, ray.dir));
         add(beta * le * w, depth, false);
       }
     }
@@ -397,12 +400,12 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
   LookupInfo info;
   if (!cache_->Lookup(hit.p, nf, settings_.accuracy, &interp, &info)) return false;
   Vec3 half_diff;
-  const IrradianceRecord fresh = ComputeRecord(hit, nf, depth, scene_.camera().PixelSpread(distance),
-                                               rng, counters, &half_diff);
+  const IrradianceRecord fresh = ComputeRecord(
+      hit, nf, depth, scene_.camera().PixelSpread(distance), rng, counters, &half_diff);
   const Bsdf& bsdf = scene_.material(hit.material);
   const ShadingFrame frame(hit.ns);
-  const Vec3 w = beta * bsdf.DiffuseAlbedo(BsdfContext{hit.u, hit.v}, frame.ToLocal(-ray.dir)) *
-                 kInvPi;
+  const Vec3 w =
+      beta * bsdf.DiffuseAlbedo(BsdfContext{hit.u, hit.v}, frame.ToLocal(-ray.dir)) * kInvPi;
   const Vec3 direct = DirectLight(hit, nf, -ray.dir, w, LightStrata{}, rng, counters, nullptr);
   const Vec3 v = direct + w * interp;  // the point's radiance (emission on the way left out)
   double e = 0;

@@ -96,8 +96,7 @@ class IrrcacheIntegrator {
   // receives the sample's AOVs: direct = emission seen + explicit direct light, indirect = the
   // cached irradiance term (with `terms`, the rectangles' ratio part is added per pixel).
   Vec3 Li(const Ray& ray, const LightStrata& strata, Rng& rng, RenderCounters& counters,
-          IrrcacheShade* shade, DirectTerms* terms = nullptr,
-          SampleAov* aov = nullptr) const;
+          IrrcacheShade* shade, DirectTerms* terms = nullptr, SampleAov* aov = nullptr) const;
   // Overture: makes sure the cache covers the first diffuse surface seen along `ray`, computing
   // a record there if none counts, and nothing else. Returns true when it computed one.
   bool Prime(const Ray& ray, Rng& rng, RenderCounters& counters) const;
@@ -133,8 +132,8 @@ class IrrcacheIntegrator {
                    DirectTerms* terms) const;
   Vec3 ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo, const Vec3& beta,
                     const Vec3& albedo, int depth, float distance, const LightStrata& strata,
-                    Rng& rng, RenderCounters& counters, IrrcacheShade* shade,
-                    DirectTerms* terms, Vec3* cached) const;
+                    Rng& rng, RenderCounters& counters, IrrcacheShade* shade, DirectTerms* terms,
+                    Vec3* cached) const;
   Vec3 GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx, const ShadingFrame& frame,
                     const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_l, Rng& rng,
                     RenderCounters& counters) const;

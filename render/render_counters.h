@@ -13,7 +13,7 @@ struct RenderCounters {
   uint64_t nonfinite_samples = 0;  // samples (or light-sample terms) that were NaN or infinite
   uint64_t lights_skipped = 0;     // lights that could not reach a shading point: no shadow ray
   uint64_t record_rays = 0;        // first rays of irradiance-record hemispheres
-  uint64_t glossy_bounces = 0;  // irrcache camera-path vertices shaded through a glossy lobe
+  uint64_t glossy_bounces = 0;     // irrcache camera-path vertices shaded through a glossy lobe
   uint64_t records_computed = 0;
   uint64_t lookups = 0;              // irradiance-cache queries
   uint64_t lookup_hits = 0;          // queries answered by interpolation

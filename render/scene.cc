@@ -425,8 +425,9 @@ bool Scene::OccludedPassThrough(Ray ray) const {
     std::memcpy(&u, &f, sizeof(u));
     return uint64_t(u);
   };
-  uint64_t h = HashCombine((bits(ray.origin.x) << 32) | bits(ray.origin.y),
-                           (bits(ray.origin.z) << 32) | bits(ray.dir.x + 3 * ray.dir.y + 7 * ray.dir.z));
+  uint64_t h =
+      HashCombine((bits(ray.origin.x) << 32) | bits(ray.origin.y),
+                  (bits(ray.origin.z) << 32) | bits(ray.dir.x + 3 * ray.dir.y + 7 * ray.dir.z));
   for (int i = 0; i < 64; ++i) {
     SurfaceHit hit;
     if (!Intersect(ray, &hit)) return false;

@@ -124,7 +124,7 @@ class Scene {
   std::vector<Mesh> meshes_;  // indexed by Embree geometry id
   std::vector<std::unique_ptr<Texture>> textures_;
   std::vector<std::unique_ptr<Bsdf>> materials_;  // SceneDesc::bsdfs, built
-  LightSampler lights_;  // local lights first, then environment lights
+  LightSampler lights_;                           // local lights first, then environment lights
   bool has_pass_through_ = false;  // some material lets rays through (mask): see Occluded
   Camera camera_;
   Bounds3 bounds_;

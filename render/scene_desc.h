@@ -59,11 +59,11 @@ struct ColorParam {
 // them (see render/bsdfs/registry.h); the scene hash hashes them all.
 struct BsdfDesc {
   std::string id;
-  std::string type = "diffuse";               // Mitsuba plugin name
-  std::map<std::string, float> floats;        // numbers, iors, booleans (0 / 1)
+  std::string type = "diffuse";         // Mitsuba plugin name
+  std::map<std::string, float> floats;  // numbers, iors, booleans (0 / 1)
   std::map<std::string, std::string> strings;
-  std::map<std::string, ColorParam> colors;   // rgb values or bitmap textures
-  std::vector<int> nested;                    // nested bsdfs: indices into SceneDesc::bsdfs
+  std::map<std::string, ColorParam> colors;  // rgb values or bitmap textures
+  std::vector<int> nested;                   // nested bsdfs: indices into SceneDesc::bsdfs
   SourceLoc loc;
 
   float Float(const std::string& name, float def) const {

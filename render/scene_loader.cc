@@ -778,8 +778,8 @@ absl::Status Parser::ParseFilm(pugi::xml_node n) {
     Warn(NodeOf(p, "file_format"),
          absl::StrCat("file_format '", file_format, "': irfarm writes OpenEXR"));
   if (!IsOneOf(pixel_format, {"rgb", "rgba", "luminance", "luminance_alpha", "xyz", "xyza"}))
-    return Error(NodeOf(p, "pixel_format"), absl::StrCat("unknown pixel_format '", pixel_format,
-                                                         "'"));
+    return Error(NodeOf(p, "pixel_format"),
+                 absl::StrCat("unknown pixel_format '", pixel_format, "'"));
   if (pixel_format != "rgb")
     Warn(NodeOf(p, "pixel_format"),
          absl::StrCat("pixel_format '", pixel_format, "': irfarm writes rgb"));
@@ -788,10 +788,10 @@ absl::Status Parser::ParseFilm(pugi::xml_node n) {
                  absl::StrCat("unknown component_format '", component_format, "'"));
   if (cam.crop_x < 0 || cam.crop_y < 0 || cam.width <= 0 || cam.height <= 0 ||
       cam.crop_x + cam.width > film_w || cam.crop_y + cam.height > film_h) {
-    return Error(NodeOf(p, "crop_width"),
-                 absl::StrCat("crop window ", cam.width, " x ", cam.height, " at (", cam.crop_x,
-                              ", ", cam.crop_y, ") is not inside the ", film_w, " x ", film_h,
-                              " film"));
+    return Error(
+        NodeOf(p, "crop_width"),
+        absl::StrCat("crop window ", cam.width, " x ", cam.height, " at (", cam.crop_x, ", ",
+                     cam.crop_y, ") is not inside the ", film_w, " x ", film_h, " film"));
   }
   cam.film_width = film_w;
   cam.film_height = film_h;
@@ -820,11 +820,10 @@ absl::Status Parser::ParseFilm(pugi::xml_node n) {
 }
 
 absl::Status Parser::ParseSampler(pugi::xml_node n) {
-  LOADER_ASSIGN_OR_RETURN(
-      const std::string type,
-      PluginType(n, "sampler",
-                 {"independent", "stratified", "multijitter", "orthogonal", "ldsampler",
-                  "sobol", "halton", "hammersley"}));
+  LOADER_ASSIGN_OR_RETURN(const std::string type,
+                          PluginType(n, "sampler",
+                                     {"independent", "stratified", "multijitter", "orthogonal",
+                                      "ldsampler", "sobol", "halton", "hammersley"}));
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "sampler"));
   LOADER_ASSIGN_OR_RETURN(scene_.camera.spp, GetInt(p, "sample_count", 4));
   LOADER_RETURN_IF_ERROR(GetInt(p, "seed", 0).status());  // irfarm seeds per job and pixel
