@@ -50,6 +50,7 @@ constexpr int kLookupStack = 8 * (20 + 1) + 1;
 struct IrradianceCache::Accumulator {
   Vec3 x, n;
   float a;
+  int max_level;
   double weight = 0;
   double e[3] = {0, 0, 0};
   int count = 0;
@@ -59,6 +60,7 @@ struct IrradianceCache::Accumulator {
   int pending_count = 0;
 
   void Add(const IrradianceRecord& r) {
+    if (r.level > max_level) return;
     const float w = RecordWeight(x, n, a, r);
     if (w > 0) {
       weight += w;
@@ -147,6 +149,7 @@ IrradianceRecord IrradianceCache::Block::Record(int i) const {
   r.irradiance = c.irradiance;
   r.radius = radius()[i];
   r.origin = c.origin;
+  r.level = c.level;
   return r;
 }
 
@@ -203,6 +206,7 @@ bool IrradianceCache::CellOf(const Vec3& x, uint32_t cell[3]) const {
 IrradianceCache::Block* IrradianceCache::Block::Create(int capacity, Block* next) {
   static_assert(sizeof(Block) % alignof(Cold) == 0 && (4 * sizeof(float) * 4) % alignof(Cold) == 0,
                 "hot and cold arrays must be aligned after the header");
+  static_assert(sizeof(Cold) == 40, "level must fit in Cold's padding (records stay 56 bytes)");
   static_assert(kMaxBlock <= 64, "slot index must fit in a RecordRef's low 6 bits and `ready`");
   void* memory = ::operator new(Bytes(capacity), std::align_val_t(kBlockAlign));
   Block* b = new (memory) Block;
@@ -231,6 +235,7 @@ void IrradianceCache::AddToNode(Node* node, const IrradianceRecord& r, std::atom
     c.normal = r.normal;
     c.irradiance = r.irradiance;
     c.origin = r.origin;
+    c.level = r.level;
     b->ready.fetch_or(uint64_t(1) << i, std::memory_order_release);
     const uint64_t ref = RefOf(b, i);
     uint64_t old = all->load(std::memory_order_relaxed);
@@ -312,8 +317,8 @@ void IrradianceCache::Insert(const IrradianceRecord& r) {
 }
 
 bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradiance,
-                             LookupInfo* info) const {
-  Accumulator acc{x, n, std::min(a, max_accuracy_)};
+                             LookupInfo* info, int max_level) const {
+  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level};
   // x on the grid; may lie outside [0, 2^20) (records inside the root cube can reach points
   // outside it) or be NaN (then no child test passes and only the root is scanned).
   const double g[3] = {ToGrid(x.x, 0), ToGrid(x.y, 1), ToGrid(x.z, 2)};
@@ -393,8 +398,8 @@ bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradi
 }
 
 bool IrradianceCache::LookupBruteForce(const Vec3& x, const Vec3& n, float a, Vec3* irradiance,
-                                       LookupInfo* info) const {
-  Accumulator acc{x, n, std::min(a, max_accuracy_)};
+                                       LookupInfo* info, int max_level) const {
+  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level};
   ForEach([&acc](const IrradianceRecord& r) { acc.Add(r); });
   return acc.Finish(irradiance, info);
 }

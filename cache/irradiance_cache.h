@@ -82,11 +82,14 @@ class IrradianceCache {
   // RecordWeight in cache/irradiance_weight.h): E = sum w_i E_i / sum w_i over the records that
   // count. a is clamped to max_accuracy(). Returns false and leaves *irradiance untouched when no
   // record counts. info may be null; when given it is always filled. Thread-safe, allocation-free.
-  bool Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradiance, LookupInfo* info) const;
+  // Only records with level <= max_level count.
+  bool Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradiance, LookupInfo* info,
+              int max_level = kAnyLevel) const;
 
   // Same rule and result as Lookup (up to summation order) by scanning every record; for tests.
-  bool LookupBruteForce(const Vec3& x, const Vec3& n, float a, Vec3* irradiance,
-                        LookupInfo* info) const;
+  bool LookupBruteForce(const Vec3& x, const Vec3& n, float a, Vec3* irradiance, LookupInfo* info,
+                        int max_level = kAnyLevel) const;
+  static constexpr int kAnyLevel = 255;
 
   // Number of records inserted (records of inserts still in progress may be missing).
   size_t size() const { return size_.load(std::memory_order_relaxed); }
@@ -117,6 +120,7 @@ class IrradianceCache {
     Vec3 normal;
     Vec3 irradiance;
     uint32_t origin;
+    uint8_t level;  // in what was padding before next_all: the record stays 56 bytes
     uint64_t next_all;
   };
   // Bytes of one record in memory: 4 hot floats (x, y, z, R) and its Cold part.

@@ -16,6 +16,10 @@ struct IrradianceRecord {
   Vec3 irradiance;      // E_i (RGB), indirect only
   float radius = 0;     // R_i (harmonic mean distance, clamped), > 0
   uint32_t origin = 0;  // who computed it (0 = this process; worker ids in the service)
+  // Cache level (RADIANCE's ambient level): 0 = made for a camera path; 1 = a secondary record,
+  // made with fewer rays for the rays of another record. A lookup at level l uses records of
+  // level <= l only, so the coarser secondary records never shade what the camera sees.
+  uint8_t level = 0;
 };
 
 // True when every field is finite, the normal has unit length (within 1e-3), R > 0 and E >= 0.

@@ -34,7 +34,7 @@ struct RenderArgs {
   int min_spp = 0;
   double target_error = 0, time_limit = 0, sampling_error = 0;
   std::string integrator;
-  int spp = 0, record_rays = 0, threads = 0, light_samples = 0;
+  int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
   float accuracy = 0, min_spacing = 0, max_spacing = 0;
   uint64_t seed = 0;
   bool no_overture = false, quiet = false;
@@ -104,6 +104,7 @@ int RunRender(const RenderArgs& args) {
   if (args.accuracy > 0) ic.accuracy = args.accuracy;
   if (args.record_rays > 0) ic.record_rays = args.record_rays;
   if (args.light_samples > 0) ic.light_samples = args.light_samples;
+  if (args.cache_levels > 0) ic.cache_levels = args.cache_levels;
   if (args.min_spacing > 0) ic.min_spacing_px = args.min_spacing;
   if (args.max_spacing > 0) ic.max_spacing_px = args.max_spacing;
   if (!(ic.accuracy > 0 && ic.accuracy <= 1)) {
@@ -280,6 +281,11 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   render->add_option("--light-samples", ra.light_samples, "irrcache: direct samples per hit")
       ->check(CLI::PositiveNumber);
+  render
+      ->add_option("--cache-levels", ra.cache_levels,
+                   "irrcache: 1 (default) = records' rays are path traced; 2 = they use a "
+                   "second-level cache at the surfaces they reach")
+      ->check(CLI::Range(1, 2));
   render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
   render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
   render->add_flag("--no-overture", ra.no_overture, "irrcache: skip the cache-filling prepass");

@@ -25,6 +25,9 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
   const int n = std::max(4, settings.record_rays);
   strata_t_ = std::max(1, int(std::lround(std::sqrt(n / kPi))));
   strata_p_ = std::max(1, int(std::lround(double(n) / strata_t_)));
+  const int n2 = std::max(4, int(std::lround(n * double(settings.secondary_ray_fraction))));
+  strata_t2_ = std::max(1, int(std::lround(std::sqrt(n2 / kPi))));
+  strata_p2_ = std::max(1, int(std::lround(double(n2) / strata_t2_)));
   const LightSampler& ls = scene.light_sampler();
   int slots = 0;
   for (int i = 0; i < ls.num_local(); ++i) {
@@ -38,7 +41,8 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
 
 Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
                                      const Vec3& weight, const LightStrata& strata, Rng& rng,
-                                     RenderCounters& counters, DirectTerms* terms) const {
+                                     RenderCounters& counters, DirectTerms* terms,
+                                     bool one_sample) const {
   const LightSampler& ls = scene_.light_sampler();
   const int nl = ls.num_local();
   const int k = std::max(1, settings_.light_samples);
@@ -60,7 +64,7 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
     ++counters.shadow_rays;
     return !scene_.Occluded(Scene::SpawnShadowRay(hit, s));
   };
-  if (nl > kAllLightsMax) {
+  if (nl > kAllLightsMax || one_sample) {
     for (int j = 0; j < k; ++j) {
       const float u1 = rng.Next();
       float u2, u3;
@@ -148,8 +152,8 @@ bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters
 
 IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const Vec3& nf, int depth,
                                                    float pixel_spread, Rng& rng,
-                                                   RenderCounters& counters,
-                                                   Vec3* half_difference) const {
+                                                   RenderCounters& counters, Vec3* half_difference,
+                                                   int level) const {
   const auto start = std::chrono::steady_clock::now();
   Vec3 s, t;
   MakeFrame(nf, &s, &t);
@@ -157,7 +161,12 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   const Vec3 ng_side = Dot(hit.ng, nf) >= 0 ? hit.ng : -hit.ng;
   Vec3 sum, half_sum[2];
   double inv_dist_sum = 0;
-  const int T = strata_t_, P = strata_p_;
+  const int T = level == 0 ? strata_t_ : strata_t2_, P = level == 0 ? strata_p_ : strata_p2_;
+  const bool cached_rays = level + 1 < settings_.cache_levels;
+  // Footprint of one of this record's rays: its share of the hemisphere, sqrt(2 pi / n) radians
+  // wide, plus the record's own footprint; secondary records are spaced for that (ray cones),
+  // not for a camera pixel: each ray averages over its footprint anyway.
+  const float ray_cone = std::sqrt(2 * kPi / float(std::max(1, T * P)));
   // Russian roulette from the first bounce of each record ray (not from rr_depth): a record
   // averages over many rays, so shorter paths with more rays win. Measured at equal CPU time on
   // cornell-box and sunlit-room: 1536 rays with early roulette beat 1024 without it.
@@ -173,7 +182,10 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       const Ray ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, dir);
       ++counters.record_rays;
       float d = INFINITY;
-      const Vec3 L = TracePath(scene_, ray, depth + 1, true, record_path, rng, counters, &d);
+      const Vec3 L = cached_rays
+                         ? CachedRayRadiance(ray, depth + 1, level + 1, pixel_spread, ray_cone, rng,
+                                             counters, &d)
+                         : TracePath(scene_, ray, depth + 1, true, record_path, rng, counters, &d);
       if (IsFinite(L)) {
         sum += L;
         half_sum[(i + j) & 1] += L;  // a checkerboard of strata: two interleaved halves
@@ -186,6 +198,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   IrradianceRecord r;
   r.position = hit.p;
   r.normal = nf;
+  r.level = uint8_t(level);
   r.irradiance = sum * (kPi / float(n));
   if (half_difference) {
     const int n0 = (n + 1) / 2, n1 = n / 2;
@@ -203,31 +216,115 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
     r.radius = std::max(1e-4f * std::max(hit.error_scale, MaxAbsComponent(hit.p)), 1e-30f);
   }
   ++counters.records_computed;
-  counters.record_seconds +=
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (level > 0) {
+    ++counters.records_secondary;  // its time is part of the record that asked for it
+  } else {
+    counters.record_seconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
   return r;
 }
 
 Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth,
                                     float distance, bool relax, Rng& rng, RenderCounters& counters,
-                                    bool* made) const {
+                                    bool* made, int level) const {
   Vec3 E;
   LookupInfo info;
   ++counters.lookups;
   const float a = settings_.accuracy;
-  if (cache_->Lookup(hit.p, nf, a, &E, &info) ||
+  if (cache_->Lookup(hit.p, nf, a, &E, &info, level) ||
       (relax &&
-       cache_->Lookup(hit.p, nf, std::min(1.0f, a * settings_.relaxed_factor), &E, &info))) {
+       cache_->Lookup(hit.p, nf, std::min(1.0f, a * settings_.relaxed_factor), &E, &info, level))) {
     ++counters.lookup_hits;
     counters.records_used += uint64_t(info.records_used);
     counters.remote_records_used += uint64_t(info.remote_records_used);
     return E;
   }
-  const IrradianceRecord r =
-      ComputeRecord(hit, nf, depth, scene_.camera().PixelSpread(distance), rng, counters);
+  const IrradianceRecord r = ComputeRecord(hit, nf, depth, scene_.camera().PixelSpread(distance),
+                                           rng, counters, nullptr, level);
   cache_->Insert(r);
   *made = true;
   return r.irradiance;
+}
+
+Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float footprint,
+                                           float cone, Rng& rng, RenderCounters& counters,
+                                           float* first_distance) const {
+  // Li's walk (delta and glossy lobes path traced with MIS, diffuse lobes from the cache), with
+  // one light sample per diffuse vertex and Russian roulette from the first bounce on, as the
+  // path-traced record rays have it.
+  Vec3 L, beta(1, 1, 1);
+  const int max_depth = settings_.path.max_depth;
+  float prev_pdf = 0;
+  Vec3 prev_p, prev_n;
+  *first_distance = INFINITY;
+  for (int i = 0; i < kMaxSpecularChain; ++i, ++depth) {
+    SurfaceHit hit;
+    if (!scene_.Intersect(ray, &hit)) {
+      if (scene_.has_environment()) {
+        const float w =
+            prev_pdf == 0
+                ? 1.0f
+                : PowerHeuristic(prev_pdf, scene_.PdfEnvironment(prev_p, prev_n, ray.dir));
+        L += beta * scene_.EvalEnvironment(ray.dir) * w;
+      }
+      break;
+    }
+    if (i == 0) *first_distance = hit.t;
+    footprint += hit.t * cone;
+    const Vec3 wo = -ray.dir;
+    if (hit.light >= 0 && i > 0) {  // at the first hit: the record point's direct light
+      const Vec3 le = scene_.Emitted(hit, wo);
+      if (!IsBlack(le)) {
+        const float w =
+            prev_pdf == 0
+                ? 1.0f
+                : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, prev_n, hit, ray.dir));
+        L += beta * le * w;
+      }
+    }
+    if (max_depth >= 0 && depth >= max_depth) break;
+    const Bsdf& bsdf = scene_.material(hit.material);
+    const BsdfContext ctx{hit.u, hit.v};
+    const ShadingFrame frame(hit.ns);
+    const Vec3 wo_l = frame.ToLocal(wo);
+    const Vec3 albedo = bsdf.DiffuseAlbedo(ctx, wo_l);
+    if (!IsBlack(albedo)) {
+      const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;
+      const Vec3 w = beta * albedo * kInvPi;
+      if (max_depth < 0 || depth + 1 <= max_depth)
+        L += DirectLight(hit, nf, wo, w, LightStrata{}, rng, counters, nullptr, true);
+      if (max_depth < 0 || depth + 2 <= max_depth) {
+        bool made = false;
+        // As the camera distance at which a pixel is that wide (Irradiance's unit).
+        const float distance = footprint / scene_.camera().PixelSpread(1.0f);
+        L += w * Irradiance(hit, nf, depth, distance, true, rng, counters, &made, level);
+      }
+    }
+    if (!bsdf.HasNonDiffuse()) break;
+    if (max_depth >= 0 && depth + 1 > max_depth) break;
+    if ((bsdf.Flags() & (kGlossyReflection | kGlossyTransmission)) != 0)
+      L += beta * GlossyDirect(bsdf, ctx, frame, hit, wo, wo_l, rng, counters);
+    const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+    const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3, kNonDiffuseLobes);
+    if (IsBlack(bs.weight)) break;
+    const Vec3 wi = frame.ToWorld(bs.wi);
+    if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) break;
+    beta *= bs.weight;
+    if (IsBlack(beta)) break;
+    ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
+    ++counters.bounce_rays;
+    if (bs.lobe == kNullTransmission) continue;  // through a mask: MIS state unchanged
+    const float q = std::min(MaxComponent(beta), 0.95f);
+    if (rng.Next() >= q) break;
+    beta /= q;
+    if (!bs.IsDelta() && bs.pdf > 0)  // a glossy lobe widens the cone by about its width
+      cone = std::min(kPi / 2, cone + 1.0f / std::sqrt(kPi * bs.pdf));
+    prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
+    prev_p = hit.p;
+    prev_n = wo_l.z >= 0 ? hit.ns : -hit.ns;
+  }
+  return L;
 }
 
 Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rng& rng,
@@ -398,7 +495,7 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
   if (!(max_depth < 0 || depth + 2 <= max_depth)) return false;
   Vec3 interp;
   LookupInfo info;
-  if (!cache_->Lookup(hit.p, nf, settings_.accuracy, &interp, &info)) return false;
+  if (!cache_->Lookup(hit.p, nf, settings_.accuracy, &interp, &info, 0)) return false;
   Vec3 half_diff;
   const IrradianceRecord fresh = ComputeRecord(
       hit, nf, depth, scene_.camera().PixelSpread(distance), rng, counters, &half_diff);

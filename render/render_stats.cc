@@ -95,6 +95,7 @@ std::string RenderStats::ToJson() const {
     << ", \"total\": " << total_rays
     << ", \"shadow_skipped_unreachable_light\": " << c.lights_skipped << "},\n";
   o << "  \"records\": {\"computed\": " << c.records_computed
+    << ", \"computed_secondary\": " << c.records_secondary
     << ", \"computed_overture\": " << records_overture << ", \"received\": " << records_received
     << ", \"in_cache\": " << records_in_cache << ", \"used\": " << c.records_used
     << ", \"used_remote\": " << c.remote_records_used

@@ -304,7 +304,8 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
   double spp = 64;
   if (desc.integrator.type == "irrcache") {
     static constexpr const char* kKnown[] = {"accuracy",       "record_rays",    "light_samples",
-                                             "min_spacing_px", "max_spacing_px", "spp"};
+                                             "min_spacing_px", "max_spacing_px", "spp",
+                                             "cache_levels"};
     std::map<std::string, double> values;
     for (const auto& [name, text] : desc.integrator.params) {
       bool found = false;
@@ -314,13 +315,13 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
         return absl::InvalidArgumentError(desc.integrator.loc.ToString() +
                                           ": unknown irrcache parameter '" + name +
                                           "' (supported: accuracy, record_rays, light_samples, "
-                                          "min_spacing_px, max_spacing_px, spp)");
+                                          "min_spacing_px, max_spacing_px, spp, cache_levels)");
       if (!absl::SimpleAtod(text, &v) || !std::isfinite(v) || v <= 0 ||
-          (name == "accuracy" && v > 1))
+          (name == "accuracy" && v > 1) || (name == "cache_levels" && v != 1 && v != 2))
         return absl::InvalidArgumentError(
             desc.integrator.loc.ToString() + ": irrcache parameter '" + name +
-            "' must be a positive number" + (name == "accuracy" ? " <= 1" : "") + ", got '" + text +
-            "'");
+            "' must be a positive number" + (name == "accuracy" ? " <= 1" : "") +
+            (name == "cache_levels" ? " (1 or 2)" : "") + ", got '" + text + "'");
       values[name] = v;
     }
     if (values.count("accuracy")) ic.accuracy = float(values["accuracy"]);
@@ -329,6 +330,7 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
     if (values.count("min_spacing_px")) ic.min_spacing_px = float(values["min_spacing_px"]);
     if (values.count("max_spacing_px")) ic.max_spacing_px = float(values["max_spacing_px"]);
     if (values.count("spp")) spp = values["spp"];
+    if (values.count("cache_levels")) ic.cache_levels = int(values["cache_levels"]);
   }
   s.spp = integrator == "path" ? desc.camera.spp : std::max(1, int(spp));
   s.adaptive = integrator == "irrcache";

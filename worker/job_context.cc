@@ -52,10 +52,11 @@ size_t JobContext::InsertRemote(const std::vector<IrradianceRecord>& records) {
 std::vector<IrradianceRecord> JobContext::TakeNewOwnRecords(size_t max) {
   std::lock_guard<std::mutex> lock(publish_mu_);
   // ForEach sees a consistent newest-first list; own records not yet published are the first
-  // (own_total - own_published_) records with origin 0 in it.
+  // (own_total - own_published_) records with origin 0 and level 0 in it.
   std::vector<IrradianceRecord> own;
+  // Secondary records (level > 0) stay local: they are coarse, and cheap to remake.
   cache_->ForEach([&](const IrradianceRecord& r) {
-    if (r.origin == 0) own.push_back(r);
+    if (r.origin == 0 && r.level == 0) own.push_back(r);
   });
   if (own.size() <= own_published_) return {};
   const size_t fresh = own.size() - own_published_;

@@ -135,6 +135,36 @@ TEST(IrradianceCacheTest, InterpolatesWithWardWeights) {
   EXPECT_FLOAT_EQ(e.x, 1.0f);
 }
 
+TEST(IrradianceCacheTest, LookupsSeeOnlyRecordsOfTheirLevelOrBelow) {
+  IrradianceCache cache(UnitSettings(0.3f));
+  const Vec3 n(0, 0, 1);
+  IrradianceRecord primary = MakeRecord(Vec3(0.0f, 0, 0), n, 1.0f, Vec3(1));
+  IrradianceRecord secondary = MakeRecord(Vec3(0.01f, 0, 0), n, 1.0f, Vec3(5));
+  secondary.level = 1;
+  cache.Insert(primary);
+  cache.Insert(secondary);
+  Vec3 e;
+  LookupInfo info;
+  for (const bool brute : {false, true}) {
+    const auto lookup = [&](const Vec3& x, int level) {
+      return brute ? cache.LookupBruteForce(x, n, 0.3f, &e, &info, level)
+                   : cache.Lookup(x, n, 0.3f, &e, &info, level);
+    };
+    // Level 0 (camera paths): the secondary record never counts.
+    ASSERT_TRUE(lookup(Vec3(0.01f, 0, 0), 0));
+    EXPECT_EQ(info.records_used, 1);
+    EXPECT_FLOAT_EQ(e.x, 1.0f);
+    // Level 1 (records' rays): both count.
+    ASSERT_TRUE(lookup(Vec3(0.01f, 0, 0), 1));
+    EXPECT_EQ(info.records_used, 2);
+    EXPECT_GT(e.x, 1.0f);
+  }
+  // The level survives the cache (ForEach returns it).
+  int secondaries = 0;
+  cache.ForEach([&](const IrradianceRecord& r) { secondaries += r.level == 1; });
+  EXPECT_EQ(secondaries, 1);
+}
+
 TEST(IrradianceCacheTest, AccuracyAboveMaximumIsClamped) {
   IrradianceCache cache(UnitSettings(0.1f));
   const Vec3 n(0, 0, 1);
