@@ -14,7 +14,8 @@ namespace irfarm {
   X(kPlasticBsdf)              \
   X(kRoughPlasticBsdf)         \
   X(kMaskBsdf)                 \
-  X(kRoughDielectricBsdf)
+  X(kRoughDielectricBsdf)      \
+  X(kPrincipledBsdf)
 
 #define IRFARM_DECLARE_PLUGIN(p) extern const BsdfPlugin p;
 IRFARM_BSDF_PLUGINS(IRFARM_DECLARE_PLUGIN)

@@ -55,7 +55,11 @@ absl::Status Parse(BsdfParams& p) {
     return p.Error("", "twosided needs one nested bsdf (both sides) or two (front, back)");
   for (const int i : *nested) {
     const std::string& t = p.Nested(i).type;
-    if (t == "dielectric" || t == "thindielectric" || t == "roughdielectric" || t == "twosided")
+    const auto st = p.Nested(i).colors.find("spec_trans");  // principled's transmission
+    const bool transmits =
+        st != p.Nested(i).colors.end() && (st->second.texture >= 0 || !IsBlack(st->second.value));
+    if (t == "dielectric" || t == "thindielectric" || t == "roughdielectric" || t == "twosided" ||
+        (t == "principled" && transmits))
       return p.Error("", absl::StrCat("twosided can only wrap a bsdf without transmission, not '",
                                       t, "'"));
   }
