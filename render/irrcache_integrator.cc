@@ -127,7 +127,7 @@ bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters
     const Vec3 wo = -ray.dir;
     if (max_depth >= 0 && *depth >= max_depth) return false;
     const Bsdf& bsdf = scene_.material(hit->material);
-    const BsdfContext ctx{hit->u, hit->v};
+    const BsdfContext ctx = hit->Context();
     const ShadingFrame frame(hit->ns);
     const Vec3 wo_l = frame.ToLocal(wo);
     if (!IsBlack(bsdf.DiffuseAlbedo(ctx, wo_l))) {
@@ -283,7 +283,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     }
     if (max_depth >= 0 && depth >= max_depth) break;
     const Bsdf& bsdf = scene_.material(hit.material);
-    const BsdfContext ctx{hit.u, hit.v};
+    const BsdfContext ctx = hit.Context();
     const ShadingFrame frame(hit.ns);
     const Vec3 wo_l = frame.ToLocal(wo);
     const Vec3 albedo = bsdf.DiffuseAlbedo(ctx, wo_l);
@@ -405,7 +405,7 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
   const Bsdf& bsdf = scene_.material(hit.material);
   const ShadingFrame frame(hit.ns);
   const Vec3 w =
-      beta * bsdf.DiffuseAlbedo(BsdfContext{hit.u, hit.v}, frame.ToLocal(-ray.dir)) * kInvPi;
+      beta * bsdf.DiffuseAlbedo(hit.Context(), frame.ToLocal(-ray.dir)) * kInvPi;
   const Vec3 direct = DirectLight(hit, nf, -ray.dir, w, LightStrata{}, rng, counters, nullptr);
   const Vec3 v = direct + w * interp;  // the point's radiance (emission on the way left out)
   double e = 0;

@@ -48,9 +48,13 @@ constexpr uint32_t kDeltaLobes = kDeltaReflection | kDeltaTransmission | kNullTr
 constexpr uint32_t kTransmissionLobes =
     kGlossyTransmission | kDeltaTransmission | kNullTransmission;
 
-// Where the BSDF is evaluated: texture coordinates for textured parameters.
+// Where the BSDF is evaluated: texture coordinates for textured parameters and, for normal and
+// bump mapping, the surface's tangents (world space, per unit of u and v) with the shading
+// normal n the local frame was made from (ShadingFrame(n)). n = 0: no tangents known (unit
+// tests); then local x, y are taken as the u, v directions.
 struct BsdfContext {
   float u = 0, v = 0;
+  Vec3 n, dpdu, dpdv;
 };
 
 struct BsdfSample {

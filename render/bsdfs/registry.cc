@@ -15,7 +15,9 @@ namespace irfarm {
   X(kRoughPlasticBsdf)         \
   X(kMaskBsdf)                 \
   X(kRoughDielectricBsdf)      \
-  X(kPrincipledBsdf)
+  X(kPrincipledBsdf)           \
+  X(kNormalMapBsdf)            \
+  X(kBumpMapBsdf)
 
 #define IRFARM_DECLARE_PLUGIN(p) extern const BsdfPlugin p;
 IRFARM_BSDF_PLUGINS(IRFARM_DECLARE_PLUGIN)

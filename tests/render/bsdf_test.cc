@@ -286,6 +286,16 @@ TEST(BsdfChiSquareTest, Principled) {
   }
 }
 
+// Normal mapping (a constant tilted map, the hit's local axes as tangents) keeps sampling and
+// Pdf consistent, including the side checks and the shadow-terminator weight.
+TEST(BsdfChiSquareTest, NormalMappedRoughPlastic) {
+  BsdfDesc d = Rough("roughplastic", "ggx", 0.3f, 0.3f);
+  BsdfDesc nm = Desc("normalmap");
+  nm.colors["normalmap"].value = (Normalize(Vec3(0.4f, -0.2f, 1)) + Vec3(1.0f)) * 0.5f;
+  nm.nested = {0};
+  ExpectChiSquare({d, nm}, "normalmap roughplastic");
+}
+
 // Mean weight over many samples = directional albedo (incl. delta lobes).
 Vec3 Albedo(const Bsdf& bsdf, const Vec3& wo, int n = 200000) {
   Rng rng(5, 9);

@@ -593,6 +593,21 @@ TEST(SceneLoaderTest, Principled) {
                   .ok());
 }
 
+// normalmap and bumpmap: their texture and one nested bsdf are required (file:line errors).
+TEST(SceneLoaderTest, NormalAndBumpMaps) {
+  EXPECT_TRUE(Load("  <bsdf type=\"normalmap\">\n"
+                   "    <rgb name=\"normalmap\" value=\"0.5, 0.5, 1\"/>\n"
+                   "    <bsdf type=\"diffuse\"/>\n  </bsdf>\n")
+                  .ok());
+  ExpectError(Load("  <bsdf type=\"normalmap\">\n    <bsdf type=\"diffuse\"/>\n  </bsdf>\n"),
+              "scene.xml:2:", "normalmap needs a 'normalmap' texture");
+  ExpectError(Load("  <bsdf type=\"bumpmap\">\n    <bsdf type=\"diffuse\"/>\n  </bsdf>\n"),
+              "scene.xml:2:", "bumpmap needs exactly one nested texture");
+  ExpectError(Load("  <bsdf type=\"normalmap\">\n    <rgb name=\"normalmap\" value=\"0.5\"/>\n"
+                   "  </bsdf>\n"),
+              "scene.xml:2:", "normalmap needs exactly one nested bsdf");
+}
+
 // ---------------------------------------------------------------- materials and emitters
 
 TEST(SceneLoaderTest, Materials) {
