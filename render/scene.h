@@ -42,7 +42,8 @@ struct SurfaceHit {
   int material = 0;
   int light = -1;  // index into Scene::lights() when the surface emits
   unsigned geom = 0, prim = 0;
-  // What the BSDF needs of the hit (its local frame is ShadingFrame(ns)).
+  // The BSDF's local frame at the hit, and what the BSDF needs of the hit.
+  ShadingFrame Frame() const { return ShadingFrame(ns, dpdu); }
   BsdfContext Context() const { return BsdfContext{u, v, ns, dpdu, dpdv}; }
 };
 

@@ -19,6 +19,7 @@
 // Hot path: nothing here allocates.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "cache/math.h"
@@ -50,8 +51,8 @@ constexpr uint32_t kTransmissionLobes =
 
 // Where the BSDF is evaluated: texture coordinates for textured parameters and, for normal and
 // bump mapping, the surface's tangents (world space, per unit of u and v) with the shading
-// normal n the local frame was made from (ShadingFrame(n)). n = 0: no tangents known (unit
-// tests); then local x, y are taken as the u, v directions.
+// normal n the local frame was made from (ShadingFrame(n, dpdu)). n = 0: no tangents known
+// (unit tests); then local x, y are taken as the u, v directions.
 struct BsdfContext {
   float u = 0, v = 0;
   Vec3 n, dpdu, dpdv;
@@ -115,10 +116,22 @@ class Bsdf {
   bool IsTwoSided() const { return (Flags() & kTwoSidedFlag) != 0; }
 };
 
-// The local shading frame of a hit: n = shading normal (front side), s and t from MakeFrame.
+// The local shading frame of a hit: n = shading normal (front side); s along the surface's
+// dp/du made orthogonal to n (as Mitsuba's sh_frame, so anisotropic roughness and normal maps
+// follow the texture's u direction), t = n x s; any s from MakeFrame without a usable tangent.
 struct ShadingFrame {
   Vec3 s, t, n;
   explicit ShadingFrame(const Vec3& normal) : n(normal) { MakeFrame(n, &s, &t); }
+  ShadingFrame(const Vec3& normal, const Vec3& dpdu) : n(normal) {
+    const Vec3 p = dpdu - n * Dot(n, dpdu);
+    const float len2 = LengthSquared(p);
+    if (len2 > 1e-12f * LengthSquared(dpdu) && len2 > 0) {
+      s = p / std::sqrt(len2);
+      t = Cross(n, s);
+    } else {
+      MakeFrame(n, &s, &t);
+    }
+  }
   Vec3 ToLocal(const Vec3& w) const { return Vec3(Dot(w, s), Dot(w, t), Dot(w, n)); }
   Vec3 ToWorld(const Vec3& w) const { return s * w.x + t * w.y + n * w.z; }
 };

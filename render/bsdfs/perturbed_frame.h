@@ -36,7 +36,7 @@ inline void LocalTangents(const BsdfContext& ctx, Vec3* dpdu, Vec3* dpdv) {
     *dpdv = Vec3(0, 1, 0);
     return;
   }
-  const ShadingFrame f(ctx.n);
+  const ShadingFrame f(ctx.n, ctx.dpdu);
   *dpdu = f.ToLocal(ctx.dpdu);
   *dpdv = f.ToLocal(ctx.dpdv);
 }
