@@ -350,7 +350,9 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
     hit->p = m.center + n * m.radius;
     hit->ng = m.flip ? -n : n;
     hit->ns = hit->ng;
-    hit->u = (std::atan2(n.y, n.x) + kPi) * (0.5f * kInvPi);
+    // Mitsuba's sphere uv: u = phi / 2 pi with phi = atan2(y, x) in [0, 2 pi), v = theta / pi.
+    const float phi = std::atan2(n.y, n.x);
+    hit->u = (phi < 0 ? phi + 2 * kPi : phi) * (0.5f * kInvPi);
     hit->v = std::acos(std::clamp(n.z, -1.0f, 1.0f)) * kInvPi;
     // d/du turns around z (u = phi / 2 pi), d/dv runs from the +z pole down (v = theta / pi).
     const float rxy = std::sqrt(n.x * n.x + n.y * n.y);
