@@ -104,6 +104,14 @@ class Bsdf {
     return Vec3();
   }
 
+  // The normal the BSDF shades with, in the local frame, seen from wo: (0, 0, 1) except under
+  // normal and bump mapping (perturbed_frame.h). For integrators that approximate a lobe as
+  // Lambertian about a normal (the irradiance cache's direct light): DiffuseAlbedo is the
+  // albedo about this normal.
+  virtual Vec3 ShadingNormal(const BsdfContext& /*ctx*/, const Vec3& /*wo*/) const {
+    return Vec3(0, 0, 1);
+  }
+
   // Probability that a ray passes straight through (mask); 0 for ordinary surfaces.
   virtual float PassThrough(const BsdfContext& /*ctx*/) const { return 0; }
 

@@ -100,6 +100,10 @@ class PerturbedFrameBsdf : public Bsdf {
 
   float PassThrough(const BsdfContext& ctx) const override { return nested_->PassThrough(ctx); }
 
+  Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {
+    return Frame(ctx, wo).n;
+  }
+
  protected:
   // The perturbed frame at ctx, in the hit's local coordinates, for the viewer wo.
   virtual LocalFrame Frame(const BsdfContext& ctx, const Vec3& wo) const = 0;

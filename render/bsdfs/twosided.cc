@@ -43,6 +43,11 @@ class TwoSidedBsdf final : public Bsdf {
 
   float PassThrough(const BsdfContext& ctx) const override { return front_->PassThrough(ctx); }
 
+  Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {
+    return wo.z >= 0 ? front_->ShadingNormal(ctx, wo)
+                     : FlipZ(back_->ShadingNormal(ctx, FlipZ(wo)));
+  }
+
  private:
   const Bsdf* front_;
   const Bsdf* back_;

@@ -294,6 +294,21 @@ TEST(BsdfChiSquareTest, NormalMappedRoughPlastic) {
   nm.colors["normalmap"].value = (Normalize(Vec3(0.4f, -0.2f, 1)) + Vec3(1.0f)) * 0.5f;
   nm.nested = {0};
   ExpectChiSquare({d, nm}, "normalmap roughplastic");
+  // The normal it shades with is the mapped one (local axes = tangent frame here), also through
+  // twosided from behind (mirrored) and mask.
+  const Vec3 n = Normalize(Vec3(0.4f, -0.2f, 1));
+  BsdfDesc two = Desc("twosided");
+  two.nested = {1};
+  BsdfDesc mask = Desc("mask");
+  mask.nested = {2};
+  const Built b = Build({d, nm, two, mask});
+  const Vec3 got = b.last().ShadingNormal(BsdfContext(), Dir(20, 0));
+  const Vec3 back = b.bsdfs[2]->ShadingNormal(BsdfContext(), Dir(160, 0));
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(got[c], n[c], 1e-3f) << c;
+    EXPECT_NEAR(back[c], c == 2 ? -n[c] : n[c], 1e-3f) << c;
+  }
+  EXPECT_EQ(b.bsdfs[0]->ShadingNormal(BsdfContext(), Dir(20, 0)).z, 1.0f);
 }
 
 // Mean weight over many samples = directional albedo (incl. delta lobes).
