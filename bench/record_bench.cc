@@ -71,9 +71,9 @@ std::unique_ptr<Fixture> MakeFixture(const std::string& name, int grid) {
       if (!f->scene->Intersect(Ray{cam.origin(), dir, INFINITY}, &p.hit)) continue;
       // Points with a diffuse lobe seen from its front (where records are made).
       const Bsdf& m = f->scene->material(p.hit.material);
-      const ShadingFrame frame(p.hit.ns);
+      const ShadingFrame frame = p.hit.Frame();
       const Vec3 wo_l = frame.ToLocal(-dir);
-      if (IsBlack(m.DiffuseAlbedo(BsdfContext{p.hit.u, p.hit.v}, wo_l))) continue;
+      if (IsBlack(m.DiffuseAlbedo(p.hit.Context(), wo_l))) continue;
       p.nf = wo_l.z >= 0 ? p.hit.ns : -p.hit.ns;
       p.pixel_spread = cam.PixelSpread(p.hit.t);
       f->points.push_back(p);

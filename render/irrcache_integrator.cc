@@ -131,8 +131,8 @@ bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters
     const Vec3 wo = -ray.dir;
     if (max_depth >= 0 && *depth >= max_depth) return false;
     const Bsdf& bsdf = scene_.material(hit->material);
-    const BsdfContext ctx{hit->u, hit->v};
-    const ShadingFrame frame(hit->ns);
+    const BsdfContext ctx = hit->Context();
+    const ShadingFrame frame = hit->Frame();
     const Vec3 wo_l = frame.ToLocal(wo);
     if (!IsBlack(bsdf.DiffuseAlbedo(ctx, wo_l))) {
       *nf = wo_l.z >= 0 ? hit->ns : -hit->ns;
@@ -380,8 +380,8 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     }
     if (max_depth >= 0 && depth >= max_depth) break;
     const Bsdf& bsdf = scene_.material(hit.material);
-    const BsdfContext ctx{hit.u, hit.v};
-    const ShadingFrame frame(hit.ns);
+    const BsdfContext ctx = hit.Context();
+    const ShadingFrame frame = hit.Frame();
     const Vec3 wo_l = frame.ToLocal(wo);
     const Vec3 albedo = bsdf.DiffuseAlbedo(ctx, wo_l);
     if (!IsBlack(albedo)) {
@@ -500,9 +500,9 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
   const IrradianceRecord fresh = ComputeRecord(
       hit, nf, depth, scene_.camera().PixelSpread(distance), rng, counters, &half_diff);
   const Bsdf& bsdf = scene_.material(hit.material);
-  const ShadingFrame frame(hit.ns);
+  const ShadingFrame frame = hit.Frame();
   const Vec3 w =
-      beta * bsdf.DiffuseAlbedo(BsdfContext{hit.u, hit.v}, frame.ToLocal(-ray.dir)) * kInvPi;
+      beta * bsdf.DiffuseAlbedo(hit.Context(), frame.ToLocal(-ray.dir)) * kInvPi;
   const Vec3 direct = DirectLight(hit, nf, -ray.dir, w, LightStrata{}, rng, counters, nullptr);
   const Vec3 v = direct + w * interp;  // the point's radiance (emission on the way left out)
   double e = 0;

@@ -51,8 +51,8 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     first = false;
     if (settings.max_depth >= 0 && depth >= settings.max_depth) break;
     const Bsdf& bsdf = scene.material(hit.material);
-    const BsdfContext ctx{hit.u, hit.v};
-    const ShadingFrame frame(hit.ns);
+    const BsdfContext ctx = hit.Context();
+    const ShadingFrame frame = hit.Frame();
     const Vec3 wo_l = frame.ToLocal(wo);
     const bool can_extend = settings.max_depth < 0 || depth + 1 <= settings.max_depth;
     if (!can_extend) break;

@@ -350,8 +350,15 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
     hit->p = m.center + n * m.radius;
     hit->ng = m.flip ? -n : n;
     hit->ns = hit->ng;
-    hit->u = (std::atan2(n.y, n.x) + kPi) * (0.5f * kInvPi);
+    // Mitsuba's sphere uv: u = phi / 2 pi with phi = atan2(y, x) in [0, 2 pi), v = theta / pi.
+    const float phi = std::atan2(n.y, n.x);
+    hit->u = (phi < 0 ? phi + 2 * kPi : phi) * (0.5f * kInvPi);
     hit->v = std::acos(std::clamp(n.z, -1.0f, 1.0f)) * kInvPi;
+    // d/du turns around z (u = phi / 2 pi), d/dv runs from the +z pole down (v = theta / pi).
+    const float rxy = std::sqrt(n.x * n.x + n.y * n.y);
+    hit->dpdu = Vec3(-n.y, n.x, 0) * (2 * kPi * m.radius);
+    hit->dpdv = rxy > 0 ? Vec3(n.z * n.x / rxy, n.z * n.y / rxy, -rxy) * (kPi * m.radius)
+                        : Vec3(kPi * m.radius, 0, 0);
     hit->error_scale = MaxAbsComponent(m.center) + m.radius;
     return true;
   }
@@ -385,9 +392,23 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
   } else {
     hit->ns = hit->ng;
   }
+  // Tangents from the triangle's edges and their uv differences (without uvs, u = b1, v = b2).
+  const Vec3 e1 = p1 - p0, e2 = p2 - p0;
+  hit->dpdu = e1;
+  hit->dpdv = e2;
   if (!m.uvs.empty()) {
     hit->u = m.uvs[2 * tri[0]] * b0 + m.uvs[2 * tri[1]] * b1 + m.uvs[2 * tri[2]] * b2;
     hit->v = m.uvs[2 * tri[0] + 1] * b0 + m.uvs[2 * tri[1] + 1] * b1 + m.uvs[2 * tri[2] + 1] * b2;
+    const float du1 = m.uvs[2 * tri[1]] - m.uvs[2 * tri[0]];
+    const float dv1 = m.uvs[2 * tri[1] + 1] - m.uvs[2 * tri[0] + 1];
+    const float du2 = m.uvs[2 * tri[2]] - m.uvs[2 * tri[0]];
+    const float dv2 = m.uvs[2 * tri[2] + 1] - m.uvs[2 * tri[0] + 1];
+    const float det = du1 * dv2 - dv1 * du2;
+    if (det != 0 && std::isfinite(1 / det)) {
+      const float inv = 1 / det;
+      hit->dpdu = (e1 * dv2 - e2 * dv1) * inv;
+      hit->dpdv = (e2 * du1 - e1 * du2) * inv;
+    }
   } else {
     hit->u = b1;
     hit->v = b2;

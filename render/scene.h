@@ -36,11 +36,15 @@ struct SurfaceHit {
   Vec3 ng;             // unit geometric normal (front side)
   Vec3 ns;             // unit shading normal (front side)
   float u = 0, v = 0;  // texture coordinates
+  Vec3 dpdu, dpdv;     // tangents: world-space change of p per unit u and v (Mitsuba's dp_du)
   float t = 0;
   float error_scale = 1;  // magnitude of coordinates around the hit, for ray offsets
   int material = 0;
   int light = -1;  // index into Scene::lights() when the surface emits
   unsigned geom = 0, prim = 0;
+  // The BSDF's local frame at the hit, and what the BSDF needs of the hit.
+  ShadingFrame Frame() const { return ShadingFrame(ns, dpdu); }
+  BsdfContext Context() const { return BsdfContext{u, v, ns, dpdu, dpdv}; }
 };
 
 struct SceneStatsCounts {

@@ -897,6 +897,18 @@ class Parser::BsdfReader final : public BsdfParams {
     return out;
   }
   const BsdfDesc& Nested(int index) const override { return parser_.scene_.bsdfs[size_t(index)]; }
+  absl::StatusOr<std::vector<ColorParam>> NestedTextures() override {
+    std::vector<ColorParam> out;
+    for (const Entry* e : parser_.TakeObjects(p_, "texture")) {
+      ColorParam c;
+      c.texture = e->ref;
+      if (c.texture < 0) {
+        LOADER_ASSIGN_OR_RETURN(c.texture, parser_.ParseTexture(e->node));
+      }
+      out.push_back(c);
+    }
+    return out;
+  }
   absl::Status Error(absl::string_view name, absl::string_view what) const override {
     return parser_.Error(name.empty() ? p_.node : parser_.NodeOf(p_, name), what);
   }

@@ -56,4 +56,23 @@ Vec3 Texture::Eval(float u, float v) const {
          (image_.at(x0, y1) * (1 - tx) + image_.at(x1, y1) * tx) * ty;
 }
 
+void Texture::Gradient(float u, float v, float* d_du, float* d_dv) const {
+  *d_du = *d_dv = 0;
+  const int w = image_.width, h = image_.height;
+  if (!bilinear_ || !std::isfinite(u) || !std::isfinite(v)) return;
+  const float fx = u * w - 0.5f, fy = v * h - 0.5f;
+  const float x0f = std::floor(fx), y0f = std::floor(fy);
+  const float tx = fx - x0f, ty = fy - y0f;
+  const int x0 = Wrap(int(x0f), w), x1 = Wrap(int(x0f) + 1, w);
+  const int y0 = Wrap(int(y0f), h), y1 = Wrap(int(y0f) + 1, h);
+  // Mitsuba's luminance weights (its RGB variants).
+  const auto lum = [&](int x, int y) {
+    const Vec3& c = image_.at(x, y);
+    return 0.212671f * c.x + 0.715160f * c.y + 0.072169f * c.z;
+  };
+  const float f00 = lum(x0, y0), f10 = lum(x1, y0), f01 = lum(x0, y1), f11 = lum(x1, y1);
+  *d_du = float(w) * ((f10 - f00) * (1 - ty) + (f11 - f01) * ty);
+  *d_dv = float(h) * ((f01 - f00) * (1 - tx) + (f11 - f10) * tx);
+}
+
 }  // namespace irfarm

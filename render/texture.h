@@ -13,6 +13,9 @@ class Texture {
  public:
   static absl::StatusOr<Texture> Load(const TextureDesc& desc);
   Vec3 Eval(float u, float v) const;
+  // Derivatives of the luminance of Eval with respect to u and v (bilinear filtering; 0 with
+  // nearest), as Mitsuba's eval_1_grad (bump mapping).
+  void Gradient(float u, float v, float* d_du, float* d_dv) const;
   Vec3 Average() const { return average_; }
 
  private:

@@ -19,6 +19,7 @@
 // Hot path: nothing here allocates.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "cache/math.h"
@@ -48,9 +49,13 @@ constexpr uint32_t kDeltaLobes = kDeltaReflection | kDeltaTransmission | kNullTr
 constexpr uint32_t kTransmissionLobes =
     kGlossyTransmission | kDeltaTransmission | kNullTransmission;
 
-// Where the BSDF is evaluated: texture coordinates for textured parameters.
+// Where the BSDF is evaluated: texture coordinates for textured parameters and, for normal and
+// bump mapping, the surface's tangents (world space, per unit of u and v) with the shading
+// normal n the local frame was made from (ShadingFrame(n, dpdu)). n = 0: no tangents known
+// (unit tests); then local x, y are taken as the u, v directions.
 struct BsdfContext {
   float u = 0, v = 0;
+  Vec3 n, dpdu, dpdv;
 };
 
 struct BsdfSample {
@@ -99,6 +104,14 @@ class Bsdf {
     return Vec3();
   }
 
+  // The normal the BSDF shades with, in the local frame, seen from wo: (0, 0, 1) except under
+  // normal and bump mapping (perturbed_frame.h). For integrators that approximate a lobe as
+  // Lambertian about a normal (the irradiance cache's direct light): DiffuseAlbedo is the
+  // albedo about this normal.
+  virtual Vec3 ShadingNormal(const BsdfContext& /*ctx*/, const Vec3& /*wo*/) const {
+    return Vec3(0, 0, 1);
+  }
+
   // Probability that a ray passes straight through (mask); 0 for ordinary surfaces.
   virtual float PassThrough(const BsdfContext& /*ctx*/) const { return 0; }
 
@@ -111,10 +124,22 @@ class Bsdf {
   bool IsTwoSided() const { return (Flags() & kTwoSidedFlag) != 0; }
 };
 
-// The local shading frame of a hit: n = shading normal (front side), s and t from MakeFrame.
+// The local shading frame of a hit: n = shading normal (front side); s along the surface's
+// dp/du made orthogonal to n (as Mitsuba's sh_frame, so anisotropic roughness and normal maps
+// follow the texture's u direction), t = n x s; any s from MakeFrame without a usable tangent.
 struct ShadingFrame {
   Vec3 s, t, n;
   explicit ShadingFrame(const Vec3& normal) : n(normal) { MakeFrame(n, &s, &t); }
+  ShadingFrame(const Vec3& normal, const Vec3& dpdu) : n(normal) {
+    const Vec3 p = dpdu - n * Dot(n, dpdu);
+    const float len2 = LengthSquared(p);
+    if (len2 > 1e-12f * LengthSquared(dpdu) && len2 > 0) {
+      s = p / std::sqrt(len2);
+      t = Cross(n, s);
+    } else {
+      MakeFrame(n, &s, &t);
+    }
+  }
   Vec3 ToLocal(const Vec3& w) const { return Vec3(Dot(w, s), Dot(w, t), Dot(w, n)); }
   Vec3 ToWorld(const Vec3& w) const { return s * w.x + t * w.y + n * w.z; }
 };

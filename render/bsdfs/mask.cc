@@ -46,6 +46,9 @@ class MaskBsdf final : public Bsdf {
     return nested_->DiffuseAlbedo(ctx, wo) * Opacity(ctx);
   }
   float PassThrough(const BsdfContext& ctx) const override { return 1 - Opacity(ctx); }
+  Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {
+    return nested_->ShadingNormal(ctx, wo);
+  }
 
  private:
   float Opacity(const BsdfContext& ctx) const {

@@ -1,10 +1,17 @@
 // Microfacet normal distributions for the rough BSDFs: GGX (Trowbridge-Reitz) and Beckmann, with
 // anisotropic roughness (alpha_u along local x, alpha_v along local y), Smith's separable
-// shadowing-masking G = G1(wo) G1(wi), and normal sampling:
-//   GGX: visible normals (Heitz 2018, "Sampling the GGX Distribution of Visible Normals"),
-//        pdf(m) = G1(wo, m) max(0, wo.m) D(m) / wo.z;
-//   Beckmann: D(m) cos(theta_m) (pdf D(m) m.z), simpler and exact; less efficient at grazing
-//        wo than visible-normal sampling, which only changes noise, not the expected value.
+// shadowing-masking G = G1(wo) G1(wi), and sampling of the normals visible from wo, with
+// pdf(m) = G1(wo, m) max(0, wo.m) D(m) / wo.z:
+//   GGX: Heitz 2018, "Sampling the GGX Distribution of Visible Normals";
+//   Beckmann: Heitz and d'Eon 2014 (stretch to unit roughness, sample the visible slopes, rotate
+//        and unstretch back). At unit roughness and incidence theta the slope across the view
+//        plane is normal (y = erfinv(2u - 1)) and the slope along it has the density
+//        (1 - x tan theta) exp(-x^2) on x < cot theta, whose CDF
+//        C(x) = sqrt(pi)/2 (1 + erf(x)) + tan(theta)/2 exp(-x^2) is inverted by safeguarded
+//        Newton iterations (in double).
+// G1 is Smith's: exact for GGX; for Beckmann Walter et al.'s rational fit in Eval (as Mitsuba),
+// while Pdf uses the exact erf form, so that it is the sampler's density (the fit is off by up
+// to ~0.4%, which a chi-square test with 10^5 samples sees).
 // All directions local (z = macro-surface normal); wo must have wo.z > 0 (callers mirror it).
 #pragma once
 
@@ -23,7 +30,6 @@ class Microfacet {
       : type_(type), au_(std::max(alpha_u, 1e-4f)), av_(std::max(alpha_v, 1e-4f)) {}
 
   MicrofacetType type() const { return type_; }
-  bool visible_sampling() const { return type_ == MicrofacetType::kGgx; }
 
   // Distribution of normals D(m) (per steradian of m, projected: integral D(m) m.z dm = 1).
   float D(const Vec3& m) const {
@@ -31,8 +37,7 @@ class Microfacet {
     const float c2 = m.z * m.z;
     const float x = m.x / au_, y = m.y / av_;
     const float e = (x * x + y * y) / c2;  // tan^2 scaled by the roughness
-    if (type_ == MicrofacetType::kBeckmann)
-      return std::exp(-e) / (kPi * au_ * av_ * c2 * c2);
+    if (type_ == MicrofacetType::kBeckmann) return std::exp(-e) / (kPi * au_ * av_ * c2 * c2);
     const float t = 1 + e;
     return 1 / (kPi * au_ * av_ * c2 * c2 * t * t);
   }
@@ -66,27 +71,80 @@ class Microfacet {
       const Vec3 nh = t1 * p1 + t2 * p2 + vh * std::sqrt(std::max(0.0f, 1 - p1 * p1 - p2 * p2));
       return Normalize(Vec3(au_ * nh.x, av_ * nh.y, std::max(1e-6f, nh.z)));
     }
-    // Beckmann, D(m) cos(theta_m): phi from the anisotropic ellipse, then tan^2.
-    float phi = std::atan(av_ / au_ * std::tan(2 * kPi * u2 + 0.5f * kPi));
-    if (u2 > 0.5f) phi += kPi;
-    const float cp = std::cos(phi), sp = std::sin(phi);
-    const float inv_a2 = cp * cp / (au_ * au_) + sp * sp / (av_ * av_);
-    const float tan2 = -std::log(std::max(1e-12f, 1 - u1)) / inv_a2;
-    const float cos_t = 1 / std::sqrt(1 + tan2);
-    const float sin_t = std::sqrt(std::max(0.0f, 1 - cos_t * cos_t));
-    return Vec3(sin_t * cp, sin_t * sp, cos_t);
+    // Beckmann: stretch wo to unit roughness, sample slopes there, rotate and unstretch.
+    const Vec3 ws = Normalize(Vec3(au_ * wo.x, av_ * wo.y, wo.z));
+    const float sin_t = std::sqrt(std::max(0.0f, ws.x * ws.x + ws.y * ws.y));
+    const float cos_p = sin_t > 0 ? ws.x / sin_t : 1.0f, sin_p = sin_t > 0 ? ws.y / sin_t : 0.0f;
+    float x, y;
+    BeckmannVisibleSlopes(ws.z, sin_t, u1, u2, &x, &y);
+    const float sx = (cos_p * x - sin_p * y) * au_, sy = (sin_p * x + cos_p * y) * av_;
+    return Normalize(Vec3(-sx, -sy, 1));
   }
 
   // Density of Sample(wo) producing m (per steradian of m).
   float Pdf(const Vec3& wo, const Vec3& m) const {
-    if (type_ == MicrofacetType::kGgx) {
-      if (wo.z <= 0) return 0;
-      return G1(wo, m) * std::max(0.0f, Dot(wo, m)) * D(m) / wo.z;
-    }
-    return D(m) * std::max(0.0f, m.z);
+    if (wo.z <= 0) return 0;
+    const float g1 = type_ == MicrofacetType::kGgx ? G1(wo, m) : BeckmannG1Exact(wo, m);
+    return g1 * std::max(0.0f, Dot(wo, m)) * D(m) / wo.z;
   }
 
  private:
+  // Smith's Beckmann masking, exact: 1 / (1 + Lambda(a)), a = 1 / (alpha tan theta),
+  // Lambda(a) = (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)).
+  float BeckmannG1Exact(const Vec3& w, const Vec3& m) const {
+    if (Dot(w, m) * w.z <= 0) return 0;
+    const float xy2 = w.x * w.x * au_ * au_ + w.y * w.y * av_ * av_;
+    if (xy2 <= 0) return 1;
+    const double a = double(std::abs(w.z)) / std::sqrt(double(xy2));
+    const double lambda = 0.5 * (std::erf(a) - 1) + std::exp(-a * a) / (2 * a * std::sqrt(kPi));
+    return float(1 / (1 + lambda));
+  }
+
+  // erf^-1 by Winitzki's approximation (error ~2e-3) polished with two Newton steps.
+  static double ErfInv(double z) {
+    z = std::clamp(z, -1 + 1e-12, 1 - 1e-12);
+    const double a = 0.147, l = std::log(1 - z * z), b = 2 / (kPi * a) + 0.5 * l;
+    double y = std::copysign(std::sqrt(std::sqrt(b * b - l / a) - b), z);
+    for (int i = 0; i < 2; ++i)
+      y -= (std::erf(y) - z) / (2 / std::sqrt(double(kPi)) * std::exp(-y * y));
+    return y;
+  }
+
+  // Visible slopes of the unit-roughness Beckmann surface for incidence (cos_t, sin_t), the
+  // view plane being x (see the file comment).
+  static void BeckmannVisibleSlopes(float cos_t, float sin_t, float u1, float u2, float* x,
+                                    float* y) {
+    const double ua = std::clamp(double(u1), 1e-7, 1 - 1e-7);
+    const double ub = std::clamp(double(u2), 1e-7, 1 - 1e-7);
+    *y = float(ErfInv(2 * ub - 1));
+    const double sqrt_pi = std::sqrt(double(kPi));
+    if (!(sin_t > 1e-5f)) {  // normal incidence: both slopes normal
+      *x = float(ErfInv(2 * ua - 1));
+      return;
+    }
+    const double tan_t = double(sin_t) / cos_t;
+    const auto cdf = [&](double t) {
+      return 0.5 * sqrt_pi * (1 + std::erf(t)) + 0.5 * tan_t * std::exp(-t * t);
+    };
+    double hi = std::min(1 / tan_t, 8.0), lo = -8.0;
+    const double target = ua * cdf(hi);
+    double t = std::clamp(ErfInv(2 * ua - 1), lo, hi);
+    for (int i = 0; i < 40; ++i) {
+      const double f = cdf(t) - target;
+      if (std::abs(f) < 1e-9) break;
+      (f > 0 ? hi : lo) = t;
+      const double d = (1 - t * tan_t) * std::exp(-t * t);
+      double next = d > 0 ? t - f / d : 0.5 * (lo + hi);
+      if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+      if (std::abs(next - t) < 1e-9) {
+        t = next;
+        break;
+      }
+      t = next;
+    }
+    *x = float(t);
+  }
+
   MicrofacetType type_;
   float au_, av_;
 };

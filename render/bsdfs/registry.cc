@@ -14,7 +14,10 @@ namespace irfarm {
   X(kPlasticBsdf)              \
   X(kRoughPlasticBsdf)         \
   X(kMaskBsdf)                 \
-  X(kRoughDielectricBsdf)
+  X(kRoughDielectricBsdf)      \
+  X(kPrincipledBsdf)           \
+  X(kNormalMapBsdf)            \
+  X(kBumpMapBsdf)
 
 #define IRFARM_DECLARE_PLUGIN(p) extern const BsdfPlugin p;
 IRFARM_BSDF_PLUGINS(IRFARM_DECLARE_PLUGIN)

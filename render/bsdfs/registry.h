@@ -39,6 +39,8 @@ class BsdfParams {
   // indices into SceneDesc::bsdfs; every index is lower than the one being parsed.
   virtual absl::StatusOr<std::vector<int>> NestedBsdfs() = 0;
   virtual const BsdfDesc& Nested(int index) const = 0;
+  // The nested <texture> children not read as named parameters (bumpmap's height map).
+  virtual absl::StatusOr<std::vector<ColorParam>> NestedTextures() = 0;
   // An error with file:line of the named parameter (of the element when it is not given).
   virtual absl::Status Error(absl::string_view name, absl::string_view what) const = 0;
   // The description being filled (for values a plugin derives itself, e.g. named materials).

@@ -43,6 +43,11 @@ class TwoSidedBsdf final : public Bsdf {
 
   float PassThrough(const BsdfContext& ctx) const override { return front_->PassThrough(ctx); }
 
+  Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {
+    return wo.z >= 0 ? front_->ShadingNormal(ctx, wo)
+                     : FlipZ(back_->ShadingNormal(ctx, FlipZ(wo)));
+  }
+
  private:
   const Bsdf* front_;
   const Bsdf* back_;
@@ -55,7 +60,11 @@ absl::Status Parse(BsdfParams& p) {
     return p.Error("", "twosided needs one nested bsdf (both sides) or two (front, back)");
   for (const int i : *nested) {
     const std::string& t = p.Nested(i).type;
-    if (t == "dielectric" || t == "thindielectric" || t == "roughdielectric" || t == "twosided")
+    const auto st = p.Nested(i).colors.find("spec_trans");  // principled's transmission
+    const bool transmits =
+        st != p.Nested(i).colors.end() && (st->second.texture >= 0 || !IsBlack(st->second.value));
+    if (t == "dielectric" || t == "thindielectric" || t == "roughdielectric" || t == "twosided" ||
+        (t == "principled" && transmits))
       return p.Error("", absl::StrCat("twosided can only wrap a bsdf without transmission, not '",
                                       t, "'"));
   }

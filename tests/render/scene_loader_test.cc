@@ -561,6 +561,53 @@ TEST(SceneLoaderTest, GlossyMaterials) {
               "scene.xml:2:", "mask needs exactly one nested bsdf");
 }
 
+// principled: Mitsuba 3's parameter names, eta or specular (not both), file:line errors, and
+// twosided refusing it when it transmits (as Mitsuba refuses transmissive nested BSDFs).
+TEST(SceneLoaderTest, Principled) {
+  const auto scene = Load(R"(  <bsdf type="principled">
+    <rgb name="base_color" value="0.8, 0.2, 0.1"/>
+    <float name="metallic" value="0.7"/>
+    <float name="roughness" value="0.2"/>
+    <float name="clearcoat" value="0.6"/>
+    <float name="spec_trans" value="0.4"/>
+    <float name="eta" value="1.33"/>
+  </bsdf>
+)");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->bsdfs.size(), 1u);
+  EXPECT_FLOAT_EQ(scene->bsdfs[0].Color("metallic", Vec3()).value.x, 0.7f);
+  EXPECT_FLOAT_EQ(scene->bsdfs[0].Float("eta", 0), 1.33f);
+  ExpectError(Load("  <bsdf type=\"principled\">\n    <float name=\"eta\" value=\"1.5\"/>\n"
+                   "    <float name=\"specular\" value=\"0.5\"/>\n  </bsdf>\n"),
+              "scene.xml:4:", "either eta or specular");
+  ExpectError(Load("  <bsdf type=\"principled\">\n    <float name=\"alpha\" value=\"0.1\"/>\n"
+                   "  </bsdf>\n"),
+              "scene.xml:3:", "unknown parameter 'alpha' for bsdf 'principled'");
+  ExpectError(Load("  <bsdf type=\"twosided\">\n    <bsdf type=\"principled\">\n"
+                   "      <float name=\"spec_trans\" value=\"0.5\"/>\n    </bsdf>\n"
+                   "  </bsdf>\n"),
+              "scene.xml:2:", "twosided can only wrap a bsdf without transmission");
+  EXPECT_TRUE(Load("  <bsdf type=\"twosided\">\n    <bsdf type=\"principled\">\n"
+                   "      <float name=\"spec_trans\" value=\"0\"/>\n    </bsdf>\n"
+                   "  </bsdf>\n")
+                  .ok());
+}
+
+// normalmap and bumpmap: their texture and one nested bsdf are required (file:line errors).
+TEST(SceneLoaderTest, NormalAndBumpMaps) {
+  EXPECT_TRUE(Load("  <bsdf type=\"normalmap\">\n"
+                   "    <rgb name=\"normalmap\" value=\"0.5, 0.5, 1\"/>\n"
+                   "    <bsdf type=\"diffuse\"/>\n  </bsdf>\n")
+                  .ok());
+  ExpectError(Load("  <bsdf type=\"normalmap\">\n    <bsdf type=\"diffuse\"/>\n  </bsdf>\n"),
+              "scene.xml:2:", "normalmap needs a 'normalmap' texture");
+  ExpectError(Load("  <bsdf type=\"bumpmap\">\n    <bsdf type=\"diffuse\"/>\n  </bsdf>\n"),
+              "scene.xml:2:", "bumpmap needs exactly one nested texture");
+  ExpectError(Load("  <bsdf type=\"normalmap\">\n    <rgb name=\"normalmap\" value=\"0.5\"/>\n"
+                   "  </bsdf>\n"),
+              "scene.xml:2:", "normalmap needs exactly one nested bsdf");
+}
+
 // ---------------------------------------------------------------- materials and emitters
 
 TEST(SceneLoaderTest, Materials) {
