@@ -285,8 +285,8 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     }
     if (max_depth >= 0 && depth >= max_depth) break;
     const Bsdf& bsdf = scene_.material(hit.material);
-    const BsdfContext ctx{hit.u, hit.v};
-    const ShadingFrame frame(hit.ns);
+    const BsdfContext ctx = hit.Context();
+    const ShadingFrame frame = hit.Frame();
     const Vec3 wo_l = frame.ToLocal(wo);
     const Vec3 albedo = bsdf.DiffuseAlbedo(ctx, wo_l);
     if (!IsBlack(albedo)) {
@@ -393,7 +393,12 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
         aov->depth = distance;
       }
       Vec3 cached;
-      const Vec3 shaded = ShadeDiffuse(hit, nf, wo, beta, albedo, depth, distance, strata, rng,
+      // Direct light about the mapped normal (normalmap/bumpmap), on the side wo is on; the cache
+      // keeps the surface's own normal (records are smooth over the surface).
+      const Vec3 np_l = bsdf.ShadingNormal(ctx, wo_l);
+      const Vec3 np_w = frame.ToWorld(np_l);
+      const Vec3 nd = np_l.z * wo_l.z >= 0 ? np_w : -np_w;
+      const Vec3 shaded = ShadeDiffuse(hit, nf, nd, wo, beta, albedo, depth, distance, strata, rng,
                                        counters, shade, prev_glossy ? nullptr : terms, &cached);
       add(shaded - cached, depth, false);
       add(cached, depth, true);
@@ -461,17 +466,17 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
 // (DirectLight, Lambertian with the lobe's albedo; for plastic that takes the Fresnel
 // transmission towards the light as its hemispherical average, see plastic.cc), plus the cached
 // indirect irradiance times albedo / pi.
-Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
-                                      const Vec3& beta, const Vec3& albedo, int depth,
-                                      float distance, const LightStrata& strata, Rng& rng,
-                                      RenderCounters& counters, IrrcacheShade* shade,
+Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& nd,
+                                      const Vec3& wo, const Vec3& beta, const Vec3& albedo,
+                                      int depth, float distance, const LightStrata& strata,
+                                      Rng& rng, RenderCounters& counters, IrrcacheShade* shade,
                                       DirectTerms* terms, Vec3* cached) const {
   Vec3 L;
   *cached = Vec3();
   const int max_depth = settings_.path.max_depth;
   // Direct light from local lights, always explicit.
   if (max_depth < 0 || depth + 1 <= max_depth)
-    L += DirectLight(hit, nf, wo, beta * albedo * kInvPi, strata, rng, counters, terms);
+    L += DirectLight(hit, nd, wo, beta * albedo * kInvPi, strata, rng, counters, terms);
   // Indirect irradiance from the cache.
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;
@@ -501,8 +506,7 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
       hit, nf, depth, scene_.camera().PixelSpread(distance), rng, counters, &half_diff);
   const Bsdf& bsdf = scene_.material(hit.material);
   const ShadingFrame frame = hit.Frame();
-  const Vec3 w =
-      beta * bsdf.DiffuseAlbedo(hit.Context(), frame.ToLocal(-ray.dir)) * kInvPi;
+  const Vec3 w = beta * bsdf.DiffuseAlbedo(hit.Context(), frame.ToLocal(-ray.dir)) * kInvPi;
   const Vec3 direct = DirectLight(hit, nf, -ray.dir, w, LightStrata{}, rng, counters, nullptr);
   const Vec3 v = direct + w * interp;  // the point's radiance (emission on the way left out)
   double e = 0;

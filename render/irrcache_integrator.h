@@ -141,10 +141,11 @@ class IrrcacheIntegrator {
   Vec3 DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo, const Vec3& weight,
                    const LightStrata& strata, Rng& rng, RenderCounters& counters,
                    DirectTerms* terms, bool one_sample = false) const;
-  Vec3 ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo, const Vec3& beta,
-                    const Vec3& albedo, int depth, float distance, const LightStrata& strata,
-                    Rng& rng, RenderCounters& counters, IrrcacheShade* shade, DirectTerms* terms,
-                    Vec3* cached) const;
+  // nf: the facing normal (cache lookups); nd: the facing mapped normal (direct light).
+  Vec3 ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& nd, const Vec3& wo,
+                    const Vec3& beta, const Vec3& albedo, int depth, float distance,
+                    const LightStrata& strata, Rng& rng, RenderCounters& counters,
+                    IrrcacheShade* shade, DirectTerms* terms, Vec3* cached) const;
   Vec3 GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx, const ShadingFrame& frame,
                     const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_l, Rng& rng,
                     RenderCounters& counters) const;
