@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "coordinator/coordinator_metrics.h"
 #include "coordinator/global_cache.h"
 #include "coordinator/record_bounds.h"
 #include "coordinator/job_store.h"
@@ -83,6 +84,12 @@ struct JobManagerOptions {
   // everyone: the loopback development setup). Others get PERMISSION_DENIED, whether the file
   // exists or not.
   std::string scene_path_root;
+  // Retention: a finished job (succeeded, failed or cancelled) is removed, from memory and from
+  // the store with its tiles and records, job_ttl after it finished (0: no TTL), and when more
+  // than max_finished_jobs finished jobs are held, the oldest finished go first (0: no limit).
+  // Checked by ExpireJobs() and at start-up, where expired jobs are deleted without being loaded.
+  std::chrono::milliseconds job_ttl{std::chrono::hours(24 * 7)};
+  int max_finished_jobs = 1000;
 };
 
 // Who calls the job API: the name of its client token, and whether it may see every job.
@@ -94,8 +101,11 @@ struct Caller {
 
 class JobManager {
  public:
+  // Metrics go to `registry` (the process's, served on --metrics), or with none to a registry
+  // of the manager's own (metrics_registry()).
   static absl::StatusOr<std::unique_ptr<JobManager>> Create(const JobManagerOptions& options,
-                                                            JobStore* store);
+                                                            JobStore* store,
+                                                            MetricsRegistry* registry = nullptr);
 
   // --- Job API. Errors: NOT_FOUND (unknown job), INVALID_ARGUMENT (bad scene: the loader's
   // "path:line: ..." message; a bundle path leaving the bundle; bad settings), RESOURCE_EXHAUSTED
@@ -106,6 +116,9 @@ class JobManager {
   absl::StatusOr<v1::Job> GetJob(const std::string& id, const Caller& caller = Caller()) const;
   std::vector<v1::Job> ListJobs(const Caller& caller = Caller()) const;
   absl::StatusOr<v1::Job> Cancel(const std::string& id, const Caller& caller = Caller());
+  // Removes a finished job from memory and the store (FAILED_PRECONDITION while it is queued or
+  // running: cancel it first).
+  absl::Status Delete(const std::string& id, const Caller& caller = Caller());
   // The finished image as EXR file bytes. A job with settings.denoise is denoised here (tiles
   // alone cannot be: the filter needs their neighbours): RGB = denoised, layer "noisy" = as
   // rendered, layers "albedo" and "normal" = the guides.
@@ -139,7 +152,11 @@ class JobManager {
   // Requeues tiles whose lease deadline passed and the leases of workers silent for 3 heartbeat
   // periods (call periodically, well within a heartbeat period).
   void ExpireLeases();
+  // Removes finished jobs past options().job_ttl or beyond options().max_finished_jobs (call
+  // periodically); returns how many were removed.
+  int ExpireJobs();
   const JobManagerOptions& options() const { return options_; }
+  MetricsRegistry* metrics_registry() const { return registry_; }
 
  private:
   struct Job {
@@ -178,8 +195,9 @@ class JobManager {
   };
   static constexpr size_t kPastLeases = 64;
 
-  JobManager(const JobManagerOptions& options, JobStore* store)
-      : options_(options), store_(store) {}
+  JobManager(const JobManagerOptions& options, JobStore* store, MetricsRegistry* registry);
+  // Scrape-time metrics: jobs by state, per-job progress, workers, cache hit ratio.
+  void CollectMetrics(MetricsWriter& w) const;
   absl::Status Resume();
   v1::Job View(const Job& job) const;
   bool IsFinal(const Job& job) const;
@@ -201,6 +219,8 @@ class JobManager {
   std::vector<uint32_t> OtherEligibleWorkers(uint32_t worker_id, SteadyTime now) const;
   void TryAssign(uint32_t worker_id, Worker& worker, std::vector<v1::CoordinatorMessage>* out);
   void FinishJob(Job& job, v1::JobState state, const std::string& error);
+  // Removes job `id` from memory and store (mu_ held); false when the store failed.
+  bool RemoveJob(const std::string& id);
   // When `job` starts: merges the records of earlier jobs of the same sensor-free scene and
   // record settings (cache_seed.h) into its cache, so its workers get them on joining.
   void SeedCache(Job& job);
@@ -210,6 +230,9 @@ class JobManager {
 
   const JobManagerOptions options_;
   JobStore* const store_;
+  std::unique_ptr<MetricsRegistry> own_registry_;  // when Create was given none
+  MetricsRegistry* registry_;
+  CoordinatorMetrics metrics_;
   mutable std::mutex mu_;
   mutable std::condition_variable changed_cv_;  // any change (WaitForChange, Poll)
   uint64_t version_ = 0;
