@@ -84,8 +84,7 @@ absl::Status Unavailable(const absl::Status& st) {
 
 }  // namespace
 
-JobManager::JobManager(const JobManagerOptions& options, JobStore* store,
-                       MetricsRegistry* registry)
+JobManager::JobManager(const JobManagerOptions& options, JobStore* store, MetricsRegistry* registry)
     : options_(options),
       store_(store),
       own_registry_(registry ? nullptr : std::make_unique<MetricsRegistry>()),
@@ -162,7 +161,8 @@ absl::Status JobManager::Resume() {
   std::vector<bool> expired(stored->size(), false);
   for (size_t k = 0; k < finished.size(); ++k) {
     const v1::StoredJob& s = (*stored)[finished[k]];
-    if ((options_.job_ttl.count() > 0 && now_ms - s.finished_unix_ms() > options_.job_ttl.count()) ||
+    if ((options_.job_ttl.count() > 0 &&
+         now_ms - s.finished_unix_ms() > options_.job_ttl.count()) ||
         (options_.max_finished_jobs > 0 && k >= size_t(options_.max_finished_jobs)))
       expired[finished[k]] = true;
   }
@@ -505,10 +505,9 @@ int JobManager::ExpireJobs() {
   std::sort(finished.begin(), finished.end(), std::greater<>());  // newest first
   int removed = 0;
   for (size_t k = 0; k < finished.size(); ++k) {
-    const bool too_old = options_.job_ttl.count() > 0 &&
-                         now_ms - finished[k].first > options_.job_ttl.count();
-    const bool too_many =
-        options_.max_finished_jobs > 0 && k >= size_t(options_.max_finished_jobs);
+    const bool too_old =
+        options_.job_ttl.count() > 0 && now_ms - finished[k].first > options_.job_ttl.count();
+    const bool too_many = options_.max_finished_jobs > 0 && k >= size_t(options_.max_finished_jobs);
     if ((too_old || too_many) && RemoveJob(finished[k].second)) ++removed;
   }
   metrics_.jobs_expired->Add(uint64_t(removed));
@@ -527,6 +526,46 @@ absl::StatusOr<const Denoiser*> JobManager::GetDenoiser() const {
   }
   if (!denoiser_) return denoiser_error_;
   return denoiser_.get();
+}
+
+absl::StatusOr<Image> JobManager::Preview(const std::string& id, const Caller& caller) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  absl::StatusOr<Job*> found = Find(id, caller);
+  if (!found.ok()) return found.status();
+  const Job& job = **found;
+  const v1::JobState state = job.stored.job().state();
+  if (state == v1::JOB_STATE_FAILED || state == v1::JOB_STATE_CANCELLED)
+    return absl::FailedPreconditionError("job '" + id + "' has no image: it is " +
+                                         v1::JobState_Name(state));
+  Image image(job.stored.job().width(), job.stored.job().height());
+  for (const auto& [tile, bytes] : job.pixels) {
+    const PixelRect& r = job.tiles->rect(tile);
+    for (int y = r.y0; y < r.y1; ++y)
+      for (int x = r.x0; x < r.x1; ++x) {
+        // RGB floats first (guides follow for denoised jobs); sizes were checked on the way in.
+        float rgb[3];
+        const size_t i = 3 * (size_t(y - r.y0) * r.width() + (x - r.x0));
+        std::memcpy(rgb, bytes.data() + i * sizeof(float), sizeof rgb);
+        image.at(x, y) = Vec3(rgb[0], rgb[1], rgb[2]);
+      }
+  }
+  return image;
+}
+
+absl::StatusOr<v1::Job> JobManager::SetPriority(const std::string& id, int priority,
+                                                const Caller& caller) {
+  std::lock_guard<std::mutex> lock(mu_);
+  absl::StatusOr<Job*> found = Find(id, caller);
+  if (!found.ok()) return found.status();
+  Job& job = **found;
+  if (IsFinal(job))
+    return absl::FailedPreconditionError("job '" + id + "' is already " +
+                                         v1::JobState_Name(job.stored.job().state()));
+  job.stored.mutable_job()->set_priority(priority);
+  absl::Status st = store_->PutJob(job.stored);
+  if (!st.ok()) return Unavailable(st);
+  Changed();
+  return View(job);
 }
 
 absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
@@ -1128,8 +1167,7 @@ void JobManager::ExpireLeases() {
     for (auto& [id, job] : jobs_) {
       if (IsFinal(*job)) continue;
       const std::vector<uint32_t> holders = job->tiles->LeaseHolders();
-      metrics_.lease_expired_silent->Add(
-          uint64_t(std::count(holders.begin(), holders.end(), wid)));
+      metrics_.lease_expired_silent->Add(uint64_t(std::count(holders.begin(), holders.end(), wid)));
       (void)job->tiles->ReleaseWorker(wid, "worker " + std::to_string(wid) + " went silent",
                                       /*count_failure=*/false);
     }

@@ -39,12 +39,13 @@
 #include "absl/status/statusor.h"
 #include "coordinator/coordinator_metrics.h"
 #include "coordinator/global_cache.h"
-#include "coordinator/record_bounds.h"
 #include "coordinator/job_store.h"
+#include "coordinator/record_bounds.h"
 #include "coordinator/tile_scheduler.h"
-#include "render/denoiser.h"
 #include "irfarm/v1/jobs.pb.h"
 #include "irfarm/v1/worker.pb.h"
+#include "render/denoiser.h"
+#include "render/image.h"
 
 namespace irfarm {
 
@@ -124,6 +125,13 @@ class JobManager {
   // rendered, layers "albedo" and "normal" = the guides.
   absl::StatusOr<std::string> ResultExr(const std::string& id,
                                         const Caller& caller = Caller()) const;
+  // The job's image so far (the dashboard): finished tiles' pixels, black elsewhere. For queued,
+  // running and succeeded jobs (a failed or cancelled job's pixels are released:
+  // FAILED_PRECONDITION).
+  absl::StatusOr<Image> Preview(const std::string& id, const Caller& caller = Caller()) const;
+  // Changes the priority of a queued or running job (FAILED_PRECONDITION once it ended).
+  absl::StatusOr<v1::Job> SetPriority(const std::string& id, int priority,
+                                      const Caller& caller = Caller());
   // The job's merged records as snapshot file bytes (cache/snapshot.h).
   absl::StatusOr<std::string> ExportSnapshot(const std::string& id,
                                              const Caller& caller = Caller()) const;

@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "coordinator/auth.h"
+#include "coordinator/dashboard.h"
 
 #include "coordinator/in_memory_job_store.h"
 #include "coordinator/job_manager.h"
@@ -51,7 +52,7 @@ bool ReadFile(const std::string& path, std::string* out) {
 
 int main(int argc, char** argv) {
   CLI::App app{"irfarm-coordinator: job API and tile/record coordination for irfarm workers"};
-  std::string listen = "127.0.0.1:50051", redis, metrics_address;
+  std::string listen = "127.0.0.1:50051", redis, metrics_address, http_address;
   double job_ttl_seconds = 7 * 24 * 3600;
   double max_upload_mib = 64, lease_seconds = 120, heartbeat_seconds = 1, quarantine_seconds = 30;
   double max_outbox_mib = 64;
@@ -100,6 +101,8 @@ int main(int argc, char** argv) {
                  "queued + running jobs per client (64)");
   app.add_option("--metrics", metrics_address,
                  "serve Prometheus metrics on HOST:PORT at /metrics (default: off)");
+  app.add_option("--http", http_address,
+                 "serve the web dashboard on HOST:PORT (default: off; same tokens as the job API)");
   app.add_option("--job-ttl", job_ttl_seconds,
                  "seconds a finished job (image, tiles, records) is kept; 0 = forever (604800)");
   app.add_option("--max-finished-jobs", options.max_finished_jobs,
@@ -125,6 +128,13 @@ int main(int argc, char** argv) {
     tokens[i] = std::move(*t);
   }
   irfarm::Authenticator auth(tokens[0], tokens[1], tokens[2]);
+  if (!http_address.empty() && !IsLoopback(http_address) && auth.clients_open() && !insecure) {
+    spdlog::error(
+        "refusing to serve the dashboard on {} without client tokens; pass --insecure "
+        "to do it anyway",
+        http_address);
+    return 1;
+  }
   if (!IsLoopback(listen) && (auth.clients_open() || auth.workers_open()) && !insecure) {
     spdlog::error(
         "refusing to listen on {} without client and worker tokens (--client-token-file, "
@@ -221,6 +231,18 @@ int main(int argc, char** argv) {
     spdlog::info("metrics on http://{}/metrics", metrics_address);
   }
 
+  std::unique_ptr<irfarm::HttpServer> dashboard;
+  if (!http_address.empty()) {
+    absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> http =
+        irfarm::HttpServer::Start(http_address, irfarm::DashboardRoutes(manager->get(), &auth));
+    if (!http.ok()) {
+      spdlog::error("--http: {}", http.status().ToString());
+      return 1;
+    }
+    dashboard = std::move(*http);
+    spdlog::info("dashboard on http://{}/", http_address);
+  }
+
   std::atomic<bool> stop{false};
   std::thread expiry([&] {
     for (int tick = 0; !stop.load(); ++tick) {
@@ -240,6 +262,7 @@ int main(int argc, char** argv) {
   stop = true;
   expiry.join();
   metrics_server.reset();
+  dashboard.reset();
   shutdown.detach();  // still blocked in sigwait when the server ended another way
   return 0;
 }

@@ -40,6 +40,7 @@ absl::StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string&
       HttpRequest r;
       r.method = req.method;
       r.path = req.path;
+      r.peer = req.remote_addr + ":" + std::to_string(req.remote_port);
       for (const auto& [k, v] : req.params) r.params[k] = v;
       for (const auto& [k, v] : req.headers) {
         std::string name = k;

@@ -20,6 +20,7 @@ struct HttpRequest {
   std::string method, path;
   std::map<std::string, std::string> params;   // query string and form fields
   std::map<std::string, std::string> headers;  // names lower-case
+  std::string peer;                            // remote address, for logs
 };
 
 struct HttpResponse {
