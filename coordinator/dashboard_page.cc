@@ -101,53 +101,71 @@ function button(td, label, cls, onclick) {
   return b;
 }
 
+// Rows are made once per job and then updated in place, so that a priority being typed or a
+// button being clicked is not replaced under the user by the next poll.
+function jobRow(j) {
+  let tr = document.getElementById("job-" + j.id);
+  if (tr) return tr;
+  tr = document.createElement("tr");
+  tr.id = "job-" + j.id;
+  tr.dataset.job = j.id;
+  tr.onclick = () => { selected = j.id; refresh(); };
+  for (const cls of ["id", "name", "state", "progress", "tiles", "rate", "eta", "records",
+                     "priority", "actions"]) cell(tr, "", cls);
+  const p = tr.querySelector("td.progress");
+  const bar = document.createElement("progress");
+  bar.max = 100;
+  p.appendChild(bar);
+  p.appendChild(document.createTextNode(" "));
+  const pct = document.createElement("span");
+  pct.className = "pct";
+  p.appendChild(pct);
+  const pr = tr.querySelector("td.priority");
+  const shown = document.createElement("span");
+  shown.className = "prio-value";
+  pr.appendChild(shown);
+  const inp = document.createElement("input");
+  inp.className = "prio"; inp.type = "number";
+  inp.onclick = (ev) => ev.stopPropagation();
+  pr.appendChild(inp);
+  button(pr, "set", "set-priority", () =>
+    api("/api/priority?job=" + encodeURIComponent(j.id) + "&priority=" +
+        encodeURIComponent(inp.value), true).then(refresh, showError));
+  button(tr.querySelector("td.actions"), "cancel", "cancel", () =>
+    api("/api/cancel?job=" + encodeURIComponent(j.id), true).then(refresh, showError));
+  return tr;
+}
+
 function renderJobs(jobs) {
   const body = document.querySelector("#jobs tbody");
-  body.textContent = "";
+  const ids = new Set(jobs.map((j) => "job-" + j.id));
+  for (const tr of Array.from(body.children)) if (!ids.has(tr.id)) tr.remove();
   for (const j of jobs) {
+    const tr = jobRow(j);
+    const set = (cls, text) => { tr.querySelector("td." + cls).textContent = text; };
     const state = j.state.replace("JOB_STATE_", "");
     const total = Math.max(1, j.tilesTotal), done = j.tilesDone;
     const pct = Math.floor(100 * done / total);
     const rate = done > 0 && j.elapsedSeconds > 0 ? done / j.elapsedSeconds : 0;
-    const tr = document.createElement("tr");
-    tr.id = "job-" + j.id;
-    tr.dataset.job = j.id;
-    if (j.id === selected) tr.className = "selected";
-    tr.onclick = () => { selected = j.id; refresh(); };
-    cell(tr, j.id, "id");
-    cell(tr, j.name.split("/").slice(-2).join("/"), "name");
-    cell(tr, state, "state");
-    const p = cell(tr, "", "progress");
-    const bar = document.createElement("progress");
-    bar.max = 100; bar.value = pct;
-    p.appendChild(bar);
-    p.appendChild(document.createTextNode(" "));
-    const t = document.createElement("span");
-    t.className = "pct"; t.textContent = pct + "%";
-    p.appendChild(t);
-    cell(tr, done + "/" + j.tilesTotal, "tiles");
-    cell(tr, rate > 0 ? rate.toFixed(2) + " tiles/s" : "", "rate");
     const final = FINAL.includes(state);
-    cell(tr, final ? (j.elapsedSeconds > 0 ? "took " + duration(j.elapsedSeconds) : "")
-                   : (rate > 0 ? duration((j.tilesTotal - done) / rate) : "?"), "eta");
-    cell(tr, String(j.recordsMerged), "records");
-    const pr = cell(tr, "", "priority");
-    if (final) {
-      pr.textContent = String(j.priority);
-    } else {
-      const inp = document.createElement("input");
-      inp.className = "prio"; inp.type = "number"; inp.value = j.priority;
-      inp.onclick = (ev) => ev.stopPropagation();
-      pr.appendChild(inp);
-      button(pr, "set", "set-priority", () =>
-        api("/api/priority?job=" + encodeURIComponent(j.id) + "&priority=" +
-            encodeURIComponent(inp.value), true).then(refresh, showError));
-    }
-    const act = cell(tr, "", "actions");
-    if (!final)
-      button(act, "cancel", "cancel", () =>
-        api("/api/cancel?job=" + encodeURIComponent(j.id), true).then(refresh, showError));
-    body.appendChild(tr);
+    tr.className = j.id === selected ? "selected" : "";
+    set("id", j.id);
+    set("name", j.name.split("/").slice(-2).join("/"));
+    set("state", state);
+    tr.querySelector("progress").value = pct;
+    tr.querySelector(".pct").textContent = pct + "%";
+    set("tiles", done + "/" + j.tilesTotal);
+    set("rate", rate > 0 ? rate.toFixed(2) + " tiles/s" : "");
+    set("eta", final ? (j.elapsedSeconds > 0 ? "took " + duration(j.elapsedSeconds) : "")
+                     : (rate > 0 ? duration((j.tilesTotal - done) / rate) : "?"));
+    set("records", String(j.recordsMerged));
+    // Final jobs show their priority as text; others an input (left alone while focused).
+    const inp = tr.querySelector("input.prio");
+    if (document.activeElement !== inp) inp.value = j.priority;
+    tr.querySelector(".prio-value").textContent = final ? String(j.priority) : "";
+    for (const el of [inp, tr.querySelector("button.set-priority"), tr.querySelector("button.cancel")])
+      el.style.display = final ? "none" : "";
+    body.appendChild(tr);  // keeps the server's order
   }
 }
 

@@ -32,6 +32,9 @@ absl::StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string&
   s->impl_ = std::make_unique<Impl>();
   httplib::Server& server = s->impl_->server;
   server.new_task_queue = [] { return new httplib::ThreadPool(2); };
+  // One request per connection: an idle keep-alive connection (a browser keeps several) would
+  // hold one of the 2 threads for the keep-alive timeout and stall everyone else.
+  server.set_keep_alive_max_count(1);
   server.set_read_timeout(5, 0);
   server.set_write_timeout(5, 0);
   for (HttpRoute& route : routes) {

@@ -2,8 +2,8 @@
 // serve besides gRPC: Prometheus metrics (`--metrics ADDR`, GET /metrics) and the coordinator's
 // dashboard. Built on cpp-httplib (Debian's libcpp-httplib-dev), kept out of this header so that
 // only http_server.cc compiles it. Routes match the path exactly (no patterns); parameters come
-// from the query string (or a form body). Requests are handled by a pool of 2 threads: these are
-// scrapes and a dashboard's polls, not a data path.
+// from the query string (or a form body). Requests are handled by a pool of 2 threads, one request
+// per connection: these are scrapes and a dashboard's polls, not a data path.
 #pragma once
 
 #include <functional>

@@ -123,15 +123,19 @@ try:
     try:
         j2 = irfarm("submit", SCENE, "-Dresx=64", "-Dresy=64", "-q").strip()
         wait_for("second job row", lambda: driver.find_element(By.ID, "job-" + j2))
+        # Typed over at least one poll: the page must not reset the field while it has focus.
         prio = driver.find_element(By.CSS_SELECTOR, "#job-%s input.prio" % j2)
+        prio.click()
         prio.clear()
-        prio.send_keys("73")
+        prio.send_keys("7")
+        time.sleep(1.5)
+        prio.send_keys("3")
         driver.find_element(By.CSS_SELECTOR, "#job-%s button.set-priority" % j2).click()
         wait_for("priority 73", lambda: json.loads(irfarm("status", j2, "--json"))["priority"] == 73,
                  timeout=10)
         print("ok: priority set from the page")
-        wait_for("cancel button", lambda: driver.find_element(
-            By.CSS_SELECTOR, "#job-%s button.cancel" % j2)).click()
+        wait_for("cancel click", lambda: driver.find_element(
+            By.CSS_SELECTOR, "#job-%s button.cancel" % j2).click() or True, timeout=10)
         wait_for("CANCELLED in the page", lambda: row_text(driver, j2, "state") == "CANCELLED",
                  timeout=10)
         st = json.loads(irfarm("status", j2, "--json"))["state"]
