@@ -42,8 +42,9 @@ const char kDashboardHtml[] = R"HTML(<!doctype html>
 
 <h2>Workers</h2>
 <table id="workers">
-  <thead><tr><th>Id</th><th>Name</th><th>Host</th><th>State</th><th>Current job</th>
-    <th>Last heard</th><th>Violations</th></tr></thead>
+  <thead><tr><th>Id</th><th>Name</th><th>Host</th><th>Threads</th><th>State</th>
+    <th>Current tile</th><th>Records computed</th><th>Records received</th><th>Last heard</th>
+    <th>Violations</th></tr></thead>
   <tbody></tbody>
 </table>
 
@@ -178,8 +179,11 @@ function renderWorkers(cluster) {
     cell(tr, String(w.id));
     cell(tr, w.name);
     cell(tr, w.peer);
+    cell(tr, w.threads > 0 ? String(w.threads) : "all");
     cell(tr, w.quarantined ? "quarantined" : w.silent ? "silent" : w.hasLease ? "rendering" : "idle");
-    cell(tr, w.hasLease ? w.leaseJob : "");
+    cell(tr, w.hasLease ? w.leaseJob + " tile " + w.leaseTile : "", "tile");
+    cell(tr, String(w.recordsComputed), "computed");
+    cell(tr, String(w.recordsReceived), "received");
     cell(tr, w.secondsSinceHeard.toFixed(1) + " s ago");
     cell(tr, String(w.violations));
     body.appendChild(tr);

@@ -655,12 +655,13 @@ uint64_t JobManager::WaitForChange(uint64_t seen, std::chrono::milliseconds time
   return version_;
 }
 
-uint32_t JobManager::RegisterWorker(const std::string& name, const std::string& peer) {
+uint32_t JobManager::RegisterWorker(const std::string& name, const std::string& peer, int threads) {
   std::lock_guard<std::mutex> lock(mu_);
   const uint32_t id = next_worker_++;
   Worker& w = workers_[id];
   w.name = Printable(name, options_.limits.max_name_bytes);
   w.peer = peer;
+  w.threads = threads;
   w.last_heard = std::chrono::steady_clock::now();
   Changed();
   return id;
@@ -988,7 +989,17 @@ v1::GetClusterResponse JobManager::Cluster() const {
     i->set_name(w.name);
     i->set_peer(w.peer);
     i->set_has_lease(w.has_lease);
-    if (w.has_lease) i->set_lease_job(w.lease_job);
+    if (w.has_lease) {
+      i->set_lease_job(w.lease_job);
+      i->set_lease_tile(w.lease_tile);
+    }
+    i->set_threads(w.threads);
+    for (const auto& [job_id, job] : jobs_) {
+      auto s = job->worker_stats.find(id);
+      if (s == job->worker_stats.end()) continue;
+      i->set_records_computed(i->records_computed() + s->second.records_computed());
+      i->set_records_received(i->records_received() + s->second.records_received());
+    }
     auto h = health_.find(w.name);
     if (h != health_.end()) {
       i->set_consecutive_failures(uint32_t(h->second.consecutive_failures));
@@ -1124,6 +1135,7 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   worker.has_lease = true;
   worker.lease_job = id;
   worker.lease_id = lease->lease_id;
+  worker.lease_tile = lease->tile;
   worker.past_leases.emplace_back(lease->lease_id, id);
   if (worker.past_leases.size() > kPastLeases) worker.past_leases.pop_front();
   Changed();

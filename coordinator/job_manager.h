@@ -145,7 +145,7 @@ class JobManager {
   // message (a result for a lease this worker lost, records for a job that just ended),
   // UNAVAILABLE when the store failed, or PERMISSION_DENIED / INVALID_ARGUMENT for an invalid
   // message (counted against the worker and answered with a Rejected message).
-  uint32_t RegisterWorker(const std::string& name, const std::string& peer = "");
+  uint32_t RegisterWorker(const std::string& name, const std::string& peer = "", int threads = 0);
   void WorkerGone(uint32_t worker, const std::string& reason);
   // The worker will finish its tile and leave: give it no new lease.
   void Drain(uint32_t worker);
@@ -186,6 +186,8 @@ class JobManager {
     bool has_lease = false, draining = false;
     std::string lease_job;
     uint64_t lease_id = 0;
+    int lease_tile = -1;
+    int threads = 0;  // as registered (0: all its cores)
     // The last kPastLeases leases it was given (lease id, job id): a late message about one of
     // them is stale, not invalid.
     std::deque<std::pair<uint64_t, std::string>> past_leases;

@@ -35,7 +35,8 @@ grpc::Status WorkerServiceImpl::Session(
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "first message must be register");
   if (msg.register_().name().size() > manager_->options().limits.max_name_bytes)
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "worker name too long");
-  const uint32_t id = manager_->RegisterWorker(msg.register_().name(), context->peer());
+  const uint32_t id =
+      manager_->RegisterWorker(msg.register_().name(), context->peer(), msg.register_().threads());
   sessions_->Add();
   spdlog::info("worker {} connected from {}", id, context->peer());
   {

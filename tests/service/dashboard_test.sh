@@ -85,6 +85,13 @@ ws = json.load(sys.stdin)['workers']
 assert [w['name'] for w in ws] == ['w1'], ws
 print('ok: /api/workers lists w1')" || fail "/api/workers"
 wait_job "$ADDR" "$JOB" 120 >/dev/null
+COMPUTED=$(job_field "$ADDR" "$JOB" "sum(int(w['recordsComputed']) for w in j['workers'])")
+a "http://$HTTP/api/workers" | python3 -c "
+import json, sys
+w = json.load(sys.stdin)['workers'][0]
+assert w['threads'] == 1 and int(w['recordsComputed']) == $COMPUTED > 0, w
+print('ok: /api/workers: w1 has 1 thread and computed %s records (the job says $COMPUTED)' % w['recordsComputed'])" ||
+  fail "worker threads / records"
 a "http://$HTTP/api/image.png?job=$JOB" >"$WORK/final.png"
 "$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$WORK/final.exr"
 # The finished preview covers the whole film (no black row: the Cornell box has no black row),
