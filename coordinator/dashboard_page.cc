@@ -141,7 +141,7 @@ function renderJobs(jobs) {
   const body = document.querySelector("#jobs tbody");
   const ids = new Set(jobs.map((j) => "job-" + j.id));
   for (const tr of Array.from(body.children)) if (!ids.has(tr.id)) tr.remove();
-  for (const j of jobs) {
+  jobs.forEach((j, index) => {
     const tr = jobRow(j);
     const set = (cls, text) => { tr.querySelector("td." + cls).textContent = text; };
     const state = j.state.replace("JOB_STATE_", "");
@@ -166,8 +166,10 @@ function renderJobs(jobs) {
     tr.querySelector(".prio-value").textContent = final ? String(j.priority) : "";
     for (const el of [inp, tr.querySelector("button.set-priority"), tr.querySelector("button.cancel")])
       el.style.display = final ? "none" : "";
-    body.appendChild(tr);  // keeps the server's order
-  }
+    // Keeps the server's order, moving a row only when it is out of place (moving a row takes
+    // the focus away from its priority input).
+    if (body.children[index] !== tr) body.insertBefore(tr, body.children[index] || null);
+  });
 }
 
 function renderWorkers(cluster) {
