@@ -1,7 +1,8 @@
 // The `irfarm` command. `render` renders a scene locally in one process (no network);
 // `compare` prints the error metrics of one EXR against another (relMSE as the project defines
 // it); `downsample` box-filters an EXR (for low-resolution reference images). `submit`, `status`,
-// `cancel`, `fetch` and `snapshot` talk to a coordinator (cli/service_commands.h).
+// `watch`, `cancel`, `delete`, `fetch` and `snapshot` talk to a coordinator
+// (cli/service_commands.h).
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
@@ -384,6 +385,12 @@ int main(int argc, char** argv) {
   CLI::App* cancel = app.add_subcommand("cancel", "cancel a job");
   cancel->add_option("job", job_id, "job id")->required();
   add_connection(cancel, &conn);
+  CLI::App* del = app.add_subcommand("delete", "remove a finished job (image, tiles, records)");
+  del->add_option("job", job_id, "job id")->required();
+  add_connection(del, &conn);
+  CLI::App* watch = app.add_subcommand("watch", "follow a job with a progress bar until it ends");
+  watch->add_option("job", job_id, "job id")->required();
+  add_connection(watch, &conn);
   CLI::App* fetch = app.add_subcommand("fetch", "download a finished job's EXR");
   fetch->add_option("job", job_id, "job id")->required();
   fetch->add_option("-o,--output", job_out, "output EXR")->required();
@@ -423,6 +430,8 @@ int main(int argc, char** argv) {
   if (submit->parsed()) return irfarm::RunSubmit(sa);
   if (status->parsed()) return irfarm::RunStatus(conn, job_id, status_json, status_workers);
   if (cancel->parsed()) return irfarm::RunCancel(conn, job_id);
+  if (del->parsed()) return irfarm::RunDelete(conn, job_id);
+  if (watch->parsed()) return irfarm::RunWatch(conn, job_id);
   if (fetch->parsed()) return irfarm::RunFetch(conn, job_id, job_out);
   if (snapshot->parsed()) return irfarm::RunSnapshot(conn, job_id, job_out);
   return 2;

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "cache/snapshot.h"
+#include "cli/job_progress.h"
 #include "irfarm/v1/jobs.grpc.pb.h"
 #include "service/scene_bundle.h"
 
@@ -65,14 +66,8 @@ std::string StateName(v1::JobState s) {
 }
 
 void PrintProgress(const v1::Job& job, bool tty) {
-  const int width = 30;
-  const int total = std::max(1, job.tiles_total());
-  const int filled = job.tiles_done() * width / total;
-  std::fprintf(stderr, "%s%-10s [%s%s] %3d/%d tiles  %-9s records %llu%s", tty ? "\r" : "",
-               job.id().c_str(), std::string(size_t(filled), '#').c_str(),
-               std::string(size_t(width - filled), '.').c_str(), job.tiles_done(),
-               job.tiles_total(), StateName(job.state()).c_str(),
-               static_cast<unsigned long long>(job.records_merged()), tty ? "" : "\n");
+  // "\033[K" clears what a longer previous line left on the terminal.
+  std::fprintf(stderr, "%s%s%s", tty ? "\r" : "", ProgressLine(job).c_str(), tty ? "\033[K" : "\n");
 }
 
 bool IsFinal(v1::JobState s) {
@@ -260,14 +255,8 @@ int RunStatus(const ServiceConnection& coordinator, const std::string& job_id, b
       std::printf("%s\n", text.c_str());
       continue;
     }
-    const int width = 30, total = std::max(1, job.tiles_total());
-    const int filled = job.tiles_done() * width / total;
-    std::printf(
-        "%-10s %-9s [%s%s] %3d/%-3d tiles  prio %-3d records %llu  %s%s%s\n", job.id().c_str(),
-        StateName(job.state()).c_str(), std::string(size_t(filled), '#').c_str(),
-        std::string(size_t(width - filled), '.').c_str(), job.tiles_done(), job.tiles_total(),
-        job.priority(), static_cast<unsigned long long>(job.records_merged()), job.name().c_str(),
-        job.error().empty() ? "" : "  error: ", job.error().c_str());
+    std::printf("%s  prio %d  %s%s%s\n", ProgressLine(job).c_str(), job.priority(),
+                job.name().c_str(), job.error().empty() ? "" : "  error: ", job.error().c_str());
   }
   return 0;
 }
@@ -284,6 +273,59 @@ int RunCancel(const ServiceConnection& coordinator, const std::string& job_id) {
   const grpc::Status st = stub->CancelJob(&context, req, &resp);
   if (!st.ok()) return Fail(st);
   std::printf("%s %s\n", job_id.c_str(), StateName(resp.job().state()).c_str());
+  return 0;
+}
+
+int RunDelete(const ServiceConnection& coordinator, const std::string& job_id) {
+  Client client = Connect(coordinator);
+  if (!client.stub) return Fail(client.status);
+  grpc::ClientContext context;
+  SetDeadline(&context, client);
+  v1::DeleteJobRequest req;
+  req.set_job_id(job_id);
+  v1::DeleteJobResponse resp;
+  const grpc::Status st = client.stub->DeleteJob(&context, req, &resp);
+  if (!st.ok()) return Fail(st);
+  std::printf("%s deleted\n", job_id.c_str());
+  return 0;
+}
+
+int RunWatch(const ServiceConnection& coordinator, const std::string& job_id) {
+  Client client = Connect(coordinator);
+  if (!client.stub) return Fail(client.status);
+  const bool tty = isatty(STDOUT_FILENO);
+  grpc::ClientContext context;
+  AddToken(&context, client.token);
+  v1::WatchJobRequest req;
+  req.set_job_id(job_id);
+  auto reader = client.stub->WatchJob(&context, req);
+  v1::WatchJobResponse r;
+  v1::Job last;
+  bool printed_last = true;
+  auto next_print = std::chrono::steady_clock::now();
+  while (reader->Read(&r)) {
+    last = r.job();
+    const auto now = std::chrono::steady_clock::now();
+    // Updates come with every tile and record batch: a terminal is redrawn at most 10 times a
+    // second, a log gets at most a line a second (and always the last state).
+    if (now < next_print && !IsFinal(last.state())) {
+      printed_last = false;
+      continue;
+    }
+    std::printf("%s%s%s", tty ? "\r" : "", ProgressLine(last).c_str(), tty ? "\033[K" : "\n");
+    std::fflush(stdout);
+    printed_last = true;
+    next_print = now + std::chrono::milliseconds(tty ? 100 : 1000);
+  }
+  const grpc::Status st = reader->Finish();
+  if (!printed_last) std::printf("%s%s", tty ? "\r" : "", ProgressLine(last).c_str());
+  if (tty || !printed_last) std::printf("\n");
+  if (!st.ok()) return Fail(st);
+  if (last.state() != v1::JOB_STATE_SUCCEEDED) {
+    std::fprintf(stderr, "error: job %s %s%s%s\n", job_id.c_str(), StateName(last.state()).c_str(),
+                 last.error().empty() ? "" : ": ", last.error().c_str());
+    return 1;
+  }
   return 0;
 }
 

@@ -1,4 +1,5 @@
-// The `irfarm` subcommands that talk to a coordinator: submit, status, cancel, fetch, snapshot.
+// The `irfarm` subcommands that talk to a coordinator: submit, status, watch, cancel, delete,
+// fetch, snapshot.
 // Each returns the process exit code (0 ok, 1 failed, 2 bad usage) and prints errors as
 // "error: CODE: message" on stderr. Every call carries the client's token and goes over TLS when
 // asked (service/client_auth.h).
@@ -42,6 +43,12 @@ int RunSubmit(const SubmitArgs& args);
 int RunStatus(const ServiceConnection& coordinator, const std::string& job_id, bool json,
               bool workers = false);
 int RunCancel(const ServiceConnection& coordinator, const std::string& job_id);
+// Removes a finished job (image, tiles, records) from the coordinator and its store.
+int RunDelete(const ServiceConnection& coordinator, const std::string& job_id);
+// Follows a job with a live progress bar (rate, ETA) until it ends; 0 when it succeeded. On a
+// terminal the line is redrawn in place; otherwise a line is printed at most once a second and
+// at the end.
+int RunWatch(const ServiceConnection& coordinator, const std::string& job_id);
 int RunFetch(const ServiceConnection& coordinator, const std::string& job_id,
              const std::string& output);
 int RunSnapshot(const ServiceConnection& coordinator, const std::string& job_id,

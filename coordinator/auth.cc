@@ -71,20 +71,37 @@ absl::StatusOr<std::vector<NamedToken>> ReadTokenFile(const std::string& path,
 }
 
 absl::Status Authenticator::Refuse(const grpc::ServerContext& context, const std::string& why) {
+  return Refuse(context.peer(), why);
+}
+
+absl::Status Authenticator::Refuse(const std::string& peer, const std::string& why) {
   ++failures_;
-  spdlog::warn("refused {}: {}", context.peer(), why);
+  spdlog::warn("refused {}: {}", peer, why);
   return absl::UnauthenticatedError(why);
 }
 
-absl::StatusOr<Caller> Authenticator::Client(const grpc::ServerContext& context) {
+absl::StatusOr<Caller> Authenticator::ClientByToken(const std::string& token,
+                                                    const std::string& peer) {
   if (clients_open()) return Caller();
-  const std::string token = BearerToken(context);
-  if (token.empty()) return Refuse(context, "no bearer token (authorization: Bearer <token>)");
+  if (token.empty()) return Refuse(peer, "no bearer token (authorization: Bearer <token>)");
   const NamedToken* admin = Match(admins_, token);
   const NamedToken* client = Match(clients_, token);
   if (admin != nullptr) return Caller{admin->name, true};
   if (client != nullptr) return Caller{client->name, false};
-  return Refuse(context, "not a valid client token");
+  return Refuse(peer, "not a valid client token");
+}
+
+absl::StatusOr<Caller> Authenticator::Client(const grpc::ServerContext& context) {
+  return ClientByToken(BearerToken(context), context.peer());
+}
+
+absl::StatusOr<Caller> Authenticator::HttpClient(const std::string& authorization,
+                                                 const std::string& peer) {
+  const std::string prefix = "Bearer ";
+  return ClientByToken(authorization.compare(0, prefix.size(), prefix) == 0
+                           ? authorization.substr(prefix.size())
+                           : "",
+                       peer);
 }
 
 absl::Status Authenticator::Worker(const grpc::ServerContext& context) {

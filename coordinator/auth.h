@@ -45,6 +45,9 @@ class Authenticator {
 
   // The job API caller, or UNAUTHENTICATED (logged and counted) without a client or admin token.
   absl::StatusOr<Caller> Client(const grpc::ServerContext& context);
+  // The same for an HTTP request (the dashboard): `authorization` is its Authorization header
+  // ("Bearer <token>"), `peer` its remote address for the log.
+  absl::StatusOr<Caller> HttpClient(const std::string& authorization, const std::string& peer);
   // OK for a worker token, else UNAUTHENTICATED (logged and counted).
   absl::Status Worker(const grpc::ServerContext& context);
 
@@ -52,6 +55,8 @@ class Authenticator {
 
  private:
   absl::Status Refuse(const grpc::ServerContext& context, const std::string& why);
+  absl::Status Refuse(const std::string& peer, const std::string& why);
+  absl::StatusOr<Caller> ClientByToken(const std::string& token, const std::string& peer);
 
   const std::vector<NamedToken> clients_, workers_, admins_;
   std::atomic<uint64_t> failures_{0};

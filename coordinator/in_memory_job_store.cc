@@ -51,4 +51,12 @@ absl::StatusOr<std::vector<IrradianceRecord>> InMemoryJobStore::LoadRecords(
   return it->second;
 }
 
+absl::Status InMemoryJobStore::DeleteJob(const std::string& job_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  jobs_.erase(job_id);
+  tiles_.erase(job_id);
+  records_.erase(job_id);
+  return absl::OkStatus();
+}
+
 }  // namespace irfarm

@@ -18,6 +18,7 @@ class InMemoryJobStore : public JobStore {
   absl::Status AppendRecords(const std::string& job_id,
                              const std::vector<IrradianceRecord>& records) override;
   absl::StatusOr<std::vector<IrradianceRecord>> LoadRecords(const std::string& job_id) override;
+  absl::Status DeleteJob(const std::string& job_id) override;
 
  private:
   std::mutex mu_;

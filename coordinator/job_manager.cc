@@ -7,9 +7,11 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <sstream>
 
@@ -70,15 +72,72 @@ bool FinalState(v1::JobState s) {
   return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
 }
 
+int64_t UnixMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 absl::Status Unavailable(const absl::Status& st) {
   return absl::UnavailableError("job store: " + std::string(st.message()));
 }
 
 }  // namespace
 
+JobManager::JobManager(const JobManagerOptions& options, JobStore* store, MetricsRegistry* registry)
+    : options_(options),
+      store_(store),
+      own_registry_(registry ? nullptr : std::make_unique<MetricsRegistry>()),
+      registry_(registry ? registry : own_registry_.get()),
+      metrics_(registry_) {
+  registry_->AddCollector([this](MetricsWriter& w) { CollectMetrics(w); });
+}
+
+void JobManager::CollectMetrics(MetricsWriter& w) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  int by_state[v1::JobState_ARRAYSIZE] = {};
+  for (const auto& [id, job] : jobs_) ++by_state[job->stored.job().state()];
+  w.Family("irfarm_jobs", "gauge", "Jobs held by the coordinator, by state.");
+  for (int s = v1::JOB_STATE_QUEUED; s < v1::JobState_ARRAYSIZE; ++s) {
+    std::string name = v1::JobState_Name(v1::JobState(s)).substr(std::strlen("JOB_STATE_"));
+    for (char& c : name) c = char(std::tolower(static_cast<unsigned char>(c)));
+    w.Sample("irfarm_jobs", {{"state", name}}, by_state[s]);
+  }
+  // Per job: bounded by the jobs held (finished ones until retention removes them).
+  w.Family("irfarm_job_tiles_done", "gauge", "Finished tiles of a job.");
+  for (const auto& [id, job] : jobs_)
+    w.Sample("irfarm_job_tiles_done", {{"job", id}}, job->tiles->num_done());
+  w.Family("irfarm_job_tiles", "gauge", "Tiles of a job.");
+  for (const auto& [id, job] : jobs_)
+    w.Sample("irfarm_job_tiles", {{"job", id}}, job->tiles->num_tiles());
+  w.Family("irfarm_job_records_merged", "gauge", "Records in a job's global cache.");
+  for (const auto& [id, job] : jobs_)
+    w.Sample("irfarm_job_records_merged", {{"job", id}}, double(job->cache->size()));
+  w.Family("irfarm_job_records_rejected", "gauge", "Records of a job refused by validation.");
+  for (const auto& [id, job] : jobs_)
+    w.Sample("irfarm_job_records_rejected", {{"job", id}}, double(job->cache->rejected()));
+  int silent = 0, leased = 0;
+  for (const auto& [id, worker] : workers_) {
+    silent += worker.silent;
+    leased += worker.has_lease;
+  }
+  w.Family("irfarm_workers", "gauge", "Connected workers: all, holding a lease, silent.");
+  w.Sample("irfarm_workers", {{"state", "connected"}}, double(workers_.size()));
+  w.Sample("irfarm_workers", {{"state", "leased"}}, leased);
+  w.Sample("irfarm_workers", {{"state", "silent"}}, silent);
+  const double lookups = double(metrics_.lookups->value());
+  w.Family("irfarm_cache_hit_ratio", "gauge",
+           "Irradiance-cache queries answered by interpolation / all queries (workers' tile "
+           "stats, since start; NaN before any).");
+  w.Sample("irfarm_cache_hit_ratio", {},
+           lookups > 0 ? double(metrics_.lookup_hits->value()) / lookups
+                       : std::numeric_limits<double>::quiet_NaN());
+}
+
 absl::StatusOr<std::unique_ptr<JobManager>> JobManager::Create(const JobManagerOptions& options,
-                                                               JobStore* store) {
-  std::unique_ptr<JobManager> m(new JobManager(options, store));
+                                                               JobStore* store,
+                                                               MetricsRegistry* registry) {
+  std::unique_ptr<JobManager> m(new JobManager(options, store, registry));
   absl::Status st = m->Resume();
   if (!st.ok()) return st;
   return m;
@@ -87,7 +146,40 @@ absl::StatusOr<std::unique_ptr<JobManager>> JobManager::Create(const JobManagerO
 absl::Status JobManager::Resume() {
   absl::StatusOr<std::vector<v1::StoredJob>> stored = store_->LoadJobs();
   if (!stored.ok()) return Unavailable(stored.status());
-  for (v1::StoredJob& s : *stored) {
+  // Retention first, from the job records alone: expired jobs are deleted, not loaded (their
+  // tiles and records are never read). A final job stored before finish times were kept counts
+  // as finished now.
+  const int64_t now_ms = UnixMs();
+  for (v1::StoredJob& s : *stored)
+    if (FinalState(s.job().state()) && s.finished_unix_ms() == 0) s.set_finished_unix_ms(now_ms);
+  std::vector<size_t> finished;
+  for (size_t i = 0; i < stored->size(); ++i)
+    if (FinalState((*stored)[i].job().state())) finished.push_back(i);
+  std::sort(finished.begin(), finished.end(), [&](size_t a, size_t b) {
+    return (*stored)[a].finished_unix_ms() > (*stored)[b].finished_unix_ms();  // newest first
+  });
+  std::vector<bool> expired(stored->size(), false);
+  for (size_t k = 0; k < finished.size(); ++k) {
+    const v1::StoredJob& s = (*stored)[finished[k]];
+    if ((options_.job_ttl.count() > 0 &&
+         now_ms - s.finished_unix_ms() > options_.job_ttl.count()) ||
+        (options_.max_finished_jobs > 0 && k >= size_t(options_.max_finished_jobs)))
+      expired[finished[k]] = true;
+  }
+  int removed = 0;
+  for (size_t i = 0; i < stored->size(); ++i) {
+    if (!expired[i]) continue;
+    absl::Status st = store_->DeleteJob((*stored)[i].job().id());
+    if (!st.ok()) return Unavailable(st);
+    ++removed;
+  }
+  if (removed > 0) {
+    metrics_.jobs_expired->Add(uint64_t(removed));
+    spdlog::info("retention: {} finished jobs expired, not loaded", removed);
+  }
+  for (size_t i = 0; i < stored->size(); ++i) {
+    if (expired[i]) continue;
+    v1::StoredJob& s = (*stored)[i];
     auto job = std::make_unique<Job>();
     job->stored = s;
     const v1::Job& j = s.job();
@@ -288,6 +380,7 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   }
   const v1::Job view = View(*job);
   jobs_[j->id()] = std::move(job);
+  metrics_.jobs_submitted->Add();
   Changed();
   return view;
 }
@@ -342,6 +435,7 @@ void JobManager::FinishJob(Job& job, v1::JobState state, const std::string& erro
   j->set_state(state);
   j->set_error(error);
   job.finished = std::chrono::steady_clock::now();
+  job.stored.set_finished_unix_ms(UnixMs());
   job.tiles->Clear();
   // Release what only a running job needs: the octree (records stay for snapshots and seeding),
   // the uploaded bundle (here and in the store), and the pixels of an image nobody can fetch.
@@ -375,6 +469,51 @@ absl::StatusOr<v1::Job> JobManager::Cancel(const std::string& id, const Caller& 
   return View(job);
 }
 
+absl::Status JobManager::Delete(const std::string& id, const Caller& caller) {
+  std::lock_guard<std::mutex> lock(mu_);
+  absl::StatusOr<Job*> found = Find(id, caller);
+  if (!found.ok()) return found.status();
+  if (!IsFinal(**found))
+    return absl::FailedPreconditionError("job '" + id + "' is " +
+                                         v1::JobState_Name((*found)->stored.job().state()) +
+                                         ": cancel it first");
+  if (!RemoveJob(id)) return absl::UnavailableError("job store: cannot delete job '" + id + "'");
+  metrics_.jobs_deleted->Add();
+  return absl::OkStatus();
+}
+
+bool JobManager::RemoveJob(const std::string& id) {
+  absl::Status st = store_->DeleteJob(id);
+  if (!st.ok()) {
+    spdlog::warn("cannot delete job {} from the store: {}", id, st.ToString());
+    return false;  // kept in memory: retried by the next ExpireJobs
+  }
+  jobs_.erase(id);
+  Changed();
+  return true;
+}
+
+int JobManager::ExpireJobs() {
+  std::lock_guard<std::mutex> lock(mu_);
+  const int64_t now_ms = UnixMs();
+  std::vector<std::pair<int64_t, std::string>> finished;  // (finish time, id)
+  for (const auto& [id, job] : jobs_) {
+    if (!IsFinal(*job)) continue;
+    if (job->stored.finished_unix_ms() == 0) job->stored.set_finished_unix_ms(now_ms);
+    finished.emplace_back(job->stored.finished_unix_ms(), id);
+  }
+  std::sort(finished.begin(), finished.end(), std::greater<>());  // newest first
+  int removed = 0;
+  for (size_t k = 0; k < finished.size(); ++k) {
+    const bool too_old =
+        options_.job_ttl.count() > 0 && now_ms - finished[k].first > options_.job_ttl.count();
+    const bool too_many = options_.max_finished_jobs > 0 && k >= size_t(options_.max_finished_jobs);
+    if ((too_old || too_many) && RemoveJob(finished[k].second)) ++removed;
+  }
+  metrics_.jobs_expired->Add(uint64_t(removed));
+  return removed;
+}
+
 absl::StatusOr<const Denoiser*> JobManager::GetDenoiser() const {
   std::lock_guard<std::mutex> lock(denoiser_mu_);
   if (!denoiser_ && denoiser_error_.ok()) {
@@ -387,6 +526,46 @@ absl::StatusOr<const Denoiser*> JobManager::GetDenoiser() const {
   }
   if (!denoiser_) return denoiser_error_;
   return denoiser_.get();
+}
+
+absl::StatusOr<Image> JobManager::Preview(const std::string& id, const Caller& caller) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  absl::StatusOr<Job*> found = Find(id, caller);
+  if (!found.ok()) return found.status();
+  const Job& job = **found;
+  const v1::JobState state = job.stored.job().state();
+  if (state == v1::JOB_STATE_FAILED || state == v1::JOB_STATE_CANCELLED)
+    return absl::FailedPreconditionError("job '" + id + "' has no image: it is " +
+                                         v1::JobState_Name(state));
+  Image image(job.stored.job().width(), job.stored.job().height());
+  for (const auto& [tile, bytes] : job.pixels) {
+    const PixelRect& r = job.tiles->rect(tile);
+    for (int y = r.y0; y < r.y1; ++y)
+      for (int x = r.x0; x < r.x1; ++x) {
+        // RGB floats first (guides follow for denoised jobs); sizes were checked on the way in.
+        float rgb[3];
+        const size_t i = 3 * (size_t(y - r.y0) * r.width() + (x - r.x0));
+        std::memcpy(rgb, bytes.data() + i * sizeof(float), sizeof rgb);
+        image.at(x, y) = Vec3(rgb[0], rgb[1], rgb[2]);
+      }
+  }
+  return image;
+}
+
+absl::StatusOr<v1::Job> JobManager::SetPriority(const std::string& id, int priority,
+                                                const Caller& caller) {
+  std::lock_guard<std::mutex> lock(mu_);
+  absl::StatusOr<Job*> found = Find(id, caller);
+  if (!found.ok()) return found.status();
+  Job& job = **found;
+  if (IsFinal(job))
+    return absl::FailedPreconditionError("job '" + id + "' is already " +
+                                         v1::JobState_Name(job.stored.job().state()));
+  job.stored.mutable_job()->set_priority(priority);
+  absl::Status st = store_->PutJob(job.stored);
+  if (!st.ok()) return Unavailable(st);
+  Changed();
+  return View(job);
 }
 
 absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
@@ -476,12 +655,13 @@ uint64_t JobManager::WaitForChange(uint64_t seen, std::chrono::milliseconds time
   return version_;
 }
 
-uint32_t JobManager::RegisterWorker(const std::string& name, const std::string& peer) {
+uint32_t JobManager::RegisterWorker(const std::string& name, const std::string& peer, int threads) {
   std::lock_guard<std::mutex> lock(mu_);
   const uint32_t id = next_worker_++;
   Worker& w = workers_[id];
   w.name = Printable(name, options_.limits.max_name_bytes);
   w.peer = peer;
+  w.threads = threads;
   w.last_heard = std::chrono::steady_clock::now();
   Changed();
   return id;
@@ -494,6 +674,9 @@ void JobManager::WorkerGone(uint32_t worker, const std::string& reason) {
   for (auto& [id, job] : jobs_) {
     job->workers.erase(worker);
     if (IsFinal(*job)) continue;
+    const std::vector<uint32_t> holders = job->tiles->LeaseHolders();
+    metrics_.lease_lost_disconnect->Add(
+        uint64_t(std::count(holders.begin(), holders.end(), worker)));
     absl::Status st = job->tiles->ReleaseWorker(
         worker, "worker " + std::to_string(worker) + " (" + wit->second.name + ") " + reason,
         /*count_failure=*/true);
@@ -534,6 +717,7 @@ bool JobManager::Expelled(uint32_t worker) const {
 absl::Status JobManager::Violation(uint32_t worker_id, Worker& worker, const std::string& reason) {
   ++worker.violations;
   ++violations_total_;
+  metrics_.worker_violations->Add();
   if (int(worker.violations) == options_.max_violations + 1) ++expelled_total_;
   v1::CoordinatorMessage m;
   m.mutable_rejected()->set_reason(reason);
@@ -622,8 +806,11 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
   ws.set_worker_id(worker);
   ws.set_records_sent(ws.records_sent() + decoded->size());
   ws.set_bytes_sent(ws.bytes_sent() + BatchBytes(records.batch()));
+  metrics_.records_received->Add(decoded->size());
+  metrics_.record_bytes_received->Add(BatchBytes(records.batch()));
   const char* problem = nullptr;
   const std::vector<IrradianceRecord> accepted = job.cache->Check(*decoded, &problem);
+  metrics_.records_rejected->Add(decoded->size() - accepted.size());
   absl::Status result = absl::OkStatus();
   if (problem != nullptr)
     result = Violation(worker, w,
@@ -636,6 +823,7 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
   absl::Status st = store_->AppendRecords(job.stored.job().id(), accepted);
   if (!st.ok()) return Unavailable(st);
   job.cache->Insert(accepted);
+  metrics_.records_merged->Add(accepted.size());
   if (job.stored.job().settings().share_records()) {
     v1::CoordinatorMessage m;
     m.mutable_records()->set_job_id(records.job_id());
@@ -650,10 +838,13 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
       // the records are an optimisation, it computes its own instead.
       if (ow.outbox_bytes + bytes > options_.limits.max_outbox_bytes) {
         ++ow.batches_dropped;
+        metrics_.fanout_batches_dropped->Add();
         continue;
       }
       ow.outbox.push_back(m);
       ow.outbox_bytes += bytes;
+      metrics_.records_sent->Add(accepted.size());
+      metrics_.record_bytes_sent->Add(bytes);
       v1::WorkerJobStats& os = job.worker_stats[other];
       os.set_worker_id(other);
       os.set_bytes_received(os.bytes_received() + bytes);
@@ -722,6 +913,7 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
       bad = "tile " + std::to_string(tile) + " stats out of bounds";
   }
   if (!bad.empty()) {
+    metrics_.tiles_failed->Add();
     TileFailedOn(w);
     absl::Status st = job.tiles->Requeue(tile, result.lease_id(), "worker " +
                                          std::to_string(worker) + " sent an invalid result");
@@ -753,6 +945,10 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   ws.set_lookups(ws.lookups() + ts.lookups());
   ws.set_lookup_hits(ws.lookup_hits() + ts.lookup_hits());
   ws.set_render_seconds(ws.render_seconds() + ts.wall_seconds());
+  metrics_.tiles_completed->Add();
+  metrics_.records_computed->Add(ts.records_computed());
+  metrics_.lookups->Add(ts.lookups());
+  metrics_.lookup_hits->Add(ts.lookup_hits());
   if (job.tiles->all_done()) FinishJob(job, v1::JOB_STATE_SUCCEEDED, "");
   return absl::OkStatus();
 }
@@ -773,6 +969,7 @@ absl::Status JobManager::FailTile(uint32_t worker, const v1::TileFailed& failed)
   if (lease == nullptr || lease->worker != worker)
     return NotHolder(worker, &w, failed.lease_id(), "tile failure");
   Job& job = *it->second;
+  metrics_.tiles_failed->Add();
   TileFailedOn(w);
   absl::Status st = job.tiles->Requeue(
       tile, failed.lease_id(),
@@ -792,7 +989,17 @@ v1::GetClusterResponse JobManager::Cluster() const {
     i->set_name(w.name);
     i->set_peer(w.peer);
     i->set_has_lease(w.has_lease);
-    if (w.has_lease) i->set_lease_job(w.lease_job);
+    if (w.has_lease) {
+      i->set_lease_job(w.lease_job);
+      i->set_lease_tile(w.lease_tile);
+    }
+    i->set_threads(w.threads);
+    for (const auto& [job_id, job] : jobs_) {
+      auto s = job->worker_stats.find(id);
+      if (s == job->worker_stats.end()) continue;
+      i->set_records_computed(i->records_computed() + s->second.records_computed());
+      i->set_records_received(i->records_received() + s->second.records_received());
+    }
     auto h = health_.find(w.name);
     if (h != health_.end()) {
       i->set_consecutive_failures(uint32_t(h->second.consecutive_failures));
@@ -890,6 +1097,8 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
           v1::WorkerJobStats& ws = job.worker_stats[worker_id];
           ws.set_worker_id(worker_id);
           ws.set_bytes_received(ws.bytes_received() + BatchBytes(m.records().batch()));
+          metrics_.records_sent->Add(chunk.size());
+          metrics_.record_bytes_sent->Add(BatchBytes(m.records().batch()));
           out->push_back(std::move(m));
           chunk.clear();
         }
@@ -926,6 +1135,7 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   worker.has_lease = true;
   worker.lease_job = id;
   worker.lease_id = lease->lease_id;
+  worker.lease_tile = lease->tile;
   worker.past_leases.emplace_back(lease->lease_id, id);
   if (worker.past_leases.size() > kPastLeases) worker.past_leases.pop_front();
   Changed();
@@ -966,15 +1176,20 @@ void JobManager::ExpireLeases() {
     w.has_lease = false;
     spdlog::warn("worker {} ({}) silent for {:.1f} s: its leases go to other workers", wid,
                  w.name, std::chrono::duration<double>(now - w.last_heard).count());
-    for (auto& [id, job] : jobs_)
-      if (!IsFinal(*job))
-        (void)job->tiles->ReleaseWorker(wid, "worker " + std::to_string(wid) + " went silent",
-                                        /*count_failure=*/false);
+    for (auto& [id, job] : jobs_) {
+      if (IsFinal(*job)) continue;
+      const std::vector<uint32_t> holders = job->tiles->LeaseHolders();
+      metrics_.lease_expired_silent->Add(uint64_t(std::count(holders.begin(), holders.end(), wid)));
+      (void)job->tiles->ReleaseWorker(wid, "worker " + std::to_string(wid) + " went silent",
+                                      /*count_failure=*/false);
+    }
     Changed();
   }
   for (auto& [id, job] : jobs_) {
     if (IsFinal(*job)) continue;
+    const size_t leased = job->tiles->LeaseHolders().size();
     absl::Status st = job->tiles->ExpireLeases(now);
+    metrics_.lease_expired_deadline->Add(leased - job->tiles->LeaseHolders().size());
     if (!st.ok()) FinishJob(*job, v1::JOB_STATE_FAILED, std::string(st.message()));
   }
 }

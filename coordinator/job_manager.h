@@ -37,13 +37,15 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "coordinator/coordinator_metrics.h"
 #include "coordinator/global_cache.h"
-#include "coordinator/record_bounds.h"
 #include "coordinator/job_store.h"
+#include "coordinator/record_bounds.h"
 #include "coordinator/tile_scheduler.h"
-#include "render/denoiser.h"
 #include "irfarm/v1/jobs.pb.h"
 #include "irfarm/v1/worker.pb.h"
+#include "render/denoiser.h"
+#include "render/image.h"
 
 namespace irfarm {
 
@@ -83,6 +85,12 @@ struct JobManagerOptions {
   // everyone: the loopback development setup). Others get PERMISSION_DENIED, whether the file
   // exists or not.
   std::string scene_path_root;
+  // Retention: a finished job (succeeded, failed or cancelled) is removed, from memory and from
+  // the store with its tiles and records, job_ttl after it finished (0: no TTL), and when more
+  // than max_finished_jobs finished jobs are held, the oldest finished go first (0: no limit).
+  // Checked by ExpireJobs() and at start-up, where expired jobs are deleted without being loaded.
+  std::chrono::milliseconds job_ttl{std::chrono::hours(24 * 7)};
+  int max_finished_jobs = 1000;
 };
 
 // Who calls the job API: the name of its client token, and whether it may see every job.
@@ -94,8 +102,11 @@ struct Caller {
 
 class JobManager {
  public:
+  // Metrics go to `registry` (the process's, served on --metrics), or with none to a registry
+  // of the manager's own (metrics_registry()).
   static absl::StatusOr<std::unique_ptr<JobManager>> Create(const JobManagerOptions& options,
-                                                            JobStore* store);
+                                                            JobStore* store,
+                                                            MetricsRegistry* registry = nullptr);
 
   // --- Job API. Errors: NOT_FOUND (unknown job), INVALID_ARGUMENT (bad scene: the loader's
   // "path:line: ..." message; a bundle path leaving the bundle; bad settings), RESOURCE_EXHAUSTED
@@ -106,11 +117,21 @@ class JobManager {
   absl::StatusOr<v1::Job> GetJob(const std::string& id, const Caller& caller = Caller()) const;
   std::vector<v1::Job> ListJobs(const Caller& caller = Caller()) const;
   absl::StatusOr<v1::Job> Cancel(const std::string& id, const Caller& caller = Caller());
+  // Removes a finished job from memory and the store (FAILED_PRECONDITION while it is queued or
+  // running: cancel it first).
+  absl::Status Delete(const std::string& id, const Caller& caller = Caller());
   // The finished image as EXR file bytes. A job with settings.denoise is denoised here (tiles
   // alone cannot be: the filter needs their neighbours): RGB = denoised, layer "noisy" = as
   // rendered, layers "albedo" and "normal" = the guides.
   absl::StatusOr<std::string> ResultExr(const std::string& id,
                                         const Caller& caller = Caller()) const;
+  // The job's image so far (the dashboard): finished tiles' pixels, black elsewhere. For queued,
+  // running and succeeded jobs (a failed or cancelled job's pixels are released:
+  // FAILED_PRECONDITION).
+  absl::StatusOr<Image> Preview(const std::string& id, const Caller& caller = Caller()) const;
+  // Changes the priority of a queued or running job (FAILED_PRECONDITION once it ended).
+  absl::StatusOr<v1::Job> SetPriority(const std::string& id, int priority,
+                                      const Caller& caller = Caller());
   // The job's merged records as snapshot file bytes (cache/snapshot.h).
   absl::StatusOr<std::string> ExportSnapshot(const std::string& id,
                                              const Caller& caller = Caller()) const;
@@ -124,7 +145,7 @@ class JobManager {
   // message (a result for a lease this worker lost, records for a job that just ended),
   // UNAVAILABLE when the store failed, or PERMISSION_DENIED / INVALID_ARGUMENT for an invalid
   // message (counted against the worker and answered with a Rejected message).
-  uint32_t RegisterWorker(const std::string& name, const std::string& peer = "");
+  uint32_t RegisterWorker(const std::string& name, const std::string& peer = "", int threads = 0);
   void WorkerGone(uint32_t worker, const std::string& reason);
   // The worker will finish its tile and leave: give it no new lease.
   void Drain(uint32_t worker);
@@ -139,7 +160,11 @@ class JobManager {
   // Requeues tiles whose lease deadline passed and the leases of workers silent for 3 heartbeat
   // periods (call periodically, well within a heartbeat period).
   void ExpireLeases();
+  // Removes finished jobs past options().job_ttl or beyond options().max_finished_jobs (call
+  // periodically); returns how many were removed.
+  int ExpireJobs();
   const JobManagerOptions& options() const { return options_; }
+  MetricsRegistry* metrics_registry() const { return registry_; }
 
  private:
   struct Job {
@@ -161,6 +186,8 @@ class JobManager {
     bool has_lease = false, draining = false;
     std::string lease_job;
     uint64_t lease_id = 0;
+    int lease_tile = -1;
+    int threads = 0;  // as registered (0: all its cores)
     // The last kPastLeases leases it was given (lease id, job id): a late message about one of
     // them is stale, not invalid.
     std::deque<std::pair<uint64_t, std::string>> past_leases;
@@ -178,8 +205,9 @@ class JobManager {
   };
   static constexpr size_t kPastLeases = 64;
 
-  JobManager(const JobManagerOptions& options, JobStore* store)
-      : options_(options), store_(store) {}
+  JobManager(const JobManagerOptions& options, JobStore* store, MetricsRegistry* registry);
+  // Scrape-time metrics: jobs by state, per-job progress, workers, cache hit ratio.
+  void CollectMetrics(MetricsWriter& w) const;
   absl::Status Resume();
   v1::Job View(const Job& job) const;
   bool IsFinal(const Job& job) const;
@@ -201,6 +229,8 @@ class JobManager {
   std::vector<uint32_t> OtherEligibleWorkers(uint32_t worker_id, SteadyTime now) const;
   void TryAssign(uint32_t worker_id, Worker& worker, std::vector<v1::CoordinatorMessage>* out);
   void FinishJob(Job& job, v1::JobState state, const std::string& error);
+  // Removes job `id` from memory and store (mu_ held); false when the store failed.
+  bool RemoveJob(const std::string& id);
   // When `job` starts: merges the records of earlier jobs of the same sensor-free scene and
   // record settings (cache_seed.h) into its cache, so its workers get them on joining.
   void SeedCache(Job& job);
@@ -210,6 +240,9 @@ class JobManager {
 
   const JobManagerOptions options_;
   JobStore* const store_;
+  std::unique_ptr<MetricsRegistry> own_registry_;  // when Create was given none
+  MetricsRegistry* registry_;
+  CoordinatorMetrics metrics_;
   mutable std::mutex mu_;
   mutable std::condition_variable changed_cv_;  // any change (WaitForChange, Poll)
   uint64_t version_ = 0;

@@ -28,6 +28,16 @@ bool IsFinal(v1::JobState s) {
 
 }  // namespace
 
+JobServiceImpl::JobServiceImpl(JobManager* manager, Authenticator* auth)
+    : manager_(manager), auth_(auth) {
+  const char* names[kNumMethods] = {"SubmitJob", "GetJob",      "ListJobs",   "CancelJob",
+                                    "GetResult", "ExportCache", "GetCluster", "DeleteJob"};
+  for (int i = 0; i < kNumMethods; ++i)
+    latency_[i] = manager->metrics_registry()->AddHistogram(
+        "irfarm_rpc_duration_seconds", "gRPC call handling time at the coordinator.",
+        LatencyBuckets(), {{"method", names[i]}});
+}
+
 absl::StatusOr<Caller> JobServiceImpl::Authenticate(const grpc::ServerContext* context) {
   if (auth_ == nullptr) return Caller();
   return auth_->Client(*context);
@@ -41,6 +51,7 @@ absl::StatusOr<Caller> JobServiceImpl::Authenticate(const grpc::ServerContext* c
 grpc::Status JobServiceImpl::SubmitJob(grpc::ServerContext* context,
                                        const v1::SubmitJobRequest* request,
                                        v1::SubmitJobResponse* response) {
+  ScopedTimer timer(latency_[kSubmit]);
   IRFARM_AUTHENTICATE(caller);
   absl::StatusOr<v1::Job> job = manager_->Submit(*request, caller);
   if (!job.ok()) return ToGrpcStatus(job.status());
@@ -50,6 +61,7 @@ grpc::Status JobServiceImpl::SubmitJob(grpc::ServerContext* context,
 
 grpc::Status JobServiceImpl::GetJob(grpc::ServerContext* context, const v1::GetJobRequest* request,
                                     v1::GetJobResponse* response) {
+  ScopedTimer timer(latency_[kGet]);
   IRFARM_AUTHENTICATE(caller);
   absl::StatusOr<v1::Job> job = manager_->GetJob(request->job_id(), caller);
   if (!job.ok()) return ToGrpcStatus(job.status());
@@ -59,6 +71,7 @@ grpc::Status JobServiceImpl::GetJob(grpc::ServerContext* context, const v1::GetJ
 
 grpc::Status JobServiceImpl::ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest*,
                                       v1::ListJobsResponse* response) {
+  ScopedTimer timer(latency_[kList]);
   IRFARM_AUTHENTICATE(caller);
   for (v1::Job& job : manager_->ListJobs(caller)) *response->add_jobs() = std::move(job);
   return grpc::Status::OK;
@@ -92,6 +105,7 @@ grpc::Status JobServiceImpl::WatchJob(grpc::ServerContext* context,
 grpc::Status JobServiceImpl::CancelJob(grpc::ServerContext* context,
                                        const v1::CancelJobRequest* request,
                                        v1::CancelJobResponse* response) {
+  ScopedTimer timer(latency_[kCancel]);
   IRFARM_AUTHENTICATE(caller);
   absl::StatusOr<v1::Job> job = manager_->Cancel(request->job_id(), caller);
   if (!job.ok()) return ToGrpcStatus(job.status());
@@ -102,6 +116,7 @@ grpc::Status JobServiceImpl::CancelJob(grpc::ServerContext* context,
 grpc::Status JobServiceImpl::GetResult(grpc::ServerContext* context,
                                        const v1::GetResultRequest* request,
                                        grpc::ServerWriter<v1::GetResultResponse>* writer) {
+  ScopedTimer timer(latency_[kResult]);
   IRFARM_AUTHENTICATE(caller);
   return StreamBytes(manager_->ResultExr(request->job_id(), caller), writer);
 }
@@ -109,17 +124,27 @@ grpc::Status JobServiceImpl::GetResult(grpc::ServerContext* context,
 grpc::Status JobServiceImpl::ExportCache(grpc::ServerContext* context,
                                          const v1::ExportCacheRequest* request,
                                          grpc::ServerWriter<v1::ExportCacheResponse>* writer) {
+  ScopedTimer timer(latency_[kExport]);
   IRFARM_AUTHENTICATE(caller);
   return StreamBytes(manager_->ExportSnapshot(request->job_id(), caller), writer);
 }
 
 grpc::Status JobServiceImpl::GetCluster(grpc::ServerContext* context, const v1::GetClusterRequest*,
                                         v1::GetClusterResponse* response) {
+  ScopedTimer timer(latency_[kCluster]);
   IRFARM_AUTHENTICATE(caller);
   (void)caller;
   *response = manager_->Cluster();
   if (auth_ != nullptr) response->set_auth_failures(auth_->failures());
   return grpc::Status::OK;
+}
+
+grpc::Status JobServiceImpl::DeleteJob(grpc::ServerContext* context,
+                                       const v1::DeleteJobRequest* request,
+                                       v1::DeleteJobResponse*) {
+  ScopedTimer timer(latency_[kDelete]);
+  IRFARM_AUTHENTICATE(caller);
+  return ToGrpcStatus(manager_->Delete(request->job_id(), caller));
 }
 
 }  // namespace irfarm

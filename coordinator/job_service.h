@@ -12,8 +12,8 @@ namespace irfarm {
 class JobServiceImpl final : public v1::JobService::Service {
  public:
   // `auth` may be null: every call is then an anonymous admin.
-  explicit JobServiceImpl(JobManager* manager, Authenticator* auth = nullptr)
-      : manager_(manager), auth_(auth) {}
+  // Call latencies go to manager->metrics_registry() (irfarm_rpc_duration_seconds{method}).
+  explicit JobServiceImpl(JobManager* manager, Authenticator* auth = nullptr);
 
   grpc::Status SubmitJob(grpc::ServerContext* context, const v1::SubmitJobRequest* request,
                          v1::SubmitJobResponse* response) override;
@@ -31,12 +31,17 @@ class JobServiceImpl final : public v1::JobService::Service {
                            grpc::ServerWriter<v1::ExportCacheResponse>* writer) override;
   grpc::Status GetCluster(grpc::ServerContext* context, const v1::GetClusterRequest* request,
                           v1::GetClusterResponse* response) override;
+  grpc::Status DeleteJob(grpc::ServerContext* context, const v1::DeleteJobRequest* request,
+                         v1::DeleteJobResponse* response) override;
 
  private:
   absl::StatusOr<Caller> Authenticate(const grpc::ServerContext* context);
 
+  enum Method { kSubmit, kGet, kList, kCancel, kResult, kExport, kCluster, kDelete, kNumMethods };
+
   JobManager* manager_;
   Authenticator* auth_;
+  Histogram* latency_[kNumMethods];  // WatchJob is a long stream: not timed
 };
 
 }  // namespace irfarm

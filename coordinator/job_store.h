@@ -37,6 +37,9 @@ class JobStore {
   virtual absl::Status AppendRecords(const std::string& job_id,
                                      const std::vector<IrradianceRecord>& records) = 0;
   virtual absl::StatusOr<std::vector<IrradianceRecord>> LoadRecords(const std::string& job_id) = 0;
+
+  // Removes the job, its tiles and its records (retention, DeleteJob). OK when it is not there.
+  virtual absl::Status DeleteJob(const std::string& job_id) = 0;
 };
 
 }  // namespace irfarm

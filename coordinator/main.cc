@@ -4,7 +4,9 @@
 // auth.h), TLS with --tls-cert/--tls-key and client certificates with --tls-client-ca. Without
 // tokens it listens on a loopback address only, unless --insecure. The request limits
 // (JobLimits) each have a flag. SIGINT/SIGTERM shut it down gracefully (in-flight calls get a
-// 5 s deadline).
+// 5 s deadline). --metrics ADDR serves Prometheus metrics at http://ADDR/metrics
+// (coordinator_metrics.h); finished jobs expire after --job-ttl seconds or beyond
+// --max-finished-jobs (JobManagerOptions).
 #include <grpcpp/grpcpp.h>
 #include <signal.h>
 #include <spdlog/spdlog.h>
@@ -16,12 +18,16 @@
 #include <thread>
 
 #include "coordinator/auth.h"
+#include "coordinator/dashboard.h"
 
 #include "coordinator/in_memory_job_store.h"
 #include "coordinator/job_manager.h"
 #include "coordinator/job_service.h"
 #include "coordinator/redis_job_store.h"
+#include "coordinator/timed_job_store.h"
 #include "coordinator/worker_service.h"
+#include "service/http_server.h"
+#include "service/metrics.h"
 
 namespace {
 
@@ -46,7 +52,8 @@ bool ReadFile(const std::string& path, std::string* out) {
 
 int main(int argc, char** argv) {
   CLI::App app{"irfarm-coordinator: job API and tile/record coordination for irfarm workers"};
-  std::string listen = "127.0.0.1:50051", redis;
+  std::string listen = "127.0.0.1:50051", redis, metrics_address, http_address;
+  double job_ttl_seconds = 7 * 24 * 3600;
   double max_upload_mib = 64, lease_seconds = 120, heartbeat_seconds = 1, quarantine_seconds = 30;
   double max_outbox_mib = 64;
   irfarm::JobManagerOptions options;
@@ -92,7 +99,20 @@ int main(int argc, char** argv) {
                  "record fan-out queued per worker before batches are dropped (64)");
   app.add_option("--max-live-jobs", lim.max_live_jobs_per_client,
                  "queued + running jobs per client (64)");
+  app.add_option("--metrics", metrics_address,
+                 "serve Prometheus metrics on HOST:PORT at /metrics (default: off)");
+  app.add_option("--http", http_address,
+                 "serve the web dashboard on HOST:PORT (default: off; same tokens as the job API)");
+  app.add_option("--job-ttl", job_ttl_seconds,
+                 "seconds a finished job (image, tiles, records) is kept; 0 = forever (604800)");
+  app.add_option("--max-finished-jobs", options.max_finished_jobs,
+                 "finished jobs kept at most, oldest removed first; 0 = no limit (1000)");
   CLI11_PARSE(app, argc, argv);
+  if (job_ttl_seconds < 0 || options.max_finished_jobs < 0) {
+    spdlog::error("--job-ttl and --max-finished-jobs must be >= 0");
+    return 1;
+  }
+  options.job_ttl = std::chrono::milliseconds(int64_t(job_ttl_seconds * 1000));
 
   std::vector<irfarm::NamedToken> tokens[3];
   const std::string* files[3] = {&client_tokens, &worker_tokens, &admin_tokens};
@@ -108,6 +128,13 @@ int main(int argc, char** argv) {
     tokens[i] = std::move(*t);
   }
   irfarm::Authenticator auth(tokens[0], tokens[1], tokens[2]);
+  if (!http_address.empty() && !IsLoopback(http_address) && auth.clients_open() && !insecure) {
+    spdlog::error(
+        "refusing to serve the dashboard on {} without client tokens; pass --insecure "
+        "to do it anyway",
+        http_address);
+    return 1;
+  }
   if (!IsLoopback(listen) && (auth.clients_open() || auth.workers_open()) && !insecure) {
     spdlog::error(
         "refusing to listen on {} without client and worker tokens (--client-token-file, "
@@ -154,6 +181,9 @@ int main(int argc, char** argv) {
     }
     store = std::move(*r);
   }
+  irfarm::MetricsRegistry metrics;
+  irfarm::AddProcessMetrics(&metrics);
+  irfarm::TimedJobStore timed_store(store.get(), &metrics);
   options.max_upload_bytes = size_t(max_upload_mib * 1024 * 1024);
   lim.max_outbox_bytes = size_t(max_outbox_mib * 1024 * 1024);
   options.lease_time = std::chrono::milliseconds(int64_t(lease_seconds * 1000));
@@ -161,7 +191,7 @@ int main(int argc, char** argv) {
       std::chrono::milliseconds(std::max<int64_t>(50, int64_t(heartbeat_seconds * 1000)));
   options.quarantine_time = std::chrono::milliseconds(int64_t(quarantine_seconds * 1000));
   absl::StatusOr<std::unique_ptr<irfarm::JobManager>> manager =
-      irfarm::JobManager::Create(options, store.get());
+      irfarm::JobManager::Create(options, &timed_store, &metrics);
   if (!manager.ok()) {
     spdlog::error("{}", manager.status().ToString());
     return 1;
@@ -185,10 +215,39 @@ int main(int argc, char** argv) {
                tls_cert.empty() ? "no TLS" : tls_client_ca.empty() ? "TLS" : "mutual TLS",
                tokens[0].size() + tokens[2].size(), tokens[1].size());
 
+  std::unique_ptr<irfarm::HttpServer> metrics_server;
+  if (!metrics_address.empty()) {
+    absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> http = irfarm::HttpServer::Start(
+        metrics_address,
+        {{"GET", "/metrics", [&metrics](const irfarm::HttpRequest&) {
+            return irfarm::HttpResponse{200, "text/plain; version=0.0.4; charset=utf-8",
+                                        metrics.Render()};
+          }}});
+    if (!http.ok()) {
+      spdlog::error("--metrics: {}", http.status().ToString());
+      return 1;
+    }
+    metrics_server = std::move(*http);
+    spdlog::info("metrics on http://{}/metrics", metrics_address);
+  }
+
+  std::unique_ptr<irfarm::HttpServer> dashboard;
+  if (!http_address.empty()) {
+    absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> http =
+        irfarm::HttpServer::Start(http_address, irfarm::DashboardRoutes(manager->get(), &auth));
+    if (!http.ok()) {
+      spdlog::error("--http: {}", http.status().ToString());
+      return 1;
+    }
+    dashboard = std::move(*http);
+    spdlog::info("dashboard on http://{}/", http_address);
+  }
+
   std::atomic<bool> stop{false};
   std::thread expiry([&] {
-    while (!stop.load()) {
+    for (int tick = 0; !stop.load(); ++tick) {
       (*manager)->ExpireLeases();
+      if (tick % 4 == 0) (*manager)->ExpireJobs();  // retention: once a second
       std::this_thread::sleep_for(std::chrono::milliseconds(250));
     }
   });
@@ -202,6 +261,8 @@ int main(int argc, char** argv) {
   server->Wait();
   stop = true;
   expiry.join();
+  metrics_server.reset();
+  dashboard.reset();
   shutdown.detach();  // still blocked in sigwait when the server ended another way
   return 0;
 }

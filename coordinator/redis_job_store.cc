@@ -188,4 +188,32 @@ absl::StatusOr<std::vector<IrradianceRecord>> RedisJobStore::LoadRecords(
   return out;
 }
 
+absl::Status RedisJobStore::DeleteJob(const std::string& job_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  const std::string jobs = prefix_ + "jobs", key = prefix_ + "job:" + job_id;
+  const std::string tiles = key + ":tiles", records = key + ":records";
+  absl::Status conn = EnsureConnected();
+  if (!conn.ok()) return conn;
+  // MULTI/EXEC: the job leaves the set together with its keys (a restart never sees half).
+  redisAppendCommand(ctx_, "MULTI");
+  redisAppendCommand(ctx_, "SREM %b %b", jobs.data(), jobs.size(), job_id.data(), job_id.size());
+  redisAppendCommand(ctx_, "DEL %b %b %b", key.data(), key.size(), tiles.data(), tiles.size(),
+                     records.data(), records.size());
+  redisAppendCommand(ctx_, "EXEC");
+  for (int i = 0; i < 4; ++i) {
+    void* raw = nullptr;
+    if (redisGetReply(ctx_, &raw) != REDIS_OK) {
+      const std::string why = ctx_->errstr;
+      Drop();
+      return absl::UnavailableError("redis: " + why);
+    }
+    Reply r(static_cast<redisReply*>(raw));
+    if (r->type == REDIS_REPLY_ERROR)
+      return absl::UnavailableError("redis: " + std::string(r->str, r->len));
+    if (i == 3 && r->type != REDIS_REPLY_ARRAY)
+      return absl::UnavailableError("redis: transaction aborted");
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace irfarm

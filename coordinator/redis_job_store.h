@@ -44,6 +44,7 @@ class RedisJobStore : public JobStore {
   absl::Status AppendRecords(const std::string& job_id,
                              const std::vector<IrradianceRecord>& records) override;
   absl::StatusOr<std::vector<IrradianceRecord>> LoadRecords(const std::string& job_id) override;
+  absl::Status DeleteJob(const std::string& job_id) override;
 
  private:
   RedisJobStore(std::string host, int port, std::string prefix)

@@ -10,6 +10,19 @@
 
 namespace irfarm {
 
+WorkerServiceImpl::WorkerServiceImpl(JobManager* manager, Authenticator* auth)
+    : manager_(manager), auth_(auth) {
+  MetricsRegistry* r = manager->metrics_registry();
+  const char* help = "gRPC call handling time at the coordinator.";
+  records_latency_ = r->AddHistogram("irfarm_rpc_duration_seconds", help, LatencyBuckets(),
+                                     {{"method", "Session/records"}});
+  result_latency_ = r->AddHistogram("irfarm_rpc_duration_seconds", help, LatencyBuckets(),
+                                    {{"method", "Session/tile_result"}});
+  failed_latency_ = r->AddHistogram("irfarm_rpc_duration_seconds", help, LatencyBuckets(),
+                                    {{"method", "Session/tile_failed"}});
+  sessions_ = r->AddCounter("irfarm_worker_sessions_total", "Worker sessions registered.");
+}
+
 grpc::Status WorkerServiceImpl::Session(
     grpc::ServerContext* context,
     grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>* stream) {
@@ -22,7 +35,9 @@ grpc::Status WorkerServiceImpl::Session(
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "first message must be register");
   if (msg.register_().name().size() > manager_->options().limits.max_name_bytes)
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "worker name too long");
-  const uint32_t id = manager_->RegisterWorker(msg.register_().name(), context->peer());
+  const uint32_t id =
+      manager_->RegisterWorker(msg.register_().name(), context->peer(), msg.register_().threads());
+  sessions_->Add();
   spdlog::info("worker {} connected from {}", id, context->peer());
   {
     const int64_t heartbeat_ms = manager_->options().heartbeat.count();
@@ -49,15 +64,21 @@ grpc::Status WorkerServiceImpl::Session(
     manager_->Heard(id);
     absl::Status st;
     switch (msg.msg_case()) {
-      case v1::WorkerMessage::kRecords:
+      case v1::WorkerMessage::kRecords: {
+        ScopedTimer timer(records_latency_);
         st = manager_->AddRecords(id, msg.records());
         break;
-      case v1::WorkerMessage::kTileResult:
+      }
+      case v1::WorkerMessage::kTileResult: {
+        ScopedTimer timer(result_latency_);
         st = manager_->CompleteTile(id, msg.tile_result());
         break;
-      case v1::WorkerMessage::kTileFailed:
+      }
+      case v1::WorkerMessage::kTileFailed: {
+        ScopedTimer timer(failed_latency_);
         st = manager_->FailTile(id, msg.tile_failed());
         break;
+      }
       case v1::WorkerMessage::kDrain:
         manager_->Drain(id);
         reason = "drained";

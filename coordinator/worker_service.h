@@ -15,8 +15,9 @@ namespace irfarm {
 class WorkerServiceImpl final : public v1::WorkerService::Service {
  public:
   // `auth` may be null: any worker may connect.
-  explicit WorkerServiceImpl(JobManager* manager, Authenticator* auth = nullptr)
-      : manager_(manager), auth_(auth) {}
+  // Message handling times go to manager->metrics_registry()
+  // (irfarm_rpc_duration_seconds{method="Session/records"|"Session/tile_result"|...}).
+  explicit WorkerServiceImpl(JobManager* manager, Authenticator* auth = nullptr);
 
   grpc::Status Session(
       grpc::ServerContext* context,
@@ -25,6 +26,10 @@ class WorkerServiceImpl final : public v1::WorkerService::Service {
  private:
   JobManager* manager_;
   Authenticator* auth_;
+  Histogram* records_latency_;
+  Histogram* result_latency_;
+  Histogram* failed_latency_;
+  Counter* sessions_;
 };
 
 }  // namespace irfarm

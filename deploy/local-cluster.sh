@@ -2,9 +2,12 @@
 # Local irfarm cluster on 127.0.0.1: one irfarm-coordinator (in-memory job store, or its own
 # redis-server with --redis) and N irfarm-worker processes.
 #
-#   local-cluster.sh start [--workers N] [--threads T] [--redis] [--port P]
+#   local-cluster.sh start [--workers N] [--threads T] [--redis] [--port P] [--metrics M]
+#                          [--http H]
 #       starts the cluster, waits until the coordinator answers and every worker has registered,
 #       and records pids, address and logs in the state dir; prints the coordinator address.
+#       --metrics M: Prometheus metrics of the coordinator on 127.0.0.1:M and of worker i on
+#       127.0.0.1:M+i; --http H: the coordinator's dashboard on http://127.0.0.1:H/.
 #   local-cluster.sh stop
 #       SIGTERM to every process of the cluster, SIGKILL after IRFARM_STOP_TIMEOUT seconds (10).
 #   local-cluster.sh status
@@ -81,10 +84,12 @@ launch() {
 }
 
 cmd_start() {
-  local workers=2 threads=0 redis=0 port=""
+  local workers=2 threads=0 redis=0 port="" metrics="" http=""
   while (($#)); do
     case $1 in
       --workers) workers=${2:?}; shift 2 ;;
+      --metrics) metrics=${2:?}; shift 2 ;;
+      --http) http=${2:?}; shift 2 ;;
       --threads) threads=${2:?}; shift 2 ;;
       --redis) redis=1; shift ;;
       --port) port=${2:?}; shift 2 ;;
@@ -111,6 +116,8 @@ cmd_start() {
     new_token >"$STATE/worker.token"
   )
   coord_args+=(--client-token-file "$STATE/client.token" --worker-token-file "$STATE/worker.token")
+  [[ -z $metrics ]] || coord_args+=(--metrics "127.0.0.1:$metrics")
+  [[ -z $http ]] || coord_args+=(--http "127.0.0.1:$http")
 
   if ((redis)); then
     command -v redis-server >/dev/null || die "redis-server not installed (deploy/setup.sh installs it)"
@@ -137,8 +144,10 @@ cmd_start() {
   ((ok)) || { tail -5 "$STATE/coordinator.log" >&2; cmd_stop; die "coordinator did not come up on $addr"; }
 
   for i in $(seq "$workers"); do
+    local worker_metrics=()
+    [[ -z $metrics ]] || worker_metrics=(--metrics "127.0.0.1:$((metrics + i))")
     launch "worker-$i" "$BIN/irfarm-worker" --coordinator "$addr" --threads "$threads" \
-      --name "worker-$i" --token-file "$STATE/worker.token"
+      --name "worker-$i" --token-file "$STATE/worker.token" "${worker_metrics[@]}"
   done
   # A worker is ready once it has registered (its log says so).
   for i in $(seq "$workers"); do

@@ -9,6 +9,8 @@ packages=(
   libspdlog-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
   libhiredis-dev redis-server python3-yaml
+  libcpp-httplib-dev python3-prometheus-client curl
+  chromium chromium-driver python3-selenium
   openssl
   python3
 )

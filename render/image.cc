@@ -107,7 +107,11 @@ float LinearToSrgb(float v) {
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
 }
 
-absl::Status WritePng(const Image& image, const std::string& path, float exposure) {
+namespace {
+
+// 8-bit sRGB of `image` at `exposure` (<= 0: the one that maps the 98th luminance percentile to
+// about 0.5, a power of two), as WritePng and EncodePng store it.
+std::vector<unsigned char> ToneMapToSrgb8(const Image& image, float exposure) {
   if (exposure <= 0) {
     std::vector<float> lum;
     lum.reserve(image.pixels.size());
@@ -128,6 +132,26 @@ absl::Status WritePng(const Image& image, const std::string& path, float exposur
       v = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
       rgb[3 * i + c] = static_cast<unsigned char>(std::lround(LinearToSrgb(v) * 255.0f));
     }
+  return rgb;
+}
+
+void AppendBytes(void* context, void* data, int size) {
+  static_cast<std::string*>(context)->append(static_cast<const char*>(data), size_t(size));
+}
+
+}  // namespace
+
+absl::StatusOr<std::string> EncodePng(const Image& image, float exposure) {
+  const std::vector<unsigned char> rgb = ToneMapToSrgb8(image, exposure);
+  std::string out;
+  if (!stbi_write_png_to_func(AppendBytes, &out, image.width, image.height, 3, rgb.data(),
+                              image.width * 3))
+    return absl::InternalError("cannot encode PNG");
+  return out;
+}
+
+absl::Status WritePng(const Image& image, const std::string& path, float exposure) {
+  const std::vector<unsigned char> rgb = ToneMapToSrgb8(image, exposure);
   const std::string tmp = path + ".tmp";
   if (!stbi_write_png(tmp.c_str(), image.width, image.height, 3, rgb.data(), image.width * 3))
     return absl::InternalError(path + ": cannot write PNG");

@@ -39,6 +39,8 @@ absl::StatusOr<Image> ReadExrLayer(const std::string& path, const std::string& l
 // 8-bit sRGB preview of clip(exposure * linear, 0, 1); exposure <= 0 picks the reference
 // images' rule: 2^floor(log2(0.5 / p98 luminance)).
 absl::Status WritePng(const Image& image, const std::string& path, float exposure = 0);
+// The same PNG as file bytes in memory (the coordinator's dashboard preview).
+absl::StatusOr<std::string> EncodePng(const Image& image, float exposure = 0);
 // Reads PNG/JPEG (8-bit, returned as values in [0,1], not decoded) or EXR (linear).
 absl::StatusOr<Image> ReadImageFile(const std::string& path);
 

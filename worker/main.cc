@@ -1,5 +1,6 @@
 // irfarm-worker: renders tiles for an irfarm coordinator (see worker/worker.h). SIGTERM/SIGINT:
-// finish the current tile, report it, then exit.
+// finish the current tile, report it, then exit. --metrics ADDR serves Prometheus metrics at
+// http://ADDR/metrics (worker_metrics.h).
 #include <signal.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
@@ -7,12 +8,15 @@
 
 #include <thread>
 
+#include "service/http_server.h"
+#include "service/metrics.h"
 #include "worker/worker.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"irfarm-worker: renders tiles leased by an irfarm coordinator"};
   irfarm::WorkerOptions options;
   int flush_ms = 50;
+  std::string metrics_address;
   app.add_option("--coordinator", options.coordinator, "coordinator address (127.0.0.1:50051)");
   app.add_option("--threads", options.threads, "render threads (default: all cores)");
   app.add_option("--name", options.name, "name shown in job stats (default: host:pid)");
@@ -22,6 +26,8 @@ int main(int argc, char** argv) {
   app.add_option("--tls-ca", options.auth.tls_ca, "use TLS, trusting this CA (PEM)");
   app.add_option("--tls-cert", options.auth.tls_cert, "client certificate for mutual TLS (PEM)");
   app.add_option("--tls-key", options.auth.tls_key, "client key for mutual TLS (PEM)");
+  app.add_option("--metrics", metrics_address,
+                 "serve Prometheus metrics on HOST:PORT at /metrics (default: off)");
   CLI11_PARSE(app, argc, argv);
   options.flush_interval = std::chrono::milliseconds(flush_ms);
   if (options.name.empty()) {
@@ -36,7 +42,24 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  irfarm::Worker worker(options);
+  irfarm::MetricsRegistry metrics;
+  irfarm::AddProcessMetrics(&metrics);
+  irfarm::Worker worker(options, &metrics);
+  std::unique_ptr<irfarm::HttpServer> metrics_server;
+  if (!metrics_address.empty()) {
+    absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> http = irfarm::HttpServer::Start(
+        metrics_address,
+        {{"GET", "/metrics", [&metrics](const irfarm::HttpRequest&) {
+            return irfarm::HttpResponse{200, "text/plain; version=0.0.4; charset=utf-8",
+                                        metrics.Render()};
+          }}});
+    if (!http.ok()) {
+      spdlog::error("--metrics: {}", http.status().ToString());
+      return 1;
+    }
+    metrics_server = std::move(*http);
+    spdlog::info("metrics on http://{}/metrics", metrics_address);
+  }
   std::thread signal_thread([&] {
     int sig = 0;
     sigwait(&signals, &sig);
@@ -45,5 +68,6 @@ int main(int argc, char** argv) {
   });
   const int code = worker.Run();
   signal_thread.detach();
+  metrics_server.reset();
   return code;
 }

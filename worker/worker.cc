@@ -92,6 +92,8 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
       return;
     }
     s.worker_id = reply.registered().worker_id();
+    metrics_.sessions->Add();
+    metrics_.connected->Set(1);
     if (reply.registered().heartbeat_ms() > 0)
       heartbeat = std::chrono::milliseconds(reply.registered().heartbeat_ms());
     else if (reply.registered().heartbeat_seconds() > 0)
@@ -100,6 +102,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
   }
   const auto write = [&](const v1::WorkerMessage& m) {
     std::lock_guard<std::mutex> lock(s.write_mu);
+    ScopedTimer timer(metrics_.write_seconds);
     return stream->Write(m);
   };
 
@@ -124,6 +127,10 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
           if (it != s.jobs.end()) job = it->second;
         }
         absl::StatusOr<std::vector<IrradianceRecord>> recs = DecodeRecords(m.records().batch());
+        if (recs.ok()) {
+          metrics_.records_received->Add(recs->size());
+          metrics_.record_bytes_received->Add(BatchBytes(m.records().batch()));
+        }
         if (job && recs.ok()) job->InsertRemote(*recs);
       } else if (m.has_lease()) {
         std::lock_guard<std::mutex> lock(s.mu);
@@ -161,6 +168,8 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
         m.mutable_records()->set_job_id(j->job_id());
         PackRecords(recs, s.worker_id, m.mutable_records()->mutable_batch());
         if (!write(m)) return;
+        metrics_.records_sent->Add(recs.size());
+        metrics_.record_bytes_sent->Add(BatchBytes(m.records().batch()));
       }
     }
   };
@@ -204,6 +213,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
       tf->set_lease_id(lease.lease_id());
       tf->set_reason(failure);
       write(m);
+      metrics_.tiles_failed->Add();
       continue;
     }
     const PixelRect rect{lease.rect().x0(), lease.rect().y0(), lease.rect().x1(),
@@ -238,6 +248,15 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
     ts->set_wall_seconds(out.stats.PhaseWall("overture") + out.stats.PhaseWall("render"));
     ts->set_records_received(job->TakeReceivedCount());
     if (!write(m)) break;
+    metrics_.tiles_completed->Add();
+    metrics_.tile_seconds->Observe(ts->wall_seconds());
+    metrics_.records_computed->Add(c.records_computed);
+    metrics_.lookups->Add(c.lookups);
+    metrics_.lookup_hits->Add(c.lookup_hits);
+    metrics_.camera_rays->Add(c.camera_rays);
+    metrics_.bounce_rays->Add(c.bounce_rays);
+    metrics_.shadow_rays->Add(c.shadow_rays);
+    metrics_.record_rays->Add(c.record_rays);
   }
 
   session_done = true;
@@ -251,6 +270,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
   context.TryCancel();
   reader.join();
   stream->Finish();
+  metrics_.connected->Set(0);
 }
 
 }  // namespace irfarm

@@ -20,6 +20,7 @@
 #include "irfarm/v1/worker.grpc.pb.h"
 #include "service/client_auth.h"
 #include "worker/job_context.h"
+#include "worker/worker_metrics.h"
 
 namespace irfarm {
 
@@ -34,7 +35,11 @@ struct WorkerOptions {
 
 class Worker {
  public:
-  explicit Worker(WorkerOptions options) : options_(std::move(options)) {}
+  // Metrics go to `registry` (served on --metrics), or with none to a registry of its own.
+  explicit Worker(WorkerOptions options, MetricsRegistry* registry = nullptr)
+      : options_(std::move(options)),
+        own_registry_(registry ? nullptr : std::make_unique<MetricsRegistry>()),
+        metrics_(registry ? registry : own_registry_.get()) {}
   // Runs until Stop(); returns the process exit code.
   int Run();
   // Thread-safe; called from the signal thread.
@@ -49,6 +54,8 @@ class Worker {
   std::atomic<bool> stop_{false};
   std::mutex stop_mu_;
   std::condition_variable stop_cv_;
+  std::unique_ptr<MetricsRegistry> own_registry_;
+  WorkerMetrics metrics_;
 };
 
 }  // namespace irfarm

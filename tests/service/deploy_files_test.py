@@ -126,6 +126,39 @@ for name, d in deployments.items():
             check(svc is not None and int(m.group(2)) in [p["port"] for p in svc["spec"]["ports"]],
                   "Deployment %s: address %s is a Service port" % (name, a))
 
+# --- Metrics (issue 11): annotated pods serve --metrics on the annotated, declared port, and the
+# Prometheus config's pod job keeps pods by exactly these annotations ---
+for name in ("irfarm-coordinator", "irfarm-worker"):
+    d = deployments.get(name)
+    if not d:
+        continue
+    ann = d["spec"]["template"]["metadata"].get("annotations", {})
+    c = d["spec"]["template"]["spec"]["containers"][0]
+    metrics = str(c.get("args", [])[c["args"].index("--metrics") + 1]) if "--metrics" in c.get("args", []) else ""
+    port = ann.get("prometheus.io/port", "")
+    check(ann.get("prometheus.io/scrape") == "true" and ann.get("prometheus.io/path") == "/metrics",
+          "Deployment %s: prometheus.io scrape and path annotations" % name)
+    check(port.isdigit() and metrics.endswith(":" + port) and port_exists(int(port), d),
+          "Deployment %s: --metrics %s on the annotated, declared port %s" % (name, metrics, port))
+prom_path = os.path.join(DEPLOY, "prometheus", "prometheus.yml")
+check(os.path.exists(prom_path), "deploy/prometheus/prometheus.yml exists")
+if os.path.exists(prom_path):
+    with open(prom_path) as f:
+        prom = yaml.safe_load(f)
+    jobs = {j["job_name"]: j for j in prom.get("scrape_configs", [])}
+    pods = jobs.get("irfarm-pods", {})
+    sources = {l for r in pods.get("relabel_configs", []) for l in r.get("source_labels", [])}
+    check(pods.get("kubernetes_sd_configs", [{}])[0].get("role") == "pod" and
+          {"__meta_kubernetes_pod_annotation_prometheus_io_scrape",
+           "__meta_kubernetes_pod_annotation_prometheus_io_port",
+           "__meta_kubernetes_pod_annotation_prometheus_io_path"} <= sources,
+          "prometheus.yml: pod discovery relabelled by the prometheus.io annotations")
+    addr_rule = [r for r in pods.get("relabel_configs", []) if r.get("target_label") == "__address__"]
+    ok = bool(addr_rule) and re.fullmatch(addr_rule[0]["regex"], "10.0.0.7:50051;9464") is not None and \
+        re.sub(addr_rule[0]["regex"], addr_rule[0]["replacement"].replace("$", "\\"),
+               "10.0.0.7:50051;9464") == "10.0.0.7:9464"
+    check(ok, "prometheus.yml: __address__ rewritten to the pod IP and the annotated port")
+
 # --- Credentials ---
 def flag_value(args, flag):
     args = [str(a) for a in args]

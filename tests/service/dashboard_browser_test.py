@@ -1,0 +1,148 @@
+#!/usr/bin/env python3
+"""The dashboard in a real browser: headless Chromium (Debian's chromium + chromium-driver) driven
+by Selenium (python3-selenium), against the real coordinator and worker dashboard_test.sh started.
+
+- the page loads; the client token typed into it is used for its API calls;
+- a job submitted with `irfarm submit` appears in the jobs table, its progress text goes up and
+  reaches 100% with state SUCCEEDED; a screenshot is taken mid-job (partial image shown);
+- the job's image is shown: an <img> of the film's size whose pixels (read back through a canvas)
+  are not black;
+- with the worker stopped, a second job's priority is set and the job cancelled with the page's
+  buttons; `irfarm status --json` then shows the new priority and JOB_STATE_CANCELLED.
+
+Usage: dashboard_browser_test.py URL TOKEN BIN COORDINATOR SCENE WORKER_PID CHROME DRIVER SHOT
+"""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from selenium import webdriver
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.by import By
+
+URL, TOKEN, BIN, COORD, SCENE, WORKER, CHROME, DRIVER, SHOT = sys.argv[1:10]
+WORKER = int(WORKER)
+env = dict(os.environ, IRFARM_TOKEN=TOKEN)
+
+
+def irfarm(*args):
+    return subprocess.run([os.path.join(BIN, "irfarm")] + list(args) + ["--coordinator", COORD],
+                          env=env, check=True, capture_output=True, text=True).stdout
+
+
+def wait_for(what, fn, timeout=120):
+    end = time.time() + timeout
+    while time.time() < end:
+        try:
+            v = fn()
+            if v:
+                return v
+        except Exception:  # element not there yet, or replaced by the next poll
+            pass
+        time.sleep(0.1)
+    raise AssertionError("timed out waiting for " + what)
+
+
+def row_text(driver, job, cls):
+    return driver.find_element(By.CSS_SELECTOR, "#job-%s .%s" % (job, cls)).text
+
+
+opts = webdriver.ChromeOptions()
+opts.binary_location = CHROME
+for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+          "--window-size=1280,1000"):
+    opts.add_argument(a)
+driver = webdriver.Chrome(service=Service(DRIVER), options=opts)
+try:
+    driver.get(URL)
+    assert driver.title == "irfarm dashboard", driver.title
+    print("ok: page loaded: %s" % driver.title)
+    driver.find_element(By.ID, "token").send_keys(TOKEN)
+    driver.find_element(By.ID, "use-token").click()
+
+    job = irfarm("submit", SCENE, "-Dresx=160", "-Dresy=160", "--tile-size", "16", "-q").strip()
+    wait_for("job row", lambda: driver.find_element(By.ID, "job-" + job))
+    print("ok: submitted %s appears in the jobs table" % job)
+    driver.find_element(By.ID, "job-" + job).click()  # show its image
+    seen = []
+    shot = False
+    end = time.time() + 120
+    while time.time() < end:
+        try:
+            pct = int(row_text(driver, job, "pct").rstrip("%"))
+            state = row_text(driver, job, "state")
+        except Exception:
+            time.sleep(0.05)
+            continue
+        if not seen or seen[-1] != pct:
+            seen.append(pct)
+        if not shot and 30 <= pct <= 70 and state == "RUNNING":
+            time.sleep(1.1)  # one more poll: the image of these tiles
+            driver.save_screenshot(SHOT)
+            shot = True
+            print("ok: mid-job screenshot at %d%% saved to %s" % (pct, SHOT))
+        if state == "SUCCEEDED" and pct == 100:
+            break
+        time.sleep(0.1)
+    print("progress seen: %s" % seen)
+    assert seen and seen[-1] == 100 and seen == sorted(seen) and len(seen) >= 3, seen
+    assert row_text(driver, job, "state") == "SUCCEEDED"
+    print("ok: progress went up to 100%%, state SUCCEEDED (%d distinct values)" % len(seen))
+    assert shot, "no screenshot mid-job"
+
+    # The image: the film's size, and not black. Read back through a canvas (blob URL: same
+    # origin, so the canvas is not tainted); wait for the poll after the last tile.
+    time.sleep(1.5)
+    info = wait_for("image", lambda: driver.execute_script("""
+        const img = document.getElementById('image');
+        if (!img.complete || img.naturalWidth == 0 || img.dataset.job != arguments[0]) return null;
+        const c = document.createElement('canvas');
+        c.width = img.naturalWidth; c.height = img.naturalHeight;
+        const g = c.getContext('2d'); g.drawImage(img, 0, 0);
+        const d = g.getImageData(0, 0, c.width, c.height).data;
+        let sum = 0, black = 0;
+        for (let i = 0; i < d.length; i += 4) {
+          const v = d[i] + d[i + 1] + d[i + 2];
+          sum += v; if (v == 0) black++;
+        }
+        return [img.naturalWidth, img.naturalHeight, sum / (d.length / 4) / 3, black / (d.length / 4)];
+        """, job))
+    w, h, mean, black = info
+    print("MEASURED shown image %dx%d, mean 8-bit value %.1f, black pixels %.3f" % (w, h, mean, black))
+    assert (w, h) == (160, 160), info
+    # The film has a thin black frame (the camera sees past the box: ~5%); a blank or half-done
+    # image would be far darker.
+    assert mean > 20 and black < 0.2, info
+    print("ok: the job's image is shown")
+
+    # Priority and cancel from the page, with the worker stopped so the job stays queued.
+    os.kill(WORKER, signal.SIGSTOP)
+    try:
+        j2 = irfarm("submit", SCENE, "-Dresx=64", "-Dresy=64", "-q").strip()
+        wait_for("second job row", lambda: driver.find_element(By.ID, "job-" + j2))
+        # Typed over at least one poll: the page must not reset the field while it has focus.
+        prio = driver.find_element(By.CSS_SELECTOR, "#job-%s input.prio" % j2)
+        prio.click()
+        prio.clear()
+        prio.send_keys("7")
+        time.sleep(1.5)
+        prio.send_keys("3")
+        driver.find_element(By.CSS_SELECTOR, "#job-%s button.set-priority" % j2).click()
+        wait_for("priority 73", lambda: json.loads(irfarm("status", j2, "--json"))["priority"] == 73,
+                 timeout=10)
+        print("ok: priority set from the page")
+        wait_for("cancel click", lambda: driver.find_element(
+            By.CSS_SELECTOR, "#job-%s button.cancel" % j2).click() or True, timeout=10)
+        wait_for("CANCELLED in the page", lambda: row_text(driver, j2, "state") == "CANCELLED",
+                 timeout=10)
+        st = json.loads(irfarm("status", j2, "--json"))["state"]
+        assert st == "JOB_STATE_CANCELLED", st
+        print("ok: cancel from the page: %s is %s" % (j2, st))
+    finally:
+        os.kill(WORKER, signal.SIGCONT)
+finally:
+    driver.quit()
+print("PASS")
