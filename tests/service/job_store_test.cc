@@ -1,11 +1,6 @@
 // One test suite run against both JobStore implementations: InMemoryJobStore, and RedisJobStore
 // on a real redis-server started here on a free 127.0.0.1 port with a temp dir (and stopped).
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <signal.h>
-#include <sys/socket.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <thread>
 
@@ -14,51 +9,10 @@
 #include "coordinator/redis_job_store.h"
 #include "service/record_codec.h"
 #include "service/scene_bundle.h"
+#include "tests/service/redis_server.h"
 
 namespace irfarm {
 namespace {
-
-int FreePort() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t len = sizeof a;
-  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-  close(fd);
-  return ntohs(a.sin_port);
-}
-
-// A redis-server child process for one test.
-class RedisServer {
- public:
-  RedisServer() {
-    dir_ = *MakeTempDir("irfarm-redis-test-");
-    port_ = FreePort();
-    pid_ = fork();
-    if (pid_ == 0) {
-      const std::string port = std::to_string(port_);
-      execlp("redis-server", "redis-server", "--port", port.c_str(), "--bind", "127.0.0.1", "--dir",
-             dir_.c_str(), "--save", "", "--appendonly", "no", "--logfile",
-             (dir_ + "/redis.log").c_str(), static_cast<char*>(nullptr));
-      _exit(127);
-    }
-  }
-  ~RedisServer() {
-    if (pid_ > 0) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-    RemoveTree(dir_);
-  }
-  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
-
- private:
-  std::string dir_;
-  int port_ = 0;
-  pid_t pid_ = -1;
-};
 
 class JobStoreTest : public ::testing::TestWithParam<std::string> {
  protected:

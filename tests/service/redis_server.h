@@ -1,0 +1,77 @@
+// Test helpers for the tests that need a real Redis: a free loopback port, and a redis-server
+// child process on it with a temp dir and no persistence, killed (SIGKILL) when destroyed. The
+// pid is exposed so that a test can SIGSTOP / SIGCONT it (a hung Redis).
+#pragma once
+
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "coordinator/redis_job_store.h"
+#include "service/scene_bundle.h"
+
+namespace irfarm {
+
+inline int FreePort() {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  socklen_t len = sizeof a;
+  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+  close(fd);
+  return ntohs(a.sin_port);
+}
+
+class RedisServer {
+ public:
+  RedisServer() {
+    dir_ = *MakeTempDir("irfarm-redis-test-");
+    port_ = FreePort();
+    pid_ = fork();
+    if (pid_ == 0) {
+      const std::string port = std::to_string(port_);
+      execlp("redis-server", "redis-server", "--port", port.c_str(), "--bind", "127.0.0.1", "--dir",
+             dir_.c_str(), "--save", "", "--appendonly", "no", "--logfile",
+             (dir_ + "/redis.log").c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  ~RedisServer() {
+    if (pid_ > 0) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+    RemoveTree(dir_);
+  }
+  RedisServer(const RedisServer&) = delete;
+  RedisServer& operator=(const RedisServer&) = delete;
+
+  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  pid_t pid() const { return pid_; }
+  // A store connected to this server, retried for up to 5 s while it starts; null if it never
+  // answered.
+  std::unique_ptr<RedisJobStore> Connect(const RedisOptions& options = RedisOptions()) const {
+    for (int i = 0; i < 100; ++i) {
+      absl::StatusOr<std::unique_ptr<RedisJobStore>> s = RedisJobStore::Connect(address(), options);
+      if (s.ok()) return std::move(*s);
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return nullptr;
+  }
+
+ private:
+  std::string dir_;
+  int port_ = 0;
+  pid_t pid_ = -1;
+};
+
+}  // namespace irfarm
