@@ -53,7 +53,7 @@ class Authenticator {
  private:
   absl::Status Refuse(const grpc::ServerContext& context, const std::string& why);
 
-  const std::vector<NamedToken> clients_, workers_, admins_;
+  const std::vector<NamedToken> clients_{}, workers_{}, admins_{};
   std::atomic<uint64_t> failures_{0};
 };
 

@@ -11,6 +11,7 @@ packages=(
   libhiredis-dev redis-server python3-yaml
   openssl
   python3
+  clang libclang-rt-14-dev  # .ci/fuzz only: libFuzzer and the sanitizer runtimes for clang
 )
 missing=()
 for p in "${packages[@]}"; do
