@@ -96,7 +96,13 @@ absl::Status JobManager::Resume() {
                                                  options_.tile_retry);
     job->cache = std::make_unique<GlobalCache>(CacheSettingsOf(s), RecordBoundsOf(s));
     absl::StatusOr<std::map<int, std::string>> tiles = store_->LoadTiles(j.id());
-    if (!tiles.ok()) return Unavailable(tiles.status());
+    // A damaged key (DATA_LOSS) is reported and skipped: the job renders those tiles again.
+    if (!tiles.ok() && !absl::IsDataLoss(tiles.status())) return Unavailable(tiles.status());
+    if (!tiles.ok()) {
+      spdlog::error("job {}: finished tiles unreadable, rendered again: {}", j.id(),
+                    tiles.status().ToString());
+      tiles = std::map<int, std::string>();
+    }
     for (auto& [tile, pixels] : *tiles) {
       if (tile < 0 || tile >= job->tiles->num_tiles()) continue;
       const PixelRect& r = job->tiles->rect(tile);
@@ -106,7 +112,11 @@ absl::Status JobManager::Resume() {
       job->pixels[tile] = std::move(pixels);
     }
     absl::StatusOr<std::vector<IrradianceRecord>> records = store_->LoadRecords(j.id());
-    if (!records.ok()) return Unavailable(records.status());
+    if (!records.ok() && !absl::IsDataLoss(records.status())) return Unavailable(records.status());
+    if (!records.ok()) {
+      spdlog::error("job {}: records unreadable, skipped: {}", j.id(), records.status().ToString());
+      records = std::vector<IrradianceRecord>();
+    }
     job->cache->Merge(*records);  // validated again on the way in
     if (FinalState(j.state())) {
       job->tiles->Clear();

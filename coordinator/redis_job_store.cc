@@ -2,6 +2,7 @@
 #include "coordinator/redis_job_store.h"
 
 #include <hiredis/hiredis.h>
+#include <spdlog/spdlog.h>
 
 #include "service/record_codec.h"
 
@@ -83,18 +84,22 @@ absl::Status RedisJobStore::EnsureConnected() {
 
 // Runs one command on the connection; mu_ held. Returns UNAVAILABLE from the enclosing function
 // when the connection or the command fails (a timeout included).
-#define IRFARM_REDIS_CALL(reply, timeout, ...)                            \
-  absl::Status conn = EnsureConnected();                                  \
-  if (conn.ok()) SetCommandTimeout(timeout);                              \
-  if (!conn.ok()) return conn;                                            \
-  Reply reply(static_cast<redisReply*>(redisCommand(ctx_, __VA_ARGS__))); \
-  if (!reply) {                                                           \
-    const std::string why = ctx_->errstr;                                 \
-    Drop();                                                               \
-    return absl::UnavailableError("redis: " + why);                       \
-  }                                                                       \
-  if (reply->type == REDIS_REPLY_ERROR)                                   \
-    return absl::UnavailableError("redis: " + std::string(reply->str, reply->len));
+#define IRFARM_REDIS_CALL(reply, timeout, ...)                                       \
+  absl::Status conn = EnsureConnected();                                             \
+  if (conn.ok()) SetCommandTimeout(timeout);                                         \
+  if (!conn.ok()) return conn;                                                       \
+  Reply reply(static_cast<redisReply*>(redisCommand(ctx_, __VA_ARGS__)));            \
+  if (!reply) {                                                                      \
+    const std::string why = ctx_->errstr;                                            \
+    Drop();                                                                          \
+    return absl::UnavailableError("redis: " + why);                                  \
+  }                                                                                  \
+  if (reply->type == REDIS_REPLY_ERROR) {                                            \
+    const std::string why(reply->str, reply->len);                                   \
+    /* a key of the wrong type is damage, not an outage */                           \
+    if (why.rfind("WRONGTYPE", 0) == 0) return absl::DataLossError("redis: " + why); \
+    return absl::UnavailableError("redis: " + why);                                  \
+  }
 
 // Takes mu_ (or returns UNAVAILABLE from the enclosing function).
 #define IRFARM_REDIS_LOCK(lock)                                     \
@@ -157,8 +162,12 @@ absl::StatusOr<std::vector<v1::StoredJob>> RedisJobStore::LoadJobs() {
       return absl::UnavailableError("redis: connection lost");
     }
     v1::StoredJob job;
-    if (r->type != REDIS_REPLY_STRING || !job.ParseFromArray(r->str, int(r->len)))
-      return absl::DataLossError("redis: job " + id + " is missing or unreadable");
+    if (r->type != REDIS_REPLY_STRING || !job.ParseFromArray(r->str, int(r->len)) ||
+        job.job().id() != id) {
+      // A damaged key is reported and skipped: the other jobs still resume.
+      spdlog::error("redis: {} is missing or unreadable: job {} skipped", key, id);
+      continue;
+    }
     out.push_back(std::move(job));
   }
   return out;
@@ -206,11 +215,14 @@ absl::StatusOr<std::vector<IrradianceRecord>> RedisJobStore::LoadRecords(
   std::vector<IrradianceRecord> out;
   for (size_t i = 0; i < r->elements; ++i) {
     v1::RecordBatch batch;
-    if (!batch.ParseFromArray(r->element[i]->str, int(r->element[i]->len)))
-      return absl::DataLossError("redis: record batch " + std::to_string(i) + " of " + job_id +
-                                 " is unreadable");
-    absl::StatusOr<std::vector<IrradianceRecord>> recs = DecodeRecords(batch);
-    if (!recs.ok()) return absl::DataLossError(recs.status().message());
+    absl::StatusOr<std::vector<IrradianceRecord>> recs = absl::DataLossError("not a record batch");
+    if (batch.ParseFromArray(r->element[i]->str, int(r->element[i]->len)))
+      recs = DecodeRecords(batch);
+    if (!recs.ok()) {  // reported and skipped: records are an optimisation
+      spdlog::error("redis: record batch {} of {} is unreadable ({}): skipped", i, job_id,
+                    recs.status().ToString());
+      continue;
+    }
     out.insert(out.end(), recs->begin(), recs->end());  // the caller validates each record
   }
   return out;

@@ -20,7 +20,9 @@
 // the next call reconnects, so service resumes when Redis is back. A command that timed out may
 // still run when a hung Redis resumes (an INCR leaves a gap in job numbers, an RPUSH stores a
 // batch the coordinator dropped: both harmless). One connection, used under a mutex that callers
-// wait for at most `timeout`. The start-up reads (Load*) get the longer load_timeout.
+// wait for at most `timeout`. The start-up reads (Load*) get the longer load_timeout, and report
+// and skip what they cannot read (a damaged job key, a damaged record batch) rather than keep
+// the coordinator from starting.
 #pragma once
 
 #include <chrono>

@@ -4,7 +4,11 @@
 // stopped (kStopped; the 30 s is shortened to keep the default suite fast, the behaviour
 // does not depend on the length past a few call deadlines):
 //   - GetJob and ListJobs of known jobs answer from memory in under 100 ms, measured around
-//     each RPC, every 50 ms, while the worker keeps sending tile results the store cannot take;
+//     each RPC, every 50 ms, while the worker keeps sending tile results the store cannot take:
+//     90% of them under 100 ms, and every one under 400 ms. (One that waited for Redis under the
+//     coordinator's lock would take the 500 ms call deadline or more; with the old code the
+//     slowest took 960 ms. The 90% allows for a loaded machine: measured with the load average
+//     at 11 on 2 cores, the slowest of 98 took 113 ms.)
 //   - Submit fails with UNAVAILABLE in under 2 s; Cancel of a queued job answers at once;
 //   - no tile counts as done (none could be stored).
 // After SIGCONT the job finishes, and nothing was lost: a second coordinator started on the same
@@ -13,6 +17,7 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <thread>
 
@@ -148,31 +153,37 @@ TEST_F(RedisHangTest, ReadsAnswerFromMemorySubmitFailsFastAndNothingIsLost) {
     EXPECT_LT(Ms(Clock::now() - t0), 100.0);
   }
   // Reads, every 50 ms, for the rest of the stop.
-  double worst_get_ms = 0, worst_list_ms = 0;
-  int gets = 0;
+  std::vector<double> get_ms, list_ms;
   while (Clock::now() - stopped < kStopped) {
     Clock::time_point t0 = Clock::now();
     ASSERT_TRUE(Get(a, &job).ok());
-    worst_get_ms = std::max(worst_get_ms, Ms(Clock::now() - t0));
-    ++gets;
+    get_ms.push_back(Ms(Clock::now() - t0));
     EXPECT_EQ(job.tiles_done(), at_stop.tiles_done()) << "a tile counted that was not stored";
     t0 = Clock::now();
     grpc::ClientContext c;
     v1::ListJobsResponse list;
     ASSERT_TRUE(stub_->ListJobs(&c, v1::ListJobsRequest(), &list).ok());
-    worst_list_ms = std::max(worst_list_ms, Ms(Clock::now() - t0));
+    list_ms.push_back(Ms(Clock::now() - t0));
     EXPECT_EQ(list.jobs_size(), 2);
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   const v1::GetClusterResponse cluster = manager_->Cluster();
   ASSERT_EQ(kill(redis_.pid(), SIGCONT), 0);
+  std::sort(get_ms.begin(), get_ms.end());
+  std::sort(list_ms.begin(), list_ms.end());
+  ASSERT_GE(get_ms.size(), 20u);
+  auto p90 = [](const std::vector<double>& v) { return v[v.size() * 9 / 10]; };
   std::printf(
-      "MEASURED Redis stopped %.1f s: %d GetJob, slowest %.1f ms; slowest ListJobs %.1f ms; "
-      "slowest failed Submit %.0f ms; tiles done at stop %u/%u\n",
-      Ms(Clock::now() - stopped) / 1000, gets, worst_get_ms, worst_list_ms, worst_submit_ms,
-      at_stop.tiles_done(), at_stop.tiles_total());
-  EXPECT_LT(worst_get_ms, 100.0);
-  EXPECT_LT(worst_list_ms, 100.0);
+      "MEASURED Redis stopped %.1f s: %zu GetJob, median %.1f ms, 90%% %.1f ms, slowest %.1f ms; "
+      "ListJobs 90%% %.1f ms, slowest %.1f ms; slowest failed Submit %.0f ms; tiles done at stop "
+      "%u/%u\n",
+      Ms(Clock::now() - stopped) / 1000, get_ms.size(), get_ms[get_ms.size() / 2], p90(get_ms),
+      get_ms.back(), p90(list_ms), list_ms.back(), worst_submit_ms, at_stop.tiles_done(),
+      at_stop.tiles_total());
+  EXPECT_LT(p90(get_ms), 100.0);
+  EXPECT_LT(get_ms.back(), 400.0);
+  EXPECT_LT(p90(list_ms), 100.0);
+  EXPECT_LT(list_ms.back(), 400.0);
   EXPECT_LT(worst_submit_ms, 2000.0);
   ASSERT_EQ(cluster.workers_size(), 1);
   EXPECT_FALSE(cluster.workers(0).silent()) << "the worker's stream stalled behind the store";
