@@ -104,3 +104,35 @@ INSTANTIATE_TEST_SUITE_P(Moves, FarFromOriginTest,
 
 }  // namespace
 }  // namespace irfarm
+
+namespace irfarm {
+namespace {
+
+// Points given directly (a sphere's centre, a point light's position) are taken in double too:
+// at x = 1e6 + 0.3 float32 rounds to steps of 0.0625 (1e6 + 0.3125); re-centred they keep 0.3.
+TEST(FarFromOriginLoaderTest, PointsGivenDirectlyKeepTheirPrecision) {
+  const std::string xml = R"(<scene version="3.0.0">
+  <sensor type="perspective">
+    <transform name="to_world"><lookat origin="1000000, 0, 5" target="1000000, 0, 0" up="0, 1, 0"/></transform>
+  </sensor>
+  <shape type="sphere"><point name="center" x="1000000.3" y="0" z="0"/><float name="radius" value="0.5"/></shape>
+  <shape type="sphere"><point name="center" x="999999.7" y="0" z="0"/><float name="radius" value="0.5"/></shape>
+  <emitter type="point"><point name="position" x="1000000.55" y="1.125" z="0"/></emitter>
+</scene>)";
+  absl::StatusOr<SceneDesc> desc = LoadSceneString(xml, "far.xml", {});
+  ASSERT_TRUE(desc.ok()) << desc.status();
+  const double ox = desc->world_origin[0];
+  EXPECT_NEAR(ox, 1e6, 0.1);
+  ASSERT_EQ(desc->shapes.size(), 2u);
+  EXPECT_NEAR(ox + double(desc->shapes[0].center.x), 1000000.3, 1e-5);
+  EXPECT_NEAR(ox + double(desc->shapes[1].center.x), 999999.7, 1e-5);
+  ASSERT_EQ(desc->emitters.size(), 1u);
+  EXPECT_NEAR(ox + double(desc->emitters[0].position.x), 1000000.55, 1e-5);
+  EXPECT_NEAR(desc->emitters[0].position.y, 1.125, 1e-6);
+  // The camera looks at the spheres' centre from 5 units away, wherever the origin went.
+  EXPECT_NEAR(ox + desc->camera.to_world.m[0][3], 1e6, 1e-5);
+  EXPECT_NEAR(desc->camera.to_world.m[2][3], 5, 1e-9);
+}
+
+}  // namespace
+}  // namespace irfarm
