@@ -58,7 +58,7 @@ class Authenticator {
   absl::Status Refuse(const std::string& peer, const std::string& why);
   absl::StatusOr<Caller> ClientByToken(const std::string& token, const std::string& peer);
 
-  const std::vector<NamedToken> clients_, workers_, admins_;
+  const std::vector<NamedToken> clients_{}, workers_{}, admins_{};
   std::atomic<uint64_t> failures_{0};
 };
 

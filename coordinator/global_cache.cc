@@ -27,10 +27,9 @@ std::vector<IrradianceRecord> GlobalCache::Check(const std::vector<IrradianceRec
 }
 
 void GlobalCache::Insert(const std::vector<IrradianceRecord>& valid) {
-  if (!cache_) return;
   for (const IrradianceRecord& r : valid) {
-    cache_->Insert(r);
-    records_.push_back(r);
+    if (cache_) cache_->Insert(r);
+    records_.push_back(r);  // also after ReleaseIndex: checked (and stored) while the job ran
   }
 }
 

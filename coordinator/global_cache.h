@@ -25,7 +25,7 @@ class GlobalCache {
                                       const char** problem = nullptr);
   // Merge in two steps, so that a caller can store the records before they count: Check
   // returns the valid records (counting and explaining the others like Merge) and Insert adds
-  // records Check returned.
+  // records Check returned (to the record list even when the index was released meanwhile).
   std::vector<IrradianceRecord> Check(const std::vector<IrradianceRecord>& records,
                                       const char** problem = nullptr);
   void Insert(const std::vector<IrradianceRecord>& valid);

@@ -138,6 +138,7 @@ absl::StatusOr<std::unique_ptr<JobManager>> JobManager::Create(const JobManagerO
                                                                JobStore* store,
                                                                MetricsRegistry* registry) {
   std::unique_ptr<JobManager> m(new JobManager(options, store, registry));
+  m->writer_ = std::make_unique<StoreWriter>(store);
   absl::Status st = m->Resume();
   if (!st.ok()) return st;
   return m;
@@ -187,7 +188,13 @@ absl::Status JobManager::Resume() {
                                                  options_.tile_retry);
     job->cache = std::make_unique<GlobalCache>(CacheSettingsOf(s), RecordBoundsOf(s));
     absl::StatusOr<std::map<int, std::string>> tiles = store_->LoadTiles(j.id());
-    if (!tiles.ok()) return Unavailable(tiles.status());
+    // A damaged key (DATA_LOSS) is reported and skipped: the job renders those tiles again.
+    if (!tiles.ok() && !absl::IsDataLoss(tiles.status())) return Unavailable(tiles.status());
+    if (!tiles.ok()) {
+      spdlog::error("job {}: finished tiles unreadable, rendered again: {}", j.id(),
+                    tiles.status().ToString());
+      tiles = std::map<int, std::string>();
+    }
     for (auto& [tile, pixels] : *tiles) {
       if (tile < 0 || tile >= job->tiles->num_tiles()) continue;
       const PixelRect& r = job->tiles->rect(tile);
@@ -197,7 +204,11 @@ absl::Status JobManager::Resume() {
       job->pixels[tile] = std::move(pixels);
     }
     absl::StatusOr<std::vector<IrradianceRecord>> records = store_->LoadRecords(j.id());
-    if (!records.ok()) return Unavailable(records.status());
+    if (!records.ok() && !absl::IsDataLoss(records.status())) return Unavailable(records.status());
+    if (!records.ok()) {
+      spdlog::error("job {}: records unreadable, skipped: {}", j.id(), records.status().ToString());
+      records = std::vector<IrradianceRecord>();
+    }
     job->cache->Merge(*records);  // validated again on the way in
     if (FinalState(j.state())) {
       job->tiles->Clear();
@@ -246,15 +257,13 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
                                       std::to_string(lim.max_defines));
   for (const auto& [key, value] : request.settings().defines())
     if (key.size() + value.size() > lim.max_define_bytes)
-      return absl::InvalidArgumentError("define '" + Printable(key, 64) + "' is " +
-                                        std::to_string(key.size() + value.size()) +
-                                        " bytes, over the limit of " +
-                                        std::to_string(lim.max_define_bytes));
+      return absl::InvalidArgumentError(
+          "define '" + Printable(key, 64) + "' is " + std::to_string(key.size() + value.size()) +
+          " bytes, over the limit of " + std::to_string(lim.max_define_bytes));
   if (request.settings().record_rays() > lim.max_record_rays)
-    return absl::InvalidArgumentError("record_rays " +
-                                      std::to_string(request.settings().record_rays()) +
-                                      " is over the limit of " +
-                                      std::to_string(lim.max_record_rays));
+    return absl::InvalidArgumentError(
+        "record_rays " + std::to_string(request.settings().record_rays()) +
+        " is over the limit of " + std::to_string(lim.max_record_rays));
   if (!caller.admin) {
     std::lock_guard<std::mutex> lock(mu_);
     int live = 0;
@@ -296,28 +305,26 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   const int w = desc->camera.width, h = desc->camera.height;
   if (w < 1 || h < 1 || w > lim.max_film_side || h > lim.max_film_side ||
       int64_t(w) * h > lim.max_film_pixels)
-    return absl::InvalidArgumentError(
-        "film " + std::to_string(w) + "x" + std::to_string(h) +
-        " is outside the limits (sides 1.." + std::to_string(lim.max_film_side) + ", at most " +
-        std::to_string(lim.max_film_pixels) + " pixels)");
+    return absl::InvalidArgumentError("film " + std::to_string(w) + "x" + std::to_string(h) +
+                                      " is outside the limits (sides 1.." +
+                                      std::to_string(lim.max_film_side) + ", at most " +
+                                      std::to_string(lim.max_film_pixels) + " pixels)");
   const int64_t tile = JobTileSize(request.settings());
   const int64_t tiles = ((w + tile - 1) / tile) * ((h + tile - 1) / tile);
   if (tiles > lim.max_tiles)
-    return absl::InvalidArgumentError(std::to_string(tiles) + " tiles of " +
-                                      std::to_string(tile) + " px is over the limit of " +
-                                      std::to_string(lim.max_tiles) + " tiles per job");
+    return absl::InvalidArgumentError(std::to_string(tiles) + " tiles of " + std::to_string(tile) +
+                                      " px is over the limit of " + std::to_string(lim.max_tiles) +
+                                      " tiles per job");
   absl::StatusOr<RenderSettings> settings = MakeRenderSettings(*desc, request.settings(), 0);
   if (!settings.ok()) return settings.status();
   if (double(settings->spp) * double(w) * double(h) > double(lim.max_samples))
-    return absl::InvalidArgumentError(std::to_string(settings->spp) + " spp x " +
-                                      std::to_string(int64_t(w) * h) +
-                                      " pixels is over the limit of " +
-                                      std::to_string(lim.max_samples) + " samples per job");
+    return absl::InvalidArgumentError(
+        std::to_string(settings->spp) + " spp x " + std::to_string(int64_t(w) * h) +
+        " pixels is over the limit of " + std::to_string(lim.max_samples) + " samples per job");
   if (settings->irrcache.record_rays > lim.max_record_rays)
-    return absl::InvalidArgumentError("record_rays " +
-                                      std::to_string(settings->irrcache.record_rays) +
-                                      " (from the scene) is over the limit of " +
-                                      std::to_string(lim.max_record_rays));
+    return absl::InvalidArgumentError(
+        "record_rays " + std::to_string(settings->irrcache.record_rays) +
+        " (from the scene) is over the limit of " + std::to_string(lim.max_record_rays));
   if (request.settings().denoise()) {
     absl::StatusOr<const Denoiser*> denoiser = GetDenoiser();
     if (!denoiser.ok()) return absl::FailedPreconditionError(denoiser.status().message());
@@ -339,20 +346,22 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     for (IrradianceRecord& r : imported) r.origin = kSnapshotOrigin;
   }
 
-  std::lock_guard<std::mutex> lock(mu_);
-  // A store that lost its data (Redis FLUSHALL, a restart without persistence) counts from 1
-  // again: skip numbers of jobs this coordinator still holds rather than replace one.
-  absl::StatusOr<uint64_t> number = store_->NextJobNumber();
-  for (int skipped = 0; number.ok() && jobs_.count("job-" + std::to_string(*number)); ++skipped) {
-    if (skipped == 0)
-      spdlog::warn("job store counter went back to {}: skipping ids in use", *number);
-    number = store_->NextJobNumber();
-  }
-  if (!number.ok()) return Unavailable(number.status());
+  // From here on the store is called without mu_: the job is stored before it is inserted (so
+  // before anyone can see it), under an id reserved until then.
+  absl::StatusOr<std::string> id = ReserveJobId();
+  if (!id.ok()) return Unavailable(id.status());
+  struct Unreserve {
+    JobManager* m;
+    const std::string& id;
+    ~Unreserve() {
+      std::lock_guard<std::mutex> lock(m->mu_);
+      m->reserved_ids_.erase(id);
+    }
+  } unreserve{this, *id};
   auto job = std::make_unique<Job>();
   v1::StoredJob& s = job->stored;
   v1::Job* j = s.mutable_job();
-  j->set_id("job-" + std::to_string(*number));
+  j->set_id(*id);
   j->set_name(name);
   j->set_owner(caller.name);
   j->set_state(v1::JOB_STATE_QUEUED);
@@ -363,7 +372,10 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   j->set_scene_hash(scene_hash);
   j->set_records_imported(imported.size());
   *s.mutable_scene() = request.scene();
-  s.set_sequence(next_sequence_++);
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    s.set_sequence(next_sequence_++);
+  }
   const Bounds3 b = SceneShapeBounds(*desc);
   for (float f : {b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z}) s.add_cache_bounds(f);
   s.set_max_accuracy(settings->irrcache.accuracy);
@@ -378,11 +390,26 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     st = store_->AppendRecords(j->id(), merged);
     if (!st.ok()) return Unavailable(st);
   }
+  std::lock_guard<std::mutex> lock(mu_);
   const v1::Job view = View(*job);
   jobs_[j->id()] = std::move(job);
   metrics_.jobs_submitted->Add();
   Changed();
   return view;
+}
+
+absl::StatusOr<std::string> JobManager::ReserveJobId() {
+  // A store that lost its data (Redis FLUSHALL, a restart without persistence) counts from 1
+  // again: skip numbers of jobs this coordinator still holds rather than replace one.
+  for (int skipped = 0;; ++skipped) {
+    absl::StatusOr<uint64_t> number = store_->NextJobNumber();
+    if (!number.ok()) return number.status();
+    const std::string id = "job-" + std::to_string(*number);
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!jobs_.count(id) && reserved_ids_.insert(id).second) return id;
+    if (skipped == 0)
+      spdlog::warn("job store counter went back to {}: skipping ids in use", *number);
+  }
 }
 
 absl::Status JobManager::CheckScenePath(const std::string& path, const Caller& caller) const {
@@ -444,7 +471,7 @@ void JobManager::FinishJob(Job& job, v1::JobState state, const std::string& erro
     for (v1::BundleFile& f : *job.stored.mutable_scene()->mutable_bundle()->mutable_files())
       std::string().swap(*f.mutable_content());
   if (state != v1::JOB_STATE_SUCCEEDED) std::map<int, std::string>().swap(job.pixels);
-  (void)store_->PutJob(job.stored);  // if this fails the job resumes after a restart
+  writer_->PutJob(job.stored);  // if this never lands the job resumes after a restart
   for (uint32_t w : job.workers) {
     auto it = workers_.find(w);
     if (it == workers_.end()) continue;
@@ -470,46 +497,57 @@ absl::StatusOr<v1::Job> JobManager::Cancel(const std::string& id, const Caller& 
 }
 
 absl::Status JobManager::Delete(const std::string& id, const Caller& caller) {
-  std::lock_guard<std::mutex> lock(mu_);
-  absl::StatusOr<Job*> found = Find(id, caller);
-  if (!found.ok()) return found.status();
-  if (!IsFinal(**found))
-    return absl::FailedPreconditionError("job '" + id + "' is " +
-                                         v1::JobState_Name((*found)->stored.job().state()) +
-                                         ": cancel it first");
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    absl::StatusOr<Job*> found = Find(id, caller);
+    if (!found.ok()) return found.status();
+    if (!IsFinal(**found))
+      return absl::FailedPreconditionError("job '" + id + "' is " +
+                                           v1::JobState_Name((*found)->stored.job().state()) +
+                                           ": cancel it first");
+  }
   if (!RemoveJob(id)) return absl::UnavailableError("job store: cannot delete job '" + id + "'");
   metrics_.jobs_deleted->Add();
   return absl::OkStatus();
 }
 
+// Called without mu_: the store is asked first (it may hang up to its deadline), the job leaves
+// memory only once the store no longer has it. A final job never changes, so nothing is lost
+// between the two.
 bool JobManager::RemoveJob(const std::string& id) {
   absl::Status st = store_->DeleteJob(id);
   if (!st.ok()) {
     spdlog::warn("cannot delete job {} from the store: {}", id, st.ToString());
     return false;  // kept in memory: retried by the next ExpireJobs
   }
+  std::lock_guard<std::mutex> lock(mu_);
   jobs_.erase(id);
   Changed();
   return true;
 }
 
 int JobManager::ExpireJobs() {
-  std::lock_guard<std::mutex> lock(mu_);
-  const int64_t now_ms = UnixMs();
-  std::vector<std::pair<int64_t, std::string>> finished;  // (finish time, id)
-  for (const auto& [id, job] : jobs_) {
-    if (!IsFinal(*job)) continue;
-    if (job->stored.finished_unix_ms() == 0) job->stored.set_finished_unix_ms(now_ms);
-    finished.emplace_back(job->stored.finished_unix_ms(), id);
+  std::vector<std::string> expired;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    const int64_t now_ms = UnixMs();
+    std::vector<std::pair<int64_t, std::string>> finished;  // (finish time, id)
+    for (const auto& [id, job] : jobs_) {
+      if (!IsFinal(*job)) continue;
+      if (job->stored.finished_unix_ms() == 0) job->stored.set_finished_unix_ms(now_ms);
+      finished.emplace_back(job->stored.finished_unix_ms(), id);
+    }
+    std::sort(finished.begin(), finished.end(), std::greater<>());  // newest first
+    for (size_t k = 0; k < finished.size(); ++k) {
+      const bool too_old =
+          options_.job_ttl.count() > 0 && now_ms - finished[k].first > options_.job_ttl.count();
+      const bool too_many =
+          options_.max_finished_jobs > 0 && k >= size_t(options_.max_finished_jobs);
+      if (too_old || too_many) expired.push_back(finished[k].second);
+    }
   }
-  std::sort(finished.begin(), finished.end(), std::greater<>());  // newest first
   int removed = 0;
-  for (size_t k = 0; k < finished.size(); ++k) {
-    const bool too_old =
-        options_.job_ttl.count() > 0 && now_ms - finished[k].first > options_.job_ttl.count();
-    const bool too_many = options_.max_finished_jobs > 0 && k >= size_t(options_.max_finished_jobs);
-    if ((too_old || too_many) && RemoveJob(finished[k].second)) ++removed;
-  }
+  for (const std::string& id : expired) removed += RemoveJob(id) ? 1 : 0;
   metrics_.jobs_expired->Add(uint64_t(removed));
   return removed;
 }
@@ -562,8 +600,7 @@ absl::StatusOr<v1::Job> JobManager::SetPriority(const std::string& id, int prior
     return absl::FailedPreconditionError("job '" + id + "' is already " +
                                          v1::JobState_Name(job.stored.job().state()));
   job.stored.mutable_job()->set_priority(priority);
-  absl::Status st = store_->PutJob(job.stored);
-  if (!st.ok()) return Unavailable(st);
+  writer_->PutJob(job.stored);  // off the lock, retried until the store has it
   Changed();
   return View(job);
 }
@@ -782,7 +819,7 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
                          std::to_string(options_.limits.max_batch_records));
   }
   absl::StatusOr<std::vector<IrradianceRecord>> decoded = DecodeRecords(records.batch());
-  std::lock_guard<std::mutex> lock(mu_);
+  std::unique_lock<std::mutex> lock(mu_);
   auto wit = workers_.find(worker);
   if (wit == workers_.end()) return absl::NotFoundError("no worker");
   Worker& w = wit->second;
@@ -818,18 +855,30 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
                            std::to_string(decoded->size()) + " records for job " +
                            records.job_id() + " refused (first: " + problem + ")");
   if (accepted.empty()) return result;
-  // Stored first, merged only then: memory and store never disagree (a store failure drops
-  // the batch; records are an optimisation, workers compute their own).
-  absl::Status st = store_->AppendRecords(job.stored.job().id(), accepted);
+  // Stored first (without the lock), merged only then: what was merged is in the store (a store
+  // failure drops the batch; records are an optimisation, workers compute their own).
+  const std::string job_id = job.stored.job().id();
+  lock.unlock();
+  absl::Status st = store_->AppendRecords(job_id, accepted);
   if (!st.ok()) return Unavailable(st);
-  job.cache->Insert(accepted);
+  lock.lock();
+  it = jobs_.find(job_id);
+  if (it == jobs_.end()) return result;
+  // Merged even if the job ended meanwhile (the record list outlives the index): it arrived
+  // while the job ran, and the store has it.
+  it->second->cache->Insert(accepted);
   metrics_.records_merged->Add(accepted.size());
-  if (job.stored.job().settings().share_records()) {
+  if (IsFinal(*it->second)) {
+    Changed();
+    return result;
+  }
+  Job& job2 = *it->second;
+  if (job2.stored.job().settings().share_records()) {
     v1::CoordinatorMessage m;
     m.mutable_records()->set_job_id(records.job_id());
     PackRecords(accepted, worker, m.mutable_records()->mutable_batch());
     const size_t bytes = BatchBytes(m.records().batch());
-    for (uint32_t other : job.workers) {
+    for (uint32_t other : job2.workers) {
       if (other == worker) continue;
       auto owit = workers_.find(other);
       if (owit == workers_.end()) continue;
@@ -845,7 +894,7 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
       ow.outbox_bytes += bytes;
       metrics_.records_sent->Add(accepted.size());
       metrics_.record_bytes_sent->Add(bytes);
-      v1::WorkerJobStats& os = job.worker_stats[other];
+      v1::WorkerJobStats& os = job2.worker_stats[other];
       os.set_worker_id(other);
       os.set_bytes_received(os.bytes_received() + bytes);
     }
@@ -855,18 +904,17 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
 }
 
 absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& result) {
-  std::lock_guard<std::mutex> lock(mu_);
+  std::unique_lock<std::mutex> lock(mu_);
   auto wit = workers_.find(worker);
   if (wit == workers_.end()) return absl::NotFoundError("no worker " + std::to_string(worker));
   Worker& w = wit->second;
   ReleaseLease(w, result.lease_id());  // its lease is over, whether the result counts or not
   auto it = jobs_.find(result.job_id());
   const int tile = result.tile_index();
-  const TileLeaseInfo* lease =
-      it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
-              tile >= it->second->tiles->num_tiles()
-          ? nullptr
-          : it->second->tiles->Current(tile, result.lease_id());
+  const TileLeaseInfo* lease = it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
+                                       tile >= it->second->tiles->num_tiles()
+                                   ? nullptr
+                                   : it->second->tiles->Current(tile, result.lease_id());
   if (lease == nullptr || lease->worker != worker)
     return NotHolder(worker, &w, result.lease_id(), "tile result");
   Job& job = *it->second;
@@ -915,8 +963,8 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   if (!bad.empty()) {
     metrics_.tiles_failed->Add();
     TileFailedOn(w);
-    absl::Status st = job.tiles->Requeue(tile, result.lease_id(), "worker " +
-                                         std::to_string(worker) + " sent an invalid result");
+    absl::Status st = job.tiles->Requeue(
+        tile, result.lease_id(), "worker " + std::to_string(worker) + " sent an invalid result");
     if (!st.ok()) FinishJob(job, v1::JOB_STATE_FAILED, std::string(st.message()));
     return Violation(worker, w, bad);
   }
@@ -924,19 +972,33 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
                     size_t(result.pixels_size()) * sizeof(float));
   bytes.append(reinterpret_cast<const char*>(result.guides().data()),
                size_t(result.guides_size()) * sizeof(float));
-  absl::Status st = store_->PutTile(job.stored.job().id(), tile, bytes);
+  // Stored without the lock; counted under it only if the lease is still current (it may have
+  // expired, or the job ended, while the store was slow: the stored pixels are then overwritten
+  // when the tile is done again, or never read).
+  const std::string job_id = job.stored.job().id();
+  lock.unlock();
+  absl::Status st = store_->PutTile(job_id, tile, bytes);
+  lock.lock();
+  it = jobs_.find(job_id);
+  if (it == jobs_.end() || IsFinal(*it->second) ||
+      it->second->tiles->Current(tile, result.lease_id()) == nullptr)
+    return absl::FailedPreconditionError("tile result: the lease ended while it was stored");
+  Job& done = *it->second;
   if (!st.ok()) {
     // Not stored, so not done: the tile is rendered again.
-    (void)job.tiles->Requeue(tile, result.lease_id(), "job store failed", false);
+    (void)done.tiles->Requeue(tile, result.lease_id(), "job store failed", false);
+    Changed();
     return Unavailable(st);
   }
-  st = job.tiles->Complete(tile, result.lease_id());
+  st = done.tiles->Complete(tile, result.lease_id());
   if (!st.ok()) return st;
-  health_[w.name].consecutive_failures = 0;
-  job.pixels[tile] = std::move(bytes);
-  v1::WorkerJobStats& ws = job.worker_stats[worker];
+  wit = workers_.find(worker);
+  const std::string worker_name = wit == workers_.end() ? std::string() : wit->second.name;
+  if (wit != workers_.end()) health_[worker_name].consecutive_failures = 0;
+  done.pixels[tile] = std::move(bytes);
+  v1::WorkerJobStats& ws = done.worker_stats[worker];
   ws.set_worker_id(worker);
-  ws.set_worker_name(w.name);
+  ws.set_worker_name(worker_name);
   ws.set_tiles(ws.tiles() + 1);
   ws.set_records_computed(ws.records_computed() + ts.records_computed());
   ws.set_records_received(ws.records_received() + ts.records_received());
@@ -949,7 +1011,8 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   metrics_.records_computed->Add(ts.records_computed());
   metrics_.lookups->Add(ts.lookups());
   metrics_.lookup_hits->Add(ts.lookup_hits());
-  if (job.tiles->all_done()) FinishJob(job, v1::JOB_STATE_SUCCEEDED, "");
+  if (done.tiles->all_done()) FinishJob(done, v1::JOB_STATE_SUCCEEDED, "");
+  Changed();
   return absl::OkStatus();
 }
 
@@ -961,11 +1024,10 @@ absl::Status JobManager::FailTile(uint32_t worker, const v1::TileFailed& failed)
   ReleaseLease(w, failed.lease_id());
   auto it = jobs_.find(failed.job_id());
   const int tile = failed.tile_index();
-  const TileLeaseInfo* lease =
-      it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
-              tile >= it->second->tiles->num_tiles()
-          ? nullptr
-          : it->second->tiles->Current(tile, failed.lease_id());
+  const TileLeaseInfo* lease = it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
+                                       tile >= it->second->tiles->num_tiles()
+                                   ? nullptr
+                                   : it->second->tiles->Current(tile, failed.lease_id());
   if (lease == nullptr || lease->worker != worker)
     return NotHolder(worker, &w, failed.lease_id(), "tile failure");
   Job& job = *it->second;
@@ -1046,9 +1108,9 @@ void JobManager::SeedCache(Job& job) {
   const std::vector<IrradianceRecord> merged = job.cache->Merge(records);
   j->set_records_seeded(merged.size());
   j->set_seeded_from(from);
-  // If the store fails here the job still renders with its seed; a restart seeds it again.
-  (void)store_->AppendRecords(j->id(), merged);
-  (void)store_->PutJob(job.stored);
+  // Written in this order (records, then the job saying it was seeded), retried until stored.
+  writer_->AppendRecords(j->id(), merged);
+  writer_->PutJob(job.stored);
 }
 
 void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
@@ -1115,7 +1177,7 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   }
   if (job.stored.job().state() == v1::JOB_STATE_QUEUED) {
     job.stored.mutable_job()->set_state(v1::JOB_STATE_RUNNING);
-    (void)store_->PutJob(job.stored);
+    writer_->PutJob(job.stored);
   }
   v1::CoordinatorMessage m;
   v1::TileLease* l = m.mutable_lease();
@@ -1174,8 +1236,8 @@ void JobManager::ExpireLeases() {
     if (w.silent || now - w.last_heard <= 3 * options_.heartbeat) continue;
     w.silent = true;
     w.has_lease = false;
-    spdlog::warn("worker {} ({}) silent for {:.1f} s: its leases go to other workers", wid,
-                 w.name, std::chrono::duration<double>(now - w.last_heard).count());
+    spdlog::warn("worker {} ({}) silent for {:.1f} s: its leases go to other workers", wid, w.name,
+                 std::chrono::duration<double>(now - w.last_heard).count());
     for (auto& [id, job] : jobs_) {
       if (IsFinal(*job)) continue;
       const std::vector<uint32_t> holders = job->tiles->LeaseHolders();

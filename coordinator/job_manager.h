@@ -2,7 +2,11 @@
 // worker_service.h only translate). It owns the jobs (each with a TileScheduler, a GlobalCache
 // and its finished tiles), the connected workers and what must be sent to each of them, and
 // writes everything that must survive through to a JobStore; Create() reads the store back and
-// resumes every unfinished job. Thread-safe: one mutex guards all state.
+// resumes every unfinished job. Thread-safe: one mutex guards all state, and it is never held
+// while the store is called (a hung Redis must not stall what is answered from memory: GetJob,
+// ListJobs, leases): a tile result or record batch is checked under the lock, written to the
+// store without it, and counted under it again if its lease or job is still current; job-state
+// changes go through a StoreWriter (store_writer.h).
 //
 // Worker protocol, as seen from here: RegisterWorker gives an id; Poll returns what to send the
 // worker next: other workers' record batches (fan-out), JobClosed notices, Rejected notices and,
@@ -41,6 +45,7 @@
 #include "coordinator/global_cache.h"
 #include "coordinator/job_store.h"
 #include "coordinator/record_bounds.h"
+#include "coordinator/store_writer.h"
 #include "coordinator/tile_scheduler.h"
 #include "irfarm/v1/jobs.pb.h"
 #include "irfarm/v1/worker.pb.h"
@@ -56,17 +61,17 @@ constexpr uint32_t kSnapshotOrigin = 0xffffffffu;
 // a limit get INVALID_ARGUMENT (a single request asking too much) or RESOURCE_EXHAUSTED (too
 // many live jobs, too large an upload).
 struct JobLimits {
-  int max_film_side = 32768;                      // pixels along either axis
-  int64_t max_film_pixels = int64_t(1) << 26;     // 67 M pixels (8192 x 8192)
-  int max_tiles = 1 << 16;                        // tiles per job
-  int64_t max_samples = int64_t(1) << 36;         // spp x pixels (6.9e10: 8192^2 at 1024 spp)
-  int max_record_rays = 1 << 16;                  // hemisphere rays per irradiance record
-  size_t max_name_bytes = 1024;                   // job name, worker name
-  int max_defines = 256;                          // -D overrides per job
-  size_t max_define_bytes = 4096;                 // name + value of one -D
-  int max_batch_records = 1 << 16;                // records per worker message
-  int max_live_jobs_per_client = 64;              // queued + running jobs of one client
-  size_t max_outbox_bytes = size_t(64) << 20;     // record fan-out queued for one worker
+  int max_film_side = 32768;                   // pixels along either axis
+  int64_t max_film_pixels = int64_t(1) << 26;  // 67 M pixels (8192 x 8192)
+  int max_tiles = 1 << 16;                     // tiles per job
+  int64_t max_samples = int64_t(1) << 36;      // spp x pixels (6.9e10: 8192^2 at 1024 spp)
+  int max_record_rays = 1 << 16;               // hemisphere rays per irradiance record
+  size_t max_name_bytes = 1024;                // job name, worker name
+  int max_defines = 256;                       // -D overrides per job
+  size_t max_define_bytes = 4096;              // name + value of one -D
+  int max_batch_records = 1 << 16;             // records per worker message
+  int max_live_jobs_per_client = 64;           // queued + running jobs of one client
+  size_t max_outbox_bytes = size_t(64) << 20;  // record fan-out queued for one worker
 };
 
 struct JobManagerOptions {
@@ -75,7 +80,7 @@ struct JobManagerOptions {
   std::chrono::milliseconds lease_time{120000};
   // Workers send a heartbeat this often; one silent for 3 periods loses its leases.
   std::chrono::milliseconds heartbeat{1000};
-  int quarantine_after = 3;                     // failed tiles in a row
+  int quarantine_after = 3;  // failed tiles in a row
   std::chrono::milliseconds quarantine_time{30000};
   int max_violations = 16;  // invalid messages before the coordinator ends a worker's session
   size_t sync_batch_records = 16384;  // records per batch when catching up a late joiner
@@ -165,6 +170,8 @@ class JobManager {
   int ExpireJobs();
   const JobManagerOptions& options() const { return options_; }
   MetricsRegistry* metrics_registry() const { return registry_; }
+  // Waits until the job-state writes queued so far reached the store (or `timeout` passed).
+  bool FlushStore(std::chrono::milliseconds timeout) { return writer_->Flush(timeout); }
 
  private:
   struct Job {
@@ -209,6 +216,10 @@ class JobManager {
   // Scrape-time metrics: jobs by state, per-job progress, workers, cache hit ratio.
   void CollectMetrics(MetricsWriter& w) const;
   absl::Status Resume();
+  // A job id from the store's counter that no job held here has (nor one being submitted),
+  // reserved in reserved_ids_ until the caller inserts or drops it. Takes mu_ only between
+  // store calls.
+  absl::StatusOr<std::string> ReserveJobId();
   v1::Job View(const Job& job) const;
   bool IsFinal(const Job& job) const;
   // The job `id` if `caller` may see it, else NOT_FOUND (the same answer as for no such job).
@@ -229,7 +240,8 @@ class JobManager {
   std::vector<uint32_t> OtherEligibleWorkers(uint32_t worker_id, SteadyTime now) const;
   void TryAssign(uint32_t worker_id, Worker& worker, std::vector<v1::CoordinatorMessage>* out);
   void FinishJob(Job& job, v1::JobState state, const std::string& error);
-  // Removes job `id` from memory and store (mu_ held); false when the store failed.
+  // Removes job `id` from the store, then from memory (mu_ NOT held); false when the store
+  // failed.
   bool RemoveJob(const std::string& id);
   // When `job` starts: merges the records of earlier jobs of the same sensor-free scene and
   // record settings (cache_seed.h) into its cache, so its workers get them on joining.
@@ -243,12 +255,14 @@ class JobManager {
   std::unique_ptr<MetricsRegistry> own_registry_;  // when Create was given none
   MetricsRegistry* registry_;
   CoordinatorMetrics metrics_;
+  std::unique_ptr<StoreWriter> writer_;  // job-state writes, off the lock
   mutable std::mutex mu_;
   mutable std::condition_variable changed_cv_;  // any change (WaitForChange, Poll)
   uint64_t version_ = 0;
   uint64_t next_sequence_ = 1;
   uint32_t next_worker_ = 1;
   std::map<std::string, std::unique_ptr<Job>> jobs_;
+  std::set<std::string> reserved_ids_;  // jobs being submitted (stored, not yet in jobs_)
   std::map<uint32_t, Worker> workers_;
   std::map<std::string, WorkerHealth> health_;  // by worker name
   uint64_t violations_total_ = 0, expelled_total_ = 0;

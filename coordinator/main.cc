@@ -62,6 +62,11 @@ int main(int argc, char** argv) {
   bool insecure = false;
   app.add_option("--listen", listen, "address to serve on (default 127.0.0.1:50051)");
   app.add_option("--redis", redis, "HOST:PORT of a Redis server to keep jobs in");
+  int redis_timeout_ms = 500;
+  app.add_option("--redis-timeout-ms", redis_timeout_ms,
+                 "deadline of a Redis call; a hung Redis makes calls fail UNAVAILABLE after it "
+                 "(default 500)")
+      ->check(CLI::Range(10, 60000));
   app.add_option("--client-token-file", client_tokens, "client tokens ('[NAME] TOKEN' lines)");
   app.add_option("--worker-token-file", worker_tokens, "worker tokens, one a line");
   app.add_option("--admin-token-file", admin_tokens, "admin tokens (see every client's jobs)");
@@ -173,8 +178,8 @@ int main(int argc, char** argv) {
   if (redis.empty()) {
     store = std::make_unique<irfarm::InMemoryJobStore>();
   } else {
-    absl::StatusOr<std::unique_ptr<irfarm::RedisJobStore>> r =
-        irfarm::RedisJobStore::Connect(redis);
+    absl::StatusOr<std::unique_ptr<irfarm::RedisJobStore>> r = irfarm::RedisJobStore::Connect(
+        redis, irfarm::RedisOptions{"irfarm:", std::chrono::milliseconds(redis_timeout_ms)});
     if (!r.ok()) {
       spdlog::error("{}", r.status().ToString());
       return 1;
@@ -209,11 +214,14 @@ int main(int argc, char** argv) {
     spdlog::error("cannot listen on {}", listen);
     return 1;
   }
-  spdlog::info("irfarm-coordinator listening on {} (store: {}; {}; client tokens: {}, worker "
-               "tokens: {})",
-               listen, redis.empty() ? "memory" : "redis " + redis,
-               tls_cert.empty() ? "no TLS" : tls_client_ca.empty() ? "TLS" : "mutual TLS",
-               tokens[0].size() + tokens[2].size(), tokens[1].size());
+  spdlog::info(
+      "irfarm-coordinator listening on {} (store: {}; {}; client tokens: {}, worker "
+      "tokens: {})",
+      listen, redis.empty() ? "memory" : "redis " + redis,
+      tls_cert.empty()        ? "no TLS"
+      : tls_client_ca.empty() ? "TLS"
+                              : "mutual TLS",
+      tokens[0].size() + tokens[2].size(), tokens[1].size());
 
   std::unique_ptr<irfarm::HttpServer> metrics_server;
   if (!metrics_address.empty()) {

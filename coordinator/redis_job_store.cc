@@ -2,6 +2,7 @@
 #include "coordinator/redis_job_store.h"
 
 #include <hiredis/hiredis.h>
+#include <spdlog/spdlog.h>
 
 #include "service/record_codec.h"
 
@@ -16,10 +17,14 @@ struct ReplyDeleter {
 };
 using Reply = std::unique_ptr<redisReply, ReplyDeleter>;
 
+timeval ToTimeval(std::chrono::milliseconds t) {
+  return timeval{time_t(t.count() / 1000), suseconds_t((t.count() % 1000) * 1000)};
+}
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<RedisJobStore>> RedisJobStore::Connect(const std::string& address,
-                                                                      const std::string& prefix) {
+                                                                      const RedisOptions& options) {
   const size_t colon = address.rfind(':');
   if (colon == std::string::npos)
     return absl::InvalidArgumentError("--redis expects HOST:PORT, got '" + address + "'");
@@ -29,8 +34,8 @@ absl::StatusOr<std::unique_ptr<RedisJobStore>> RedisJobStore::Connect(const std:
   } catch (...) {
     return absl::InvalidArgumentError("bad Redis port in '" + address + "'");
   }
-  std::unique_ptr<RedisJobStore> s(new RedisJobStore(address.substr(0, colon), port, prefix));
-  std::lock_guard<std::mutex> lock(s->mu_);
+  std::unique_ptr<RedisJobStore> s(new RedisJobStore(address.substr(0, colon), port, options));
+  std::lock_guard<std::timed_mutex> lock(s->mu_);
   absl::Status st = s->EnsureConnected();
   if (!st.ok()) return st;
   return s;
@@ -45,17 +50,29 @@ void RedisJobStore::Drop() {
   ctx_ = nullptr;
 }
 
+absl::StatusOr<std::unique_lock<std::timed_mutex>> RedisJobStore::Lock() {
+  std::unique_lock<std::timed_mutex> lock(mu_, options_.timeout);
+  if (!lock.owns_lock())
+    return absl::UnavailableError("redis " + host_ + ":" + std::to_string(port_) + ": busy for " +
+                                  std::to_string(options_.timeout.count()) +
+                                  " ms (not answering?)");
+  return lock;
+}
+
+void RedisJobStore::SetCommandTimeout(std::chrono::milliseconds t) {
+  if (ctx_) redisSetTimeout(ctx_, ToTimeval(t));
+}
+
 absl::Status RedisJobStore::EnsureConnected() {
   if (ctx_ && ctx_->err == 0) return absl::OkStatus();
   Drop();
-  const timeval timeout{2, 0};
-  ctx_ = redisConnectWithTimeout(host_.c_str(), port_, timeout);
+  ctx_ = redisConnectWithTimeout(host_.c_str(), port_, ToTimeval(options_.timeout));
   if (ctx_ == nullptr || ctx_->err) {
     const std::string why = ctx_ ? ctx_->errstr : "out of memory";
     Drop();
     return absl::UnavailableError("redis " + host_ + ":" + std::to_string(port_) + ": " + why);
   }
-  redisSetTimeout(ctx_, timeval{5, 0});
+  SetCommandTimeout(options_.timeout);
   Reply r(static_cast<redisReply*>(redisCommand(ctx_, "PING")));
   if (!r || r->type == REDIS_REPLY_ERROR) {
     Drop();
@@ -65,28 +82,40 @@ absl::Status RedisJobStore::EnsureConnected() {
   return absl::OkStatus();
 }
 
-#define IRFARM_REDIS_CALL(reply, ...)                                     \
-  absl::Status conn = EnsureConnected();                                  \
-  if (!conn.ok()) return conn;                                            \
-  Reply reply(static_cast<redisReply*>(redisCommand(ctx_, __VA_ARGS__))); \
-  if (!reply) {                                                           \
-    const std::string why = ctx_->errstr;                                 \
-    Drop();                                                               \
-    return absl::UnavailableError("redis: " + why);                       \
-  }                                                                       \
-  if (reply->type == REDIS_REPLY_ERROR)                                   \
-    return absl::UnavailableError("redis: " + std::string(reply->str, reply->len));
+// Runs one command on the connection; mu_ held. Returns UNAVAILABLE from the enclosing function
+// when the connection or the command fails (a timeout included).
+#define IRFARM_REDIS_CALL(reply, timeout, ...)                                       \
+  absl::Status conn = EnsureConnected();                                             \
+  if (conn.ok()) SetCommandTimeout(timeout);                                         \
+  if (!conn.ok()) return conn;                                                       \
+  Reply reply(static_cast<redisReply*>(redisCommand(ctx_, __VA_ARGS__)));            \
+  if (!reply) {                                                                      \
+    const std::string why = ctx_->errstr;                                            \
+    Drop();                                                                          \
+    return absl::UnavailableError("redis: " + why);                                  \
+  }                                                                                  \
+  if (reply->type == REDIS_REPLY_ERROR) {                                            \
+    const std::string why(reply->str, reply->len);                                   \
+    /* a key of the wrong type is damage, not an outage */                           \
+    if (why.rfind("WRONGTYPE", 0) == 0) return absl::DataLossError("redis: " + why); \
+    return absl::UnavailableError("redis: " + why);                                  \
+  }
+
+// Takes mu_ (or returns UNAVAILABLE from the enclosing function).
+#define IRFARM_REDIS_LOCK(lock)                                     \
+  absl::StatusOr<std::unique_lock<std::timed_mutex>> lock = Lock(); \
+  if (!lock.ok()) return lock.status();
 
 absl::StatusOr<uint64_t> RedisJobStore::NextJobNumber() {
-  std::lock_guard<std::mutex> lock(mu_);
+  IRFARM_REDIS_LOCK(lock);
   const std::string key = prefix_ + "job_counter";
-  IRFARM_REDIS_CALL(r, "INCR %b", key.data(), key.size());
+  IRFARM_REDIS_CALL(r, options_.timeout, "INCR %b", key.data(), key.size());
   return uint64_t(r->integer);
 }
 
 absl::Status RedisJobStore::PutJob(const v1::StoredJob& job) {
-  std::lock_guard<std::mutex> lock(mu_);
   const std::string bytes = job.SerializeAsString();
+  IRFARM_REDIS_LOCK(lock);
   const std::string jobs = prefix_ + "jobs", key = prefix_ + "job:" + job.job().id();
   absl::Status conn = EnsureConnected();
   if (!conn.ok()) return conn;
@@ -104,8 +133,11 @@ absl::Status RedisJobStore::PutJob(const v1::StoredJob& job) {
       return absl::UnavailableError("redis: " + why);
     }
     Reply r(static_cast<redisReply*>(raw));
-    if (r->type == REDIS_REPLY_ERROR)
-      return absl::UnavailableError("redis: " + std::string(r->str, r->len));
+    if (r->type == REDIS_REPLY_ERROR) {
+      const std::string why(r->str, r->len);
+      Drop();  // the replies still due would be read by the next call
+      return absl::UnavailableError("redis: " + why);
+    }
     if (i == 3 && r->type != REDIS_REPLY_ARRAY)
       return absl::UnavailableError("redis: transaction aborted");
   }
@@ -113,11 +145,11 @@ absl::Status RedisJobStore::PutJob(const v1::StoredJob& job) {
 }
 
 absl::StatusOr<std::vector<v1::StoredJob>> RedisJobStore::LoadJobs() {
-  std::lock_guard<std::mutex> lock(mu_);
+  IRFARM_REDIS_LOCK(lock);
   const std::string jobs = prefix_ + "jobs";
   std::vector<std::string> ids;
   {
-    IRFARM_REDIS_CALL(r, "SMEMBERS %b", jobs.data(), jobs.size());
+    IRFARM_REDIS_CALL(r, options_.load_timeout, "SMEMBERS %b", jobs.data(), jobs.size());
     for (size_t i = 0; i < r->elements; ++i)
       ids.emplace_back(r->element[i]->str, r->element[i]->len);
   }
@@ -130,8 +162,12 @@ absl::StatusOr<std::vector<v1::StoredJob>> RedisJobStore::LoadJobs() {
       return absl::UnavailableError("redis: connection lost");
     }
     v1::StoredJob job;
-    if (r->type != REDIS_REPLY_STRING || !job.ParseFromArray(r->str, int(r->len)))
-      return absl::DataLossError("redis: job " + id + " is missing or unreadable");
+    if (r->type != REDIS_REPLY_STRING || !job.ParseFromArray(r->str, int(r->len)) ||
+        job.job().id() != id) {
+      // A damaged key is reported and skipped: the other jobs still resume.
+      spdlog::error("redis: {} is missing or unreadable: job {} skipped", key, id);
+      continue;
+    }
     out.push_back(std::move(job));
   }
   return out;
@@ -139,17 +175,17 @@ absl::StatusOr<std::vector<v1::StoredJob>> RedisJobStore::LoadJobs() {
 
 absl::Status RedisJobStore::PutTile(const std::string& job_id, int tile,
                                     const std::string& pixels) {
-  std::lock_guard<std::mutex> lock(mu_);
+  IRFARM_REDIS_LOCK(lock);
   const std::string key = prefix_ + "job:" + job_id + ":tiles", field = std::to_string(tile);
-  IRFARM_REDIS_CALL(r, "HSET %b %b %b", key.data(), key.size(), field.data(), field.size(),
-                    pixels.data(), pixels.size());
+  IRFARM_REDIS_CALL(r, options_.timeout, "HSET %b %b %b", key.data(), key.size(), field.data(),
+                    field.size(), pixels.data(), pixels.size());
   return absl::OkStatus();
 }
 
 absl::StatusOr<std::map<int, std::string>> RedisJobStore::LoadTiles(const std::string& job_id) {
-  std::lock_guard<std::mutex> lock(mu_);
+  IRFARM_REDIS_LOCK(lock);
   const std::string key = prefix_ + "job:" + job_id + ":tiles";
-  IRFARM_REDIS_CALL(r, "HGETALL %b", key.data(), key.size());
+  IRFARM_REDIS_CALL(r, options_.load_timeout, "HGETALL %b", key.data(), key.size());
   std::map<int, std::string> out;
   for (size_t i = 0; i + 1 < r->elements; i += 2) {
     const int tile = std::atoi(std::string(r->element[i]->str, r->element[i]->len).c_str());
@@ -164,32 +200,36 @@ absl::Status RedisJobStore::AppendRecords(const std::string& job_id,
   v1::RecordBatch batch;
   PackRecords(records, 0, &batch);
   const std::string bytes = batch.SerializeAsString();
-  std::lock_guard<std::mutex> lock(mu_);
+  IRFARM_REDIS_LOCK(lock);
   const std::string key = prefix_ + "job:" + job_id + ":records";
-  IRFARM_REDIS_CALL(r, "RPUSH %b %b", key.data(), key.size(), bytes.data(), bytes.size());
+  IRFARM_REDIS_CALL(r, options_.timeout, "RPUSH %b %b", key.data(), key.size(), bytes.data(),
+                    bytes.size());
   return absl::OkStatus();
 }
 
 absl::StatusOr<std::vector<IrradianceRecord>> RedisJobStore::LoadRecords(
     const std::string& job_id) {
-  std::lock_guard<std::mutex> lock(mu_);
+  IRFARM_REDIS_LOCK(lock);
   const std::string key = prefix_ + "job:" + job_id + ":records";
-  IRFARM_REDIS_CALL(r, "LRANGE %b 0 -1", key.data(), key.size());
+  IRFARM_REDIS_CALL(r, options_.load_timeout, "LRANGE %b 0 -1", key.data(), key.size());
   std::vector<IrradianceRecord> out;
   for (size_t i = 0; i < r->elements; ++i) {
     v1::RecordBatch batch;
-    if (!batch.ParseFromArray(r->element[i]->str, int(r->element[i]->len)))
-      return absl::DataLossError("redis: record batch " + std::to_string(i) + " of " + job_id +
-                                 " is unreadable");
-    absl::StatusOr<std::vector<IrradianceRecord>> recs = DecodeRecords(batch);
-    if (!recs.ok()) return absl::DataLossError(recs.status().message());
+    absl::StatusOr<std::vector<IrradianceRecord>> recs = absl::DataLossError("not a record batch");
+    if (batch.ParseFromArray(r->element[i]->str, int(r->element[i]->len)))
+      recs = DecodeRecords(batch);
+    if (!recs.ok()) {  // reported and skipped: records are an optimisation
+      spdlog::error("redis: record batch {} of {} is unreadable ({}): skipped", i, job_id,
+                    recs.status().ToString());
+      continue;
+    }
     out.insert(out.end(), recs->begin(), recs->end());  // the caller validates each record
   }
   return out;
 }
 
 absl::Status RedisJobStore::DeleteJob(const std::string& job_id) {
-  std::lock_guard<std::mutex> lock(mu_);
+  IRFARM_REDIS_LOCK(lock);
   const std::string jobs = prefix_ + "jobs", key = prefix_ + "job:" + job_id;
   const std::string tiles = key + ":tiles", records = key + ":records";
   absl::Status conn = EnsureConnected();

@@ -13,12 +13,19 @@
 // records out only after their RPUSH succeeded, so whatever clients and workers were told is
 // in Redis. Writes are not fsync'ed by us: durability across a Redis crash is Redis's own
 // persistence setting (appendonly); a coordinator crash loses nothing that was acknowledged.
-// When Redis is down: every call returns UNAVAILABLE (the coordinator refuses submits, requeues
-// a tile whose result it could not store, and drops that record batch); the next call tries to
-// reconnect (2 s connect timeout), so service resumes when Redis is back. One connection, used
-// under a mutex (calls are short; the coordinator is not Redis-bound).
+// When Redis is down or hung (SIGSTOP, a stalled network): every call gives up after its
+// deadline (RedisOptions::timeout, 500 ms by default, for waiting for the connection plus as much
+// again for Redis's answer) and returns UNAVAILABLE (the coordinator refuses submits, requeues a
+// tile whose result it could not store, drops that record batch and retries job-state writes);
+// the next call reconnects, so service resumes when Redis is back. A command that timed out may
+// still run when a hung Redis resumes (an INCR leaves a gap in job numbers, an RPUSH stores a
+// batch the coordinator dropped: both harmless). One connection, used under a mutex that callers
+// wait for at most `timeout`. The start-up reads (Load*) get the longer load_timeout, and report
+// and skip what they cannot read (a damaged job key, a damaged record batch) rather than keep
+// the coordinator from starting.
 #pragma once
 
+#include <chrono>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -29,11 +36,21 @@ struct redisContext;
 
 namespace irfarm {
 
+struct RedisOptions {
+  std::string prefix = "irfarm:";
+  // Deadline of one call: connecting, and each command's answer (and, separately, the wait for
+  // the connection another call is using).
+  std::chrono::milliseconds timeout{500};
+  // The same for the start-up reads (LoadJobs/LoadTiles/LoadRecords), which may move hundreds
+  // of MiB.
+  std::chrono::milliseconds load_timeout{60000};
+};
+
 class RedisJobStore : public JobStore {
  public:
   // host:port. Fails (UNAVAILABLE) when Redis does not answer PING.
   static absl::StatusOr<std::unique_ptr<RedisJobStore>> Connect(
-      const std::string& address, const std::string& prefix = "irfarm:");
+      const std::string& address, const RedisOptions& options = RedisOptions());
   ~RedisJobStore() override;
 
   absl::StatusOr<uint64_t> NextJobNumber() override;
@@ -47,15 +64,20 @@ class RedisJobStore : public JobStore {
   absl::Status DeleteJob(const std::string& job_id) override;
 
  private:
-  RedisJobStore(std::string host, int port, std::string prefix)
-      : host_(std::move(host)), port_(port), prefix_(std::move(prefix)) {}
+  RedisJobStore(std::string host, int port, const RedisOptions& options)
+      : host_(std::move(host)), port_(port), options_(options), prefix_(options.prefix) {}
+  // Takes mu_ within options_.timeout, or UNAVAILABLE (another call holds the connection).
+  absl::StatusOr<std::unique_lock<std::timed_mutex>> Lock();
   absl::Status EnsureConnected();  // mu_ held
   void Drop();                     // mu_ held: forget a broken connection
+  // mu_ held, connected: sets the deadline of the commands that follow.
+  void SetCommandTimeout(std::chrono::milliseconds t);
 
   const std::string host_;
   const int port_;
+  const RedisOptions options_;
   const std::string prefix_;
-  std::mutex mu_;
+  std::timed_mutex mu_;
   redisContext* ctx_ = nullptr;
 };
 

@@ -13,6 +13,7 @@ packages=(
   chromium chromium-driver python3-selenium
   openssl
   python3
+  clang libclang-rt-14-dev  # .ci/fuzz only: libFuzzer and the sanitizer runtimes for clang
 )
 missing=()
 for p in "${packages[@]}"; do

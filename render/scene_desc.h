@@ -3,6 +3,7 @@
 // nothing here knows Embree. Every element keeps the line it came from for later errors.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -129,6 +130,12 @@ struct SceneDesc {
   std::vector<BsdfDesc> bsdfs;
   std::vector<ShapeDesc> shapes;
   std::vector<EmitterDesc> emitters;  // non-area emitters
+  // World coordinates of this description's origin. A scene far from the origin compared with
+  // its size (a building at x = 1e6, georeferenced) is re-centred on load: its transforms are
+  // composed in double with a translation by minus this point before anything is rounded to
+  // float, so it keeps the precision it would have at the origin (float32 alone has 0.06-unit
+  // steps at 1e6). Every position in this description is relative to it; the image is the same.
+  std::array<double, 3> world_origin{0, 0, 0};
   std::vector<std::string>
       warnings;  // e.g. "scene.xml:12: sampler 'stratified' treated as independent"
 };

@@ -206,6 +206,23 @@ class Parser {
   pugi::xml_node sensor_, integrator_, environment_;  // to reject a second one
   int default_bsdf_ = -1;
   bool upgraded_ = false;  // a Mitsuba 0.5/0.6 file, upgraded on load
+  // Translation by minus SceneDesc::world_origin, composed (in double) into every to_world.
+  Mat4 recentre_;
+
+ public:
+  void SetWorldOrigin(const std::array<double, 3>& o) {
+    scene_.world_origin = o;
+    recentre_ = Mat4::Translate(-o[0], -o[1], -o[2]);
+  }
+
+ private:
+  // An object's to_world (identity if none) as it goes into the scene: re-centred.
+  Mat4 World(const std::optional<Mat4>& to_world) const {
+    return recentre_ * to_world.value_or(Mat4());
+  }
+  // The point `name` (point, vector or three numbers) in double, if given.
+  absl::StatusOr<std::optional<std::array<double, 3>>> GetPoint(Params& p,
+                                                                absl::string_view name) const;
 };
 
 int Parser::Line(pugi::xml_node n) const {
@@ -548,6 +565,14 @@ absl::StatusOr<std::optional<Vec3>> Parser::GetVec3(Params& p, absl::string_view
   return std::optional<Vec3>(Vec3(float(v[0]), float(v[1]), float(v[2])));
 }
 
+absl::StatusOr<std::optional<std::array<double, 3>>> Parser::GetPoint(
+    Params& p, absl::string_view name) const {
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"point", "vector"}));
+  if (e == nullptr) return std::optional<std::array<double, 3>>();
+  LOADER_ASSIGN_OR_RETURN(const auto v, Xyz(e->node, 0, false));
+  return std::optional<std::array<double, 3>>(v);
+}
+
 absl::StatusOr<std::optional<Mat4>> Parser::GetTransform(Params& p, absl::string_view name) const {
   LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"transform"}));
   if (e == nullptr) return std::optional<Mat4>();
@@ -713,7 +738,7 @@ absl::Status Parser::ParseSensor(pugi::xml_node n) {
   LOADER_ASSIGN_OR_RETURN(cam.near_clip, GetFloat(p, "near_clip", 0.01f));
   LOADER_ASSIGN_OR_RETURN(cam.far_clip, GetFloat(p, "far_clip", 1e4f));
   LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
-  cam.to_world = to_world.value_or(Mat4());
+  cam.to_world = World(to_world);
   const std::vector<const Entry*> films = TakeObjects(p, "film");
   const std::vector<const Entry*> samplers = TakeObjects(p, "sampler");
   LOADER_RETURN_IF_ERROR(Finish(p));
@@ -978,16 +1003,16 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
   LOADER_ASSIGN_OR_RETURN(s.id, Attr(n, "id"));
   s.loc = Loc(n);
   LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world_opt, GetTransform(p, "to_world"));
-  const Mat4 to_world = to_world_opt.value_or(Mat4());
+  const Mat4 to_world = World(to_world_opt);
   LOADER_ASSIGN_OR_RETURN(s.flip_normals, GetBool(p, "flip_normals", false));
   bool face_normals = false, flip_tex_coords = true;
   std::string filename;
-  Vec3 center;
+  std::array<double, 3> center{0, 0, 0};  // double: it may be far from the origin
   float radius = 1;
   if (type == "sphere") {
     s.type = ShapeType::kSphere;
-    LOADER_ASSIGN_OR_RETURN(const std::optional<Vec3> c, GetVec3(p, "center"));
-    center = c.value_or(Vec3(0.0f));
+    LOADER_ASSIGN_OR_RETURN(const auto c, GetPoint(p, "center"));
+    if (c) center = *c;
     LOADER_ASSIGN_OR_RETURN(radius, GetFloat(p, "radius", 1));
   } else {
     LOADER_ASSIGN_OR_RETURN(face_normals, GetBool(p, "face_normals", false));
@@ -1031,7 +1056,7 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
                    absl::StrCat("sphere radius must be positive, got ", radius));
     }
     if (det == 0) return Error(NodeOf(p, "to_world"), "the sphere's to_world is singular");
-    s.center = to_world.ApplyPoint(center);
+    s.center = (to_world * Mat4::Translate(center[0], center[1], center[2])).ApplyPoint(Vec3(0.0f));
     s.radius = float(radius * std::cbrt(std::abs(det)));
   } else {
     absl::StatusOr<TriangleMesh> mesh;
@@ -1089,17 +1114,19 @@ absl::Status Parser::ParseEmitter(pugi::xml_node n) {
   e.loc = Loc(n);
   if (type == "point") {
     e.type = EmitterType::kPoint;
-    LOADER_ASSIGN_OR_RETURN(const std::optional<Vec3> position, GetVec3(p, "position"));
+    LOADER_ASSIGN_OR_RETURN(const auto position, GetPoint(p, "position"));
     LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
     if (position && to_world) {
       return Error(n, "give either position or to_world for a point emitter, not both");
     }
-    e.position = position ? *position : to_world.value_or(Mat4()).ApplyPoint(Vec3(0.0f));
+    const Mat4 m = position ? Mat4::Translate((*position)[0], (*position)[1], (*position)[2])
+                            : to_world.value_or(Mat4());
+    e.position = (recentre_ * m).ApplyPoint(Vec3(0.0f));
     LOADER_ASSIGN_OR_RETURN(e.intensity, GetRgb(p, "intensity", Vec3(1.0f)));
   } else if (type == "spot") {
     e.type = EmitterType::kSpot;
     LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
-    const Mat4 m = to_world.value_or(Mat4());
+    const Mat4 m = World(to_world);
     e.position = m.ApplyPoint(Vec3(0.0f));
     e.direction = Normalize(m.ApplyVector(Vec3(0, 0, 1)));
     LOADER_ASSIGN_OR_RETURN(e.intensity, GetRgb(p, "intensity", Vec3(1.0f)));
@@ -1260,11 +1287,42 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
   return std::move(scene_);
 }
 
+// The point a scene is re-centred on (SceneDesc::world_origin), if it is further from the origin
+// than kFarFactor times its own size: the centre of its shapes' bounds. Below that, float
+// rounding of its coordinates and ray offsets (kOriginOffset times the coordinates' magnitude,
+// scene.h) stay under 1.6e-4 of its size; a scene nearer the origin keeps its coordinates
+// exactly (no rounding from a shift), so its images do not change.
+std::optional<std::array<double, 3>> FarOrigin(const SceneDesc& desc) {
+  Bounds3 b;
+  for (const ShapeDesc& s : desc.shapes) {
+    if (s.type == ShapeType::kSphere) {
+      b.Extend(s.center - Vec3(s.radius));
+      b.Extend(s.center + Vec3(s.radius));
+    }
+    for (const Vec3& p : s.mesh.positions) b.Extend(p);
+  }
+  if (b.Empty()) return std::nullopt;
+  const Vec3 c = b.Center(), d = b.Diagonal();
+  const double size = std::sqrt(double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z);
+  const double far = std::max(std::abs(c.x), std::max(std::abs(c.y), std::abs(c.z)));
+  constexpr double kFarFactor = 16;
+  if (!(far > kFarFactor * size) || !std::isfinite(far)) return std::nullopt;
+  return std::array<double, 3>{c.x, c.y, c.z};
+}
+
 }  // namespace
 
 absl::StatusOr<SceneDesc> LoadSceneString(const std::string& xml, const std::string& path,
                                           const LoadOptions& options) {
-  return Parser(path, options).Parse(xml);
+  absl::StatusOr<SceneDesc> desc = Parser(path, options).Parse(xml);
+  if (!desc.ok()) return desc;
+  // Far from the origin: parsed again, re-centred (the first pass's float coordinates are only
+  // good enough to choose the centre). Scenes near the origin are parsed once.
+  const std::optional<std::array<double, 3>> origin = FarOrigin(*desc);
+  if (!origin) return desc;
+  Parser recentred(path, options);
+  recentred.SetWorldOrigin(*origin);
+  return recentred.Parse(xml);
 }
 
 absl::StatusOr<SceneDesc> LoadSceneFile(const std::string& path, const LoadOptions& options) {

@@ -1,11 +1,7 @@
 // One test suite run against both JobStore implementations: InMemoryJobStore, and RedisJobStore
 // on a real redis-server started here on a free 127.0.0.1 port with a temp dir (and stopped).
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <signal.h>
-#include <sys/socket.h>
-#include <sys/wait.h>
-#include <unistd.h>
+#include <hiredis/hiredis.h>
 
 #include <thread>
 
@@ -14,7 +10,7 @@
 #include "coordinator/redis_job_store.h"
 #include "service/record_codec.h"
 #include "service/scene_bundle.h"
-#include "tests/service/test_redis.h"
+#include "tests/service/redis_server.h"
 
 namespace irfarm {
 namespace {
@@ -132,6 +128,68 @@ TEST(RedisRecordsTest, RecordsAreMergedOnlyOnceStored) {
   redis.reset();  // SIGKILL
   EXPECT_EQ(manager->AddRecords(worker, batch).code(), absl::StatusCode::kUnavailable);
   EXPECT_EQ(manager->GetJob(job->id())->records_merged(), 2u);
+}
+
+}  // namespace
+}  // namespace irfarm
+
+namespace irfarm {
+namespace {
+
+// Runs one raw command on a fresh connection to `address` (the damage a test does by hand).
+void RawRedis(const RedisServer& redis, const std::vector<std::string>& argv) {
+  redisContext* c = redisConnect("127.0.0.1", std::stoi(redis.address().substr(10)));
+  ASSERT_TRUE(c != nullptr && c->err == 0);
+  std::vector<const char*> args;
+  std::vector<size_t> lens;
+  for (const std::string& a : argv) {
+    args.push_back(a.data());
+    lens.push_back(a.size());
+  }
+  void* r = redisCommandArgv(c, int(args.size()), args.data(), lens.data());
+  ASSERT_NE(r, nullptr);
+  freeReplyObject(r);
+  redisFree(c);
+}
+
+// A store-consistency check at start-up (issue 10, part 4): damaged keys (a job that does not
+// parse, a job id listed without its key, a record batch that does not parse, a tile hash of
+// the wrong type) are reported and skipped; the coordinator starts and resumes the rest.
+TEST(RedisStartupTest, DamagedKeysAreSkippedAndTheRestResumes) {
+  RedisServer redis;
+  std::unique_ptr<RedisJobStore> store = redis.Connect();
+  ASSERT_TRUE(store) << "redis-server did not start";
+  std::string good;
+  {
+    std::unique_ptr<JobManager> manager =
+        std::move(*JobManager::Create(JobManagerOptions(), store.get()));
+    v1::SubmitJobRequest req;
+    *req.mutable_scene()->mutable_bundle() =
+        *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+    (*req.mutable_settings()->mutable_defines())["resx"] = "32";
+    (*req.mutable_settings()->mutable_defines())["resy"] = "32";
+    for (int i = 0; i < 2; ++i) {
+      absl::StatusOr<v1::Job> job = manager->Submit(req);
+      ASSERT_TRUE(job.ok()) << job.status();
+      good = job->id();
+    }
+  }
+  IrradianceRecord r;
+  r.normal = Vec3(0, 1, 0);
+  r.irradiance = Vec3(0.5f);
+  r.radius = 0.1f;
+  ASSERT_TRUE(store->AppendRecords(good, {r, r}).ok());
+  RawRedis(redis, {"SET", "irfarm:job:job-1", "not a protobuf \xff\xff\xff"});
+  RawRedis(redis, {"SADD", "irfarm:jobs", "job-77"});  // listed, no key
+  RawRedis(redis, {"RPUSH", "irfarm:job:" + good + ":records", "\xff\xff garbage"});
+  RawRedis(redis, {"SET", "irfarm:job:" + good + ":tiles", "a string, not a hash"});
+  absl::StatusOr<std::unique_ptr<JobManager>> again =
+      JobManager::Create(JobManagerOptions(), store.get());
+  ASSERT_TRUE(again.ok()) << again.status();
+  const std::vector<v1::Job> jobs = (*again)->ListJobs();
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].id(), good);
+  EXPECT_EQ(jobs[0].records_merged(), 2u);
 }
 
 }  // namespace

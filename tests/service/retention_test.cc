@@ -11,7 +11,7 @@
 #include "coordinator/job_manager.h"
 #include "coordinator/redis_job_store.h"
 #include "service/scene_bundle.h"
-#include "tests/service/test_redis.h"
+#include "tests/service/redis_server.h"
 
 namespace irfarm {
 namespace {

@@ -1,5 +1,6 @@
-// Test helpers shared by the service gtests: a free loopback port, and a real redis-server child
-// process (own temp dir, no persistence) that is SIGKILLed when the object goes away.
+// Test helpers for the tests that need a real Redis: a free loopback port, and a redis-server
+// child process on it with a temp dir and no persistence, killed (SIGKILL) when destroyed. The
+// pid is exposed so that a test can SIGSTOP / SIGCONT it (a hung Redis).
 #pragma once
 
 #include <netinet/in.h>
@@ -30,7 +31,6 @@ inline int FreePort() {
   return ntohs(a.sin_port);
 }
 
-// A redis-server child process for one test.
 class RedisServer {
  public:
   RedisServer() {
@@ -54,12 +54,14 @@ class RedisServer {
   }
   RedisServer(const RedisServer&) = delete;
   RedisServer& operator=(const RedisServer&) = delete;
-  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
 
-  // A store on this server, retrying while it starts (up to 5 s); null if it never answers.
-  std::unique_ptr<RedisJobStore> Connect() const {
+  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  pid_t pid() const { return pid_; }
+  // A store connected to this server, retried for up to 5 s while it starts; null if it never
+  // answered.
+  std::unique_ptr<RedisJobStore> Connect(const RedisOptions& options = RedisOptions()) const {
     for (int i = 0; i < 100; ++i) {
-      absl::StatusOr<std::unique_ptr<RedisJobStore>> s = RedisJobStore::Connect(address());
+      absl::StatusOr<std::unique_ptr<RedisJobStore>> s = RedisJobStore::Connect(address(), options);
       if (s.ok()) return std::move(*s);
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }

@@ -1,0 +1,97 @@
+// StoreWriter: queued job-store writes on their own thread (see store_writer.h).
+#include "coordinator/store_writer.h"
+
+#include <spdlog/spdlog.h>
+
+namespace irfarm {
+
+StoreWriter::StoreWriter(JobStore* store, std::chrono::milliseconds retry)
+    : store_(store), retry_(retry), thread_([this] { Run(); }) {}
+
+StoreWriter::~StoreWriter() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+}
+
+void StoreWriter::PutJob(const v1::StoredJob& job) {
+  std::lock_guard<std::mutex> lock(mu_);
+  const std::string& id = job.job().id();
+  // The job's last queued op: replace it when it is a PutJob (nothing of the job comes after it).
+  for (auto it = queue_.rbegin(); it != queue_.rend(); ++it) {
+    if (it->job_id != id) continue;
+    if (it->job) {
+      *it->job = job;
+      return;
+    }
+    break;
+  }
+  queue_.push_back(Op{id, job, {}});
+  cv_.notify_all();
+}
+
+void StoreWriter::AppendRecords(const std::string& job_id, std::vector<IrradianceRecord> records) {
+  if (records.empty()) return;
+  std::lock_guard<std::mutex> lock(mu_);
+  queue_.push_back(Op{job_id, std::nullopt, std::move(records)});
+  cv_.notify_all();
+}
+
+bool StoreWriter::Flush(std::chrono::milliseconds timeout) {
+  std::unique_lock<std::mutex> lock(mu_);
+  return cv_.wait_for(lock, timeout, [&] { return queue_.empty() && !busy_; });
+}
+
+size_t StoreWriter::pending() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return queue_.size() + (busy_ ? 1 : 0);
+}
+
+uint64_t StoreWriter::failures() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return failures_;
+}
+
+absl::Status StoreWriter::Write(const Op& op) {
+  if (op.job) return store_->PutJob(*op.job);
+  return store_->AppendRecords(op.job_id, op.records);
+}
+
+void StoreWriter::Run() {
+  std::unique_lock<std::mutex> lock(mu_);
+  for (;;) {
+    cv_.wait(lock, [&] { return stop_ || !queue_.empty(); });
+    if (queue_.empty()) return;  // stopping, all written
+    Op op = std::move(queue_.front());
+    queue_.pop_front();
+    busy_ = true;
+    lock.unlock();
+    const absl::Status st = Write(op);
+    lock.lock();
+    busy_ = false;
+    if (st.ok()) {
+      cv_.notify_all();  // Flush
+      continue;
+    }
+    ++failures_;
+    if (stop_) {
+      spdlog::warn("job store: {} writes not done at shutdown: {}", queue_.size() + 1,
+                   st.ToString());
+      return;
+    }
+    if (failures_ == 1 || failures_ % 20 == 0)
+      spdlog::warn("job store write for {} failed ({} failures so far), retrying: {}", op.job_id,
+                   failures_, st.ToString());
+    // Back in front, unless a newer state of the same job was queued meanwhile (it replaces it).
+    bool newer = false;
+    if (op.job)
+      for (const Op& o : queue_) newer = newer || (o.job_id == op.job_id && o.job);
+    if (!newer) queue_.push_front(std::move(op));
+    cv_.wait_for(lock, retry_, [&] { return stop_; });
+  }
+}
+
+}  // namespace irfarm
