@@ -515,6 +515,12 @@ absl::Status JobManager::Delete(const std::string& id, const Caller& caller) {
 // memory only once the store no longer has it. A final job never changes, so nothing is lost
 // between the two.
 bool JobManager::RemoveJob(const std::string& id) {
+  // Job-state writes queued before (the job's final state) must land first, or one would put
+  // the job back into the store after the delete.
+  if (!writer_->Flush(std::chrono::seconds(2))) {
+    spdlog::warn("cannot delete job {}: earlier store writes are still pending", id);
+    return false;
+  }
   absl::Status st = store_->DeleteJob(id);
   if (!st.ok()) {
     spdlog::warn("cannot delete job {} from the store: {}", id, st.ToString());

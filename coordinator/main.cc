@@ -225,12 +225,8 @@ int main(int argc, char** argv) {
 
   std::unique_ptr<irfarm::HttpServer> metrics_server;
   if (!metrics_address.empty()) {
-    absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> http = irfarm::HttpServer::Start(
-        metrics_address,
-        {{"GET", "/metrics", [&metrics](const irfarm::HttpRequest&) {
-            return irfarm::HttpResponse{200, "text/plain; version=0.0.4; charset=utf-8",
-                                        metrics.Render()};
-          }}});
+    absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> http =
+        irfarm::ServeMetrics(metrics_address, &metrics);
     if (!http.ok()) {
       spdlog::error("--metrics: {}", http.status().ToString());
       return 1;

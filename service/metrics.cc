@@ -183,4 +183,13 @@ void AddProcessMetrics(MetricsRegistry* registry) {
   });
 }
 
+absl::StatusOr<std::unique_ptr<HttpServer>> ServeMetrics(const std::string& address,
+                                                         const MetricsRegistry* metrics) {
+  return HttpServer::Start(
+      address,
+      {{"GET", "/metrics", [metrics](const HttpRequest&) {
+          return HttpResponse{200, "text/plain; version=0.0.4; charset=utf-8", metrics->Render()};
+        }}});
+}
+
 }  // namespace irfarm

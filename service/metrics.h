@@ -22,6 +22,9 @@
 #include <utility>
 #include <vector>
 
+#include "absl/status/statusor.h"
+#include "service/http_server.h"
+
 namespace irfarm {
 
 using MetricLabels = std::vector<std::pair<std::string, std::string>>;
@@ -132,6 +135,11 @@ class MetricsRegistry {
   std::vector<std::unique_ptr<Family>> families_;
   std::vector<std::function<void(MetricsWriter&)>> collectors_;
 };
+
+// Serves `metrics` (not owned, must outlive the server) as Prometheus text at GET /metrics on
+// HOST:PORT: what --metrics starts in the coordinator and the worker.
+absl::StatusOr<std::unique_ptr<HttpServer>> ServeMetrics(const std::string& address,
+                                                         const MetricsRegistry* metrics);
 
 // The process's resident memory and CPU time (process_resident_memory_bytes,
 // process_cpu_seconds_total), read from /proc and getrusage at scrape time.
