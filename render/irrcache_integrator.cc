@@ -39,6 +39,18 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
   ratio_slots_ = slots;
 }
 
+float IrrcacheIntegrator::EnvironmentMisWeight(float prev_pdf, const Vec3& prev_p,
+                                               const Vec3& prev_n, const Vec3& dir) const {
+  return prev_pdf == 0 ? 1.0f
+                       : PowerHeuristic(prev_pdf, scene_.PdfEnvironment(prev_p, prev_n, dir));
+}
+
+float IrrcacheIntegrator::AreaLightMisWeight(float prev_pdf, const Vec3& prev_p, const Vec3& prev_n,
+                                             const SurfaceHit& hit, const Vec3& dir) const {
+  return prev_pdf == 0 ? 1.0f
+                       : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, prev_n, hit, dir));
+}
+
 Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
                                      const Vec3& weight, const LightStrata& strata, Rng& rng,
                                      RenderCounters& counters, DirectTerms* terms,
@@ -262,10 +274,7 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     SurfaceHit hit;
     if (!scene_.Intersect(ray, &hit)) {
       if (scene_.has_environment()) {
-        const float w =
-            prev_pdf == 0
-                ? 1.0f
-                : PowerHeuristic(prev_pdf, scene_.PdfEnvironment(prev_p, prev_n, ray.dir));
+        const float w = EnvironmentMisWeight(prev_pdf, prev_p, prev_n, ray.dir);
         L += beta * scene_.EvalEnvironment(ray.dir) * w;
       }
       break;
@@ -276,10 +285,7 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     if (hit.light >= 0 && i > 0) {  // at the first hit: the record point's direct light
       const Vec3 le = scene_.Emitted(hit, wo);
       if (!IsBlack(le)) {
-        const float w =
-            prev_pdf == 0
-                ? 1.0f
-                : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, prev_n, hit, ray.dir));
+        const float w = AreaLightMisWeight(prev_pdf, prev_p, prev_n, hit, ray.dir);
         L += beta * le * w;
       }
     }
@@ -358,10 +364,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     SurfaceHit hit;
     if (!scene_.Intersect(ray, &hit)) {
       if (scene_.has_environment()) {
-        const float w =
-            prev_pdf == 0
-                ? 1.0f
-                : PowerHeuristic(prev_pdf, scene_.PdfEnvironment(prev_p, prev_n, ray.dir));
+        const float w = EnvironmentMisWeight(prev_pdf, prev_p, prev_n, ray.dir);
         add(beta * scene_.EvalEnvironment(ray.dir) * w, depth, false);
       }
       break;
@@ -371,10 +374,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     if (hit.light >= 0) {
       const Vec3 le = scene_.Emitted(hit, wo);
       if (!IsBlack(le)) {
-        const float w =
-            prev_pdf == 0
-                ? 1.0f
-                : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, prev_n, hit, ray.dir));
+        const float w = AreaLightMisWeight(prev_pdf, prev_p, prev_n, hit, ray.dir);
         add(beta * le * w, depth, false);
       }
     }

@@ -137,6 +137,12 @@ class IrrcacheIntegrator {
   // Direct light at a diffuse point: every local light that can reach it (up to
   // kAllLightsMax lights; beyond, lights picked by expected contribution), each sampled by
   // solid angle; `weight` = path throughput * albedo / pi.
+  // MIS weights of emission reached by a glossy sample of pdf prev_pdf taken at prev_p (facing
+  // normal prev_n) against light sampling there; 1 when prev_pdf is 0 (delta lobe or first ray).
+  float EnvironmentMisWeight(float prev_pdf, const Vec3& prev_p, const Vec3& prev_n,
+                             const Vec3& dir) const;
+  float AreaLightMisWeight(float prev_pdf, const Vec3& prev_p, const Vec3& prev_n,
+                           const SurfaceHit& hit, const Vec3& dir) const;
   // `one_sample`: one light picked by expected contribution (records' rays) instead of all.
   Vec3 DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo, const Vec3& weight,
                    const LightStrata& strata, Rng& rng, RenderCounters& counters,
