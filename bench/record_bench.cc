@@ -94,21 +94,7 @@ std::unique_ptr<Fixture> MakeFixture(const std::string& name, int grid) {
         const Vec3 dir = s * local.x + t * local.y + p.nf * local.z;
         if (Dot(dir, ng_side) <= 0) continue;
         const Ray ray = Scene::SpawnRay(p.hit.p, p.hit.ng, p.hit.error_scale, dir);
-        RTCRayHit rh;
-        rh.ray.org_x = ray.origin.x;
-        rh.ray.org_y = ray.origin.y;
-        rh.ray.org_z = ray.origin.z;
-        rh.ray.dir_x = ray.dir.x;
-        rh.ray.dir_y = ray.dir.y;
-        rh.ray.dir_z = ray.dir.z;
-        rh.ray.tnear = 0;
-        rh.ray.tfar = ray.tmax;
-        rh.ray.mask = 0xFFFFFFFFu;
-        rh.ray.flags = 0;
-        rh.ray.time = 0;
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        f->bare_rays.push_back(rh);
+        f->bare_rays.push_back(Scene::ToRtcRayHit(ray));
       }
     }
   }

@@ -319,9 +319,7 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc) {
   return s;
 }
 
-bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
+RTCRayHit Scene::ToRtcRayHit(const Ray& ray) {
   RTCRayHit rh;
   rh.ray.org_x = ray.origin.x;
   rh.ray.org_y = ray.origin.y;
@@ -336,6 +334,13 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
   rh.ray.time = 0;
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  return rh;
+}
+
+bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh = Scene::ToRtcRayHit(ray);
   rtcIntersect1(rtc_scene_, &ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
   const Mesh& m = meshes_[rh.hit.geomID];

@@ -97,6 +97,8 @@ class Scene {
   const SceneStatsCounts& counts() const { return counts_; }
   // The committed Embree scene, for benchmarks that compare with bare Embree calls.
   RTCScene embree_scene() const { return rtc_scene_; }
+  // `ray` as Embree's ray-hit query (no hit yet): what Intersect passes to rtcIntersect1.
+  static RTCRayHit ToRtcRayHit(const Ray& ray);
 
  private:
   Scene() = default;
