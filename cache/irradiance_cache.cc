@@ -40,8 +40,9 @@ constexpr int kSplitAfter = 8;
 // whose mapping is monotone, so containment carries over exactly.
 constexpr double kReachSlack = 1e-4;
 
-// Deepest recursion of a lookup: kMaxDepth + 1 levels, each pushing at most 8 children.
-constexpr int kLookupStack = 8 * (20 + 1) + 1;
+// Deepest recursion of a lookup: kMaxDepth + 1 levels, each pushing at most 8 children, plus
+// the roots of the other trees waiting underneath.
+constexpr int kLookupStack = 8 * (20 + 1) + 2;
 
 }  // namespace
 
@@ -101,7 +102,13 @@ struct IrradianceCache::Accumulator {
     pending[pending_count++] = RefOf(b, i);
   }
   void Flush() {
-    for (int k = 0; k < pending_count; ++k) Add(BlockOf(pending[k])->Record(SlotOf(pending[k])));
+    for (int k = 0; k < pending_count; ++k) {
+      const Block* b = BlockOf(pending[k]);
+      const int i = SlotOf(pending[k]);
+      // Level and facing first, from the cold part alone (RecordWeight's own first test).
+      const Cold& c = b->cold()[i];
+      if (c.level <= max_level && Dot(n, c.normal) > 0) Add(b->Record(i));
+    }
     pending_count = 0;
   }
   // |x - x_j|^2 < (a R_j)^2 for ready slot j, in the same float expression as RecordWeight's
@@ -156,7 +163,8 @@ IrradianceRecord IrradianceCache::Block::Record(int i) const {
 IrradianceCache::IrradianceCache(const CacheSettings& settings)
     // NaN or a <= 0 become 0: records then reach nowhere and no lookup ever succeeds.
     : max_accuracy_(settings.max_accuracy > 0 ? std::min(settings.max_accuracy, 1.0f) : 0.0f),
-      root_(new Node) {
+      roots_{new Node, new Node} {
+  static_assert(kTrees == 2, "one root per tree above");
   const Bounds3& b = settings.bounds;
   double center[3] = {0, 0, 0};
   double edge = 0;
@@ -175,8 +183,10 @@ IrradianceCache::IrradianceCache(const CacheSettings& settings)
 }
 
 IrradianceCache::~IrradianceCache() {
-  DeleteTree(root_);
-  delete root_;
+  for (Node* root : roots_) {
+    DeleteTree(root);
+    delete root;
+  }
 }
 
 // Deletes node's children and blocks (not node itself: children come in groups of 8).
@@ -277,7 +287,7 @@ void IrradianceCache::GrowRadius(std::atomic<float>* max_radius, float radius) {
 void IrradianceCache::Insert(const IrradianceRecord& r) {
   if (!IsValidRecord(r)) return;
 
-  Node* node = root_;
+  Node* node = roots_[TreeOf(r.level)];
   uint32_t cell[3];
   if (CellOf(r.position, cell)) {
     // Deepest level whose cells (2^shift grid units) are at least kCellPerReach reaches wide.
@@ -336,7 +346,8 @@ bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradi
   };
   Item stack[kLookupStack];
   int top = 0;
-  stack[top++] = Item{root_, {0, 0, 0}, INFINITY, 0};
+  for (int t = TreeOf(std::max(0, max_level)); t >= 0; --t)
+    stack[top++] = Item{roots_[t], {0, 0, 0}, INFINITY, 0};
   // The walk only collects the record blocks of the nodes it enters, prefetching each, and scans
   // them afterwards: the cache misses on blocks then overlap each other and the walk instead of
   // stalling it one by one. More than kHeads heads (rare) are scanned as they come.
@@ -422,9 +433,9 @@ void IrradianceCache::AddMemory(const Node* node, CacheMemory* m) {
 CacheMemory IrradianceCache::MemoryUse() const {
   CacheMemory m;
   m.bytes_per_record = kRecordBytes;
-  m.nodes = 1;
-  m.octree_bytes = sizeof(Node);
-  AddMemory(root_, &m);
+  m.nodes = kTrees;
+  m.octree_bytes = kTrees * sizeof(Node);
+  for (const Node* root : roots_) AddMemory(root, &m);
   return m;
 }
 

@@ -189,10 +189,15 @@ class IrradianceCache {
   static void DeleteTree(Node* node);
   static void AddMemory(const Node* node, CacheMemory* m);
 
+  // One octree per cache level (records of level >= kTrees - 1 share the last): a lookup at
+  // level l walks trees 0..l only, so the few wide secondary records never cost camera lookups.
+  static constexpr int kTrees = 2;
+  static int TreeOf(int level) { return level < kTrees ? level : kTrees - 1; }
+
   float max_accuracy_;
   double root_lo_[3];
   double grid_scale_;  // grid cells per scene unit at depth kMaxDepth
-  Node* root_;
+  Node* roots_[kTrees];
   std::atomic<uint64_t> all_{0};  // newest completed record (a RecordRef), for ForEach
   std::atomic<size_t> size_{0};
 };

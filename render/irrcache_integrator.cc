@@ -12,6 +12,16 @@ constexpr int kAllLightsMax = 16;
 
 }  // namespace
 
+void IrrcacheIntegrator::Strata(float ray_fraction, int* T, int* P) const {
+  // Ward & Heckbert: T x P strata with P ~ pi T give square-ish strata on the projected disk.
+  const int full = std::max(4, settings_.record_rays);
+  const int n = ray_fraction >= 1 ? full
+                                  : std::clamp(int(std::lround(full * double(ray_fraction))),
+                                               std::min(full, kMinRecordRays), full);
+  *T = std::max(1, int(std::lround(std::sqrt(n / kPi))));
+  *P = std::max(1, int(std::lround(double(n) / *T)));
+}
+
 Vec3 DirectTerms::Resolve() const {
   Vec3 d;
   for (int j = 0; j < kMaxLights; ++j) d += analytic[j] * Ratio(shadowed[j], unshadowed[j]);
@@ -21,13 +31,7 @@ Vec3 DirectTerms::Resolve() const {
 IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cache,
                                        const IrrcacheSettings& settings)
     : scene_(scene), cache_(cache), settings_(settings) {
-  // Ward & Heckbert: T x P strata with P ~ pi T give square-ish strata on the projected disk.
-  const int n = std::max(4, settings.record_rays);
-  strata_t_ = std::max(1, int(std::lround(std::sqrt(n / kPi))));
-  strata_p_ = std::max(1, int(std::lround(double(n) / strata_t_)));
-  const int n2 = std::max(4, int(std::lround(n * double(settings.secondary_ray_fraction))));
-  strata_t2_ = std::max(1, int(std::lround(std::sqrt(n2 / kPi))));
-  strata_p2_ = std::max(1, int(std::lround(double(n2) / strata_t2_)));
+  Strata(1, &strata_t_, &strata_p_);
   const LightSampler& ls = scene.light_sampler();
   int slots = 0;
   for (int i = 0; i < ls.num_local(); ++i) {
@@ -87,7 +91,7 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
       counters.lights_skipped += uint64_t(skipped);
       if (!ok) continue;
       const float cos_i = Dot(s.wi, nf);
-      if (cos_i > 0 && visible(s)) L += weight * s.value * (cos_i / float(k));
+      if (cos_i > 0 && visible(s)) L += weight * scene_.LightValue(s) * (cos_i / float(k));
     }
     return L;
   }
@@ -165,15 +169,15 @@ bool IrrcacheIntegrator::FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters
 IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const Vec3& nf, int depth,
                                                    float pixel_spread, Rng& rng,
                                                    RenderCounters& counters, Vec3* half_difference,
-                                                   int level) const {
+                                                   int level, float ray_fraction) const {
   const auto start = std::chrono::steady_clock::now();
   Vec3 s, t;
   MakeFrame(nf, &s, &t);
   // The geometric normal on the side of the facing normal: rays below it would pass through.
   const Vec3 ng_side = Dot(hit.ng, nf) >= 0 ? hit.ng : -hit.ng;
-  Vec3 sum, half_sum[2];
   double inv_dist_sum = 0;
-  const int T = level == 0 ? strata_t_ : strata_t2_, P = level == 0 ? strata_p_ : strata_p2_;
+  int T = strata_t_, P = strata_p_;
+  if (ray_fraction < 1) Strata(ray_fraction, &T, &P);
   const bool cached_rays = level + 1 < settings_.cache_levels;
   // Footprint of one of this record's rays: its share of the hemisphere, sqrt(2 pi / n) radians
   // wide, plus the record's own footprint; secondary records are spaced for that (ray cones),
@@ -184,6 +188,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   // cornell-box and sunlit-room: 1536 rays with early roulette beat 1024 without it.
   PathSettings record_path = settings_.path;
   record_path.rr_depth = std::min(record_path.rr_depth, depth + 1);
+  Vec3 sum, half_sum[2];
   for (int i = 0; i < T; ++i)
     for (int j = 0; j < P; ++j) {
       const float u = rng.Next();
@@ -239,7 +244,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
 
 Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth,
                                     float distance, bool relax, Rng& rng, RenderCounters& counters,
-                                    bool* made, int level) const {
+                                    bool* made, int level, float ray_fraction) const {
   Vec3 E;
   LookupInfo info;
   ++counters.lookups;
@@ -253,7 +258,7 @@ Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int d
     return E;
   }
   const IrradianceRecord r = ComputeRecord(hit, nf, depth, scene_.camera().PixelSpread(distance),
-                                           rng, counters, nullptr, level);
+                                           rng, counters, nullptr, level, ray_fraction);
   cache_->Insert(r);
   *made = true;
   return r.irradiance;
@@ -304,7 +309,8 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
         bool made = false;
         // As the camera distance at which a pixel is that wide (Irradiance's unit).
         const float distance = footprint / scene_.camera().PixelSpread(1.0f);
-        L += w * Irradiance(hit, nf, depth, distance, true, rng, counters, &made, level);
+        L += w * Irradiance(hit, nf, depth, distance, true, rng, counters, &made, level,
+                            settings_.secondary_ray_fraction);
       }
     }
     if (!bsdf.HasNonDiffuse()) break;
@@ -358,7 +364,14 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     const bool direct = !cached && (first_diffuse < 0 || d <= first_diffuse + 1);
     (direct ? aov->direct : aov->indirect) += c;
   };
-  float distance = 0;
+  float distance = 0;  // along the camera path (the depth AOV, record spacing)
+  // Past a glossy bounce the path stands for a cone about as wide as the lobe (1/sqrt(pi pdf)
+  // radians for the sampled direction's pdf; ray cones, cf. Igehy 1999): diffuse vertices there
+  // look the cache up at level 1 and make level-1 records spaced for that footprint (as the
+  // camera distance at which a pixel is that wide), which camera-visible surfaces never use.
+  float footprint_distance = 0;
+  float cone_extra = 0;  // radians added by glossy lobes
+  const float pixel_angle = scene_.camera().PixelSpread(1.0f);
   Ray ray = camera_ray;
   for (int depth = 1; depth <= kMaxSpecularChain; ++depth) {
     SurfaceHit hit;
@@ -370,6 +383,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
       break;
     }
     distance += hit.t;
+    footprint_distance += hit.t * (1.0f + cone_extra / pixel_angle);
     const Vec3 wo = -ray.dir;
     if (hit.light >= 0) {
       const Vec3 le = scene_.Emitted(hit, wo);
@@ -398,8 +412,14 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
       const Vec3 np_l = bsdf.ShadingNormal(ctx, wo_l);
       const Vec3 np_w = frame.ToWorld(np_l);
       const Vec3 nd = np_l.z * wo_l.z >= 0 ? np_w : -np_w;
-      const Vec3 shaded = ShadeDiffuse(hit, nf, nd, wo, beta, albedo, depth, distance, strata, rng,
-                                       counters, shade, prev_glossy ? nullptr : terms, &cached);
+      // Past a glossy bounce the cached term reaches the pixel weighted by the path throughput:
+      // its record gets that share of the rays (RADIANCE likewise lowers ambient divisions with
+      // the ray weight), at level 1 where no camera-visible surface looks.
+      const bool glossy_chain = cone_extra > 0;
+      const float ray_fraction = glossy_chain ? std::min(1.0f, Luminance(beta)) : 1.0f;
+      const Vec3 shaded = ShadeDiffuse(hit, nf, nd, wo, beta, albedo, depth, footprint_distance,
+                                       glossy_chain ? 1 : 0, ray_fraction, strata, rng, counters,
+                                       shade, prev_glossy ? nullptr : terms, &cached);
       add(shaded - cached, depth, false);
       add(cached, depth, true);
       prev_glossy = true;  // later diffuse vertices do not share the pixel's ratio terms
@@ -428,6 +448,8 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
       if (rng.Next() >= q) break;
       beta /= q;
     }
+    if (!bs.IsDelta() && bs.pdf > 0)
+      cone_extra = std::min(kPi / 2, cone_extra + 1.0f / std::sqrt(kPi * bs.pdf));
     prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
     prev_p = hit.p;
     prev_n = wo_l.z >= 0 ? hit.ns : -hit.ns;
@@ -459,7 +481,7 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
   if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) return Vec3();
   const float w =
       ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l, kNonDiffuseLobes));
-  return f * ls.value * w;
+  return f * scene_.LightValue(ls) * w;
 }
 
 // The diffuse lobe at x, weighted by the path throughput beta: direct light from local lights
@@ -468,9 +490,10 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
 // indirect irradiance times albedo / pi.
 Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& nd,
                                       const Vec3& wo, const Vec3& beta, const Vec3& albedo,
-                                      int depth, float distance, const LightStrata& strata,
-                                      Rng& rng, RenderCounters& counters, IrrcacheShade* shade,
-                                      DirectTerms* terms, Vec3* cached) const {
+                                      int depth, float distance, int level, float ray_fraction,
+                                      const LightStrata& strata, Rng& rng, RenderCounters& counters,
+                                      IrrcacheShade* shade, DirectTerms* terms,
+                                      Vec3* cached) const {
   Vec3 L;
   *cached = Vec3();
   const int max_depth = settings_.path.max_depth;
@@ -480,7 +503,8 @@ Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, con
   // Indirect irradiance from the cache.
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;
-    const Vec3 E = Irradiance(hit, nf, depth, distance, true, rng, counters, &made);
+    const Vec3 E =
+        Irradiance(hit, nf, depth, distance, true, rng, counters, &made, level, ray_fraction);
     if (shade) shade->made_record = shade->made_record || made;
     *cached = beta * albedo * E * kInvPi;
     L += *cached;

@@ -120,16 +120,23 @@ class IrrcacheIntegrator {
   bool CacheError(const Ray& ray, Rng& rng, RenderCounters& counters, double* error) const;
 
   // Computes a new record at x (facing normal nf, geometric normal ng) and inserts it.
-  // `level` 0: a record for a camera path; 1: a secondary record, for another record's rays.
+  // `level` 0: a record for what the camera sees (through delta lobes); 1: for what it sees
+  // through glossy lobes, or for another record's rays. `ray_fraction`: that share of record_rays
+  // (at least kMinRecordRays) is traced.
   IrradianceRecord ComputeRecord(const SurfaceHit& hit, const Vec3& nf, int depth,
                                  float pixel_spread, Rng& rng, RenderCounters& counters,
-                                 Vec3* half_difference = nullptr, int level = 0) const;
+                                 Vec3* half_difference = nullptr, int level = 0,
+                                 float ray_fraction = 1) const;
   int strata_theta() const { return strata_t_; }
   // DirectTerms slots in use (rectangle lights with the ratio estimator).
   int ratio_slots() const { return ratio_slots_; }
   int strata_phi() const { return strata_p_; }
 
  private:
+  // Fewest rays of a record made with a ray_fraction < 1.
+  static constexpr int kMinRecordRays = 96;
+  // T x P strata for ray_fraction of record_rays.
+  void Strata(float ray_fraction, int* T, int* P) const;
   // Follows `ray` through non-diffuse lobes (one sample each) to the first hit with a diffuse
   // lobe. Returns false when the path ends before that.
   bool FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* beta, SurfaceHit* hit,
@@ -149,14 +156,16 @@ class IrrcacheIntegrator {
                    DirectTerms* terms, bool one_sample = false) const;
   // nf: the facing normal (cache lookups); nd: the facing mapped normal (direct light).
   Vec3 ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& nd, const Vec3& wo,
-                    const Vec3& beta, const Vec3& albedo, int depth, float distance,
-                    const LightStrata& strata, Rng& rng, RenderCounters& counters,
-                    IrrcacheShade* shade, DirectTerms* terms, Vec3* cached) const;
+                    const Vec3& beta, const Vec3& albedo, int depth, float distance, int level,
+                    float ray_fraction, const LightStrata& strata, Rng& rng,
+                    RenderCounters& counters, IrrcacheShade* shade, DirectTerms* terms,
+                    Vec3* cached) const;
   Vec3 GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx, const ShadingFrame& frame,
                     const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_l, Rng& rng,
                     RenderCounters& counters) const;
   Vec3 Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth, float distance, bool relax,
-                  Rng& rng, RenderCounters& counters, bool* made, int level = 0) const;
+                  Rng& rng, RenderCounters& counters, bool* made, int level = 0,
+                  float ray_fraction = 1) const;
   // Radiance arriving at a record along one of its rays (first hit: path vertex `depth`; light
   // from local emitters at that hit excluded, it is the record point's explicit direct light),
   // with the diffuse lobes it reaches shaded from the cache at `level` (cache_levels > 1).
@@ -168,9 +177,8 @@ class IrrcacheIntegrator {
   const Scene& scene_;
   IrradianceCache* cache_;
   IrrcacheSettings settings_;
-  int strata_t_ = 1, strata_p_ = 1;    // primary records' strata
-  int strata_t2_ = 1, strata_p2_ = 1;  // secondary records' strata
-  std::vector<int> ratio_slot_;        // per local light: its DirectTerms slot, or -1
+  int strata_t_ = 1, strata_p_ = 1;  // primary records' strata
+  std::vector<int> ratio_slot_;      // per local light: its DirectTerms slot, or -1
   int ratio_slots_ = 0;
 };
 

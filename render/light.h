@@ -66,6 +66,10 @@ struct LightSample {
   Vec3 light_point, light_normal;
   float light_error_scale = 0;
   int light = -1;  // which light
+  // An environment sample's value is 1 / pdf until the direction is known to be unblocked: the
+  // radiance lookup (a texture fetch far from cache) is left to Scene::LightValue, called after
+  // the shadow ray, since in interiors most shadow rays towards the sky are blocked.
+  bool environment = false;
 };
 
 }  // namespace irfarm

@@ -373,9 +373,10 @@ bool LightSampler::Sample(const Vec3& p, const Vec3& n, float u1, float u2, floa
     s->distance = INFINITY;
     s->pdf = psel * (HasNormal(n) ? std::max(0.0f, Dot(s->wi, n)) * kInvPi : 0.25f * kInvPi);
     if (!(s->pdf > 0)) return false;
-    s->value = EvalEnvironment(s->wi) / s->pdf;
+    s->value = Vec3(1.0f / s->pdf);  // times EvalEnvironment(wi): Scene::LightValue
+    s->environment = true;
     s->light = -1;
-    return !IsBlack(s->value);
+    return true;
   }
   if (!SampleOne(chosen, p, u1r, u2, u3, s)) return false;
   s->pdf *= psel;

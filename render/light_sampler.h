@@ -48,8 +48,9 @@ class LightSampler {
                const Vec3& wi) const;
 
   // Picks a light by weight (the environment too when include_env) and samples it; pdf and
-  // value include the selection probability. *skipped (if given) counts the local lights that
-  // got weight 0 (no shadow ray is spent on them).
+  // value include the selection probability. An environment sample's value lacks the radiance
+  // (LightSample::environment): Scene::LightValue completes it once the sample is unblocked.
+  // *skipped (if given) counts the local lights that got weight 0 (no shadow ray is spent on them).
   bool Sample(const Vec3& p, const Vec3& n, float u1, float u2, float u3, bool include_env,
               LightSample* s, int* skipped = nullptr) const;
   // Probability that Sample(p, n, ..., include_env = true) picks local light `index`, or the

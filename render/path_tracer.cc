@@ -80,7 +80,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
             if (!scene.Occluded(Scene::SpawnShadowRay(hit, ls))) {
               const float w =
                   ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l));
-              add(beta * f * ls.value * w, depth);
+              add(beta * f * scene.LightValue(ls) * w, depth);
             }
           }
         }

@@ -15,7 +15,7 @@ struct RenderCounters {
   uint64_t record_rays = 0;        // first rays of irradiance-record hemispheres
   uint64_t glossy_bounces = 0;     // irrcache camera-path vertices shaded through a glossy lobe
   uint64_t records_computed = 0;
-  uint64_t records_secondary = 0;    // of records_computed, those made for other records' rays
+  uint64_t records_secondary = 0;    // of records_computed, level 1 (see IrradianceRecord)
   uint64_t lookups = 0;              // irradiance-cache queries
   uint64_t lookup_hits = 0;          // queries answered by interpolation
   uint64_t records_used = 0;         // records summed over successful queries

@@ -85,6 +85,10 @@ class Scene {
   int num_local_lights() const { return lights_.num_local(); }
   // Radiance from the environment lights (constant + envmap) along direction d.
   Vec3 EvalEnvironment(const Vec3& d) const { return lights_.EvalEnvironment(d); }
+  // Le G / pdf of a light sample from SampleLight (its environment radiance looked up now).
+  Vec3 LightValue(const LightSample& s) const {
+    return s.environment ? s.value * lights_.EvalEnvironment(s.wi) : s.value;
+  }
   // Emitted radiance of the surface towards wo (front side only).
   Vec3 Emitted(const SurfaceHit& hit, const Vec3& wo) const;
 

@@ -114,13 +114,6 @@ TEST_P(GoldenImageTest, PathMatchesReferenceWithinMeasuredNoise) {
 
 TEST_P(GoldenImageTest, IrrcacheBeatsPathAt256Spp) {
   const std::string name = GetParam();
-  if (name == "materials") {
-    // Measured: at this 64x48 size irrcache's relMSE is 0.0053 against 0.0041 allowed (glossy
-    // reflections of cached surfaces carry the cache's interpolation error); at full size
-    // (256x192) irrcache at 64 spp gives 0.0028 in 70 s against path's 0.0032 at 256 spp in 73 s
-    // (see the materials figures in the branch report). Not claimed at this size.
-    GTEST_SKIP() << "irrcache vs path at 1/4 size is not claimed for the materials scene";
-  }
   const GoldenCase& g = Case(name);
   const Image& ref = g.ref;
   const double path256 = g.noise * kPathSpp / 256.0;
