@@ -72,11 +72,32 @@ std::vector<Tile> MakeTiles(const PixelRect& r, int size) {
   return tiles;
 }
 
-// --target-error: the starting accuracy. Calibrated on the shared scenes: at a = 0.1 the cache's
-// share of relMSE is about 7e-4 (cornell-box 7.5e-4, room-a 7e-4, sunlit-room 4e-4), and it
-// grows about as a^2; half of the error asked goes to the cache.
+// --target-error: half of the error asked goes to the cache. Calibrated on the shared scenes: at
+// the defaults (a = 0.1, 1536 record rays) the cache's share of relMSE is about 7e-4 (cornell-box
+// 7.5e-4, room-a 7e-4, sunlit-room 4e-4); its interpolation part grows about as a^2.
+constexpr double kCacheErrorAtDefaults = 7e-4;
+
+// --target-error: the samples every pixel gets before adaptive rounds, from the sampling error
+// at 16 spp on the shared scenes (0.9e-4 to 3.3e-4 of relMSE, falling as 1 / spp) and the half
+// of the error left to sampling; never more than the settings' own min_spp.
+constexpr double kSamplingErrorAt16Spp = 2.5e-4;
+int TargetMinSpp(const RenderSettings& s) {
+  const double spp = 16 * kSamplingErrorAt16Spp / (0.5 * s.target_error);
+  return std::clamp(int(std::ceil(spp)), 4, std::max(4, s.min_spp));
+}
+
+// --target-error: the starting accuracy.
 double TargetAccuracy(const RenderSettings& s) {
-  return std::clamp(0.1 * std::sqrt(0.5 * s.target_error / 7e-4), 0.03, 0.4);
+  return std::clamp(0.1 * std::sqrt(0.5 * s.target_error / kCacheErrorAtDefaults), 0.03, 0.4);
+}
+
+// Record rays for --target-error: the cache's error is mostly its records' noise (measured on
+// the shared scenes: half-rays records have 4-18% relative standard error), which falls as
+// 1 / rays, so the rays are scaled from the settings' count by the cache's share of the error.
+int TargetRecordRays(const RenderSettings& s) {
+  const double base = std::max(4, s.irrcache.record_rays);
+  return int(std::lround(
+      std::clamp(base * kCacheErrorAtDefaults / (0.5 * s.target_error), 128.0, 4 * base)));
 }
 
 // Mean over kCacheChecks random pixels of IrrcacheIntegrator::CacheError, clamped at 0.
@@ -431,6 +452,9 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
     PhaseTimer timer("overture");
     if (settings.target_error > 0) {
       ic.accuracy = float(TargetAccuracy(settings));
+      ic.record_rays = TargetRecordRays(settings);
+      const int most_rays = 4 * std::max(4, settings.irrcache.record_rays);
+      double previous_error = 0;
       for (int iteration = 0;; ++iteration) {
         const IrrcacheIntegrator trial(scene, cache, ic);
         if (settings.overture) overture(trial, uint64_t(iteration));
@@ -438,12 +462,18 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
                                          arena, counters);
         const double elapsed =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
-        if (cache_error <= 0.5 * settings.target_error || iteration >= 3 ||
+        // Stop also when the last refinement bought less than a third off the error: what is
+        // left is not the noise or interpolation error that more rays and records remove (a
+        // light leak, the rendered error of a door gap); going on multiplies the cost for nothing.
+        const bool stalled = iteration > 0 && cache_error > (2.0 / 3.0) * previous_error;
+        if (cache_error <= 0.5 * settings.target_error || iteration >= 3 || stalled ||
             (settings.time_limit > 0 && elapsed >= 0.5 * settings.time_limit))
           break;
+        previous_error = cache_error;
         // Interpolation error grows about as a^2 (Ward's bound is linear in a).
-        ic.accuracy *=
-            float(std::clamp(std::sqrt(0.4 * settings.target_error / cache_error), 0.5, 0.9));
+        const double f = std::clamp(std::sqrt(0.4 * settings.target_error / cache_error), 0.5, 0.9);
+        ic.accuracy *= float(f);
+        ic.record_rays = std::min(most_rays, int(std::lround(ic.record_rays / (f * f))));
       }
     } else if (settings.overture) {
       overture(integrator, 0);
@@ -455,6 +485,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
   out.stats.estimated_cache_relmse = cache_error;
   RenderSettings final_settings = settings;
   final_settings.irrcache = ic;
+  if (settings.target_error > 0) final_settings.min_spp = TargetMinSpp(settings);
   if (settings.target_error > 0)
     final_settings.target_error =
         std::max(settings.target_error - std::max(0.0, cache_error), 0.25 * settings.target_error);
@@ -479,9 +510,9 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
   st.tile_size = settings.tile_size;
   if (irrcache) {
     st.accuracy = ic.accuracy;
-    st.record_rays = integrator.strata_theta() * integrator.strata_phi();
-    st.strata_theta = integrator.strata_theta();
-    st.strata_phi = integrator.strata_phi();
+    st.record_rays = final_integrator.strata_theta() * final_integrator.strata_phi();
+    st.strata_theta = final_integrator.strata_theta();
+    st.strata_phi = final_integrator.strata_phi();
     st.light_samples = settings.irrcache.light_samples;
     st.min_spacing_px = settings.irrcache.min_spacing_px;
     st.max_spacing_px = settings.irrcache.max_spacing_px;

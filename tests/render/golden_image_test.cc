@@ -157,6 +157,26 @@ INSTANTIATE_TEST_SUITE_P(Scenes, GoldenImageTest,
                            return n;
                          });
 
+// --target-error E lands within [E/2, 2E] of the reference (issue 6's band), on the scenes at
+// 1/4 size (the reference's own error, scaled as above, widens the band by its amount).
+TEST(GoldenImageTest, TargetErrorLandsWithinAFactorOfTwo) {
+  for (const char* name : {"sunlit-room", "thin-panels"}) {
+    const LoadedScene s = LoadQuarter(name);
+    const Image ref = QuarterReference(name);
+    for (const double target : {4e-3, 1e-3}) {
+      RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
+      settings.seed = 5;
+      settings.target_error = target;
+      settings.adaptive = true;
+      const RenderOutput out = Render(*s.scene, settings);
+      const double err = CompareImages(out.image, ref).relmse;
+      RecordProperty(std::string(name) + "_relmse", std::to_string(err));
+      EXPECT_GT(err, 0.5 * target - ReferenceError(name)) << name << " E " << target;
+      EXPECT_LT(err, 2 * target + ReferenceError(name)) << name << " E " << target;
+    }
+  }
+}
+
 // veach-ajar's reference is too noisy for pixel statistics at this size (see its README); it
 // must render clean with both integrators and land near the reference's mean.
 TEST(GoldenImageTest, VeachAjarRendersClean) {
