@@ -2,11 +2,9 @@
 
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 
 namespace irfarm {
 namespace {
-float ConeCap() { static float c = getenv("CONECAP") ? float(atof(getenv("CONECAP"))) : 1e30f; return c; }  // EXPERIMENT
 constexpr int kMaxSpecularChain = 64;  // delta bounces before a camera path is dropped
 // Up to this many local lights, every light that can reach a point gets its own samples; with
 // more, DirectLight picks lights by their expected contribution (LightSampler::Sample).
@@ -385,7 +383,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
       break;
     }
     distance += hit.t;
-    footprint_distance += hit.t * (1.0f + std::min(cone_extra / pixel_angle, ConeCap()));
+    footprint_distance += hit.t * (1.0f + cone_extra / pixel_angle);
     const Vec3 wo = -ray.dir;
     if (hit.light >= 0) {
       const Vec3 le = scene_.Emitted(hit, wo);
