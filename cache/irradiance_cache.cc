@@ -154,7 +154,7 @@ IrradianceRecord IrradianceCache::Block::Record(int i) const {
   r.position = Vec3(x()[i], y()[i], z()[i]);
   r.normal = c.normal;
   r.irradiance = c.irradiance;
-  r.radius = radius()[i];
+  r.radius = std::min(radius()[i], c.clamped.load(std::memory_order_relaxed));
   r.origin = c.origin;
   r.level = c.level;
   return r;
@@ -163,6 +163,9 @@ IrradianceRecord IrradianceCache::Block::Record(int i) const {
 IrradianceCache::IrradianceCache(const CacheSettings& settings)
     // NaN or a <= 0 become 0: records then reach nowhere and no lookup ever succeeds.
     : max_accuracy_(settings.max_accuracy > 0 ? std::min(settings.max_accuracy, 1.0f) : 0.0f),
+      neighbour_slope_(settings.neighbour_slope > 0 && std::isfinite(settings.neighbour_slope)
+                           ? settings.neighbour_slope
+                           : 0.0f),
       roots_{new Node, new Node} {
   static_assert(kTrees == 2, "one root per tree above");
   const Bounds3& b = settings.bounds;
@@ -216,7 +219,7 @@ bool IrradianceCache::CellOf(const Vec3& x, uint32_t cell[3]) const {
 IrradianceCache::Block* IrradianceCache::Block::Create(int capacity, Block* next) {
   static_assert(sizeof(Block) % alignof(Cold) == 0 && (4 * sizeof(float) * 4) % alignof(Cold) == 0,
                 "hot and cold arrays must be aligned after the header");
-  static_assert(sizeof(Cold) == 40, "level must fit in Cold's padding (records stay 56 bytes)");
+  static_assert(sizeof(Cold) == 48, "records must stay at most 64 bytes (16 hot + 48 cold)");
   static_assert(kMaxBlock <= 64, "slot index must fit in a RecordRef's low 6 bits and `ready`");
   void* memory = ::operator new(Bytes(capacity), std::align_val_t(kBlockAlign));
   Block* b = new (memory) Block;
@@ -246,6 +249,7 @@ void IrradianceCache::AddToNode(Node* node, const IrradianceRecord& r, std::atom
     c.irradiance = r.irradiance;
     c.origin = r.origin;
     c.level = r.level;
+    c.clamped.store(INFINITY, std::memory_order_relaxed);
     b->ready.fetch_or(uint64_t(1) << i, std::memory_order_release);
     const uint64_t ref = RefOf(b, i);
     uint64_t old = all->load(std::memory_order_relaxed);
@@ -284,9 +288,78 @@ void IrradianceCache::GrowRadius(std::atomic<float>* max_radius, float radius) {
   }
 }
 
-void IrradianceCache::Insert(const IrradianceRecord& r) {
-  if (!IsValidRecord(r)) return;
+template <typename F>
+void IrradianceCache::ForEachNeighbour(int tree, const Vec3& x, float radius, F f) const {
+  // The octree walk of Lookup, simpler (once per insert, not per sample): a child is entered when
+  // x lies in its cell grown by max(radius, its largest R) / slope.
+  const double g[3] = {ToGrid(x.x, 0), ToGrid(x.y, 1), ToGrid(x.z, 2)};
+  const double scale = grid_scale_ / double(neighbour_slope_) * (1 + kReachSlack);
+  struct Item {
+    const Node* node;
+    double lo[3];
+    int depth;
+  };
+  Item stack[kLookupStack];
+  int top = 0;
+  stack[top++] = Item{roots_[tree], {0, 0, 0}, 0};
+  while (top > 0) {
+    const Item item = stack[--top];
+    for (const Block* b = item.node->head.load(std::memory_order_acquire); b != nullptr;
+         b = b->next) {
+      const uint64_t ready = b->ready.load(std::memory_order_acquire);
+      for (uint64_t bits = ready; bits != 0; bits &= bits - 1) f(b, __builtin_ctzll(bits));
+    }
+    if (item.depth == kMaxDepth) continue;
+    const Node* children = item.node->children.load(std::memory_order_acquire);
+    if (children == nullptr) continue;
+    const double half = double(1u << (kMaxDepth - 1 - item.depth));
+    for (int i = 0; i < 8; ++i) {
+      const float child_radius = item.node->child_radius[i].load(std::memory_order_acquire);
+      if (!(child_radius > 0)) continue;
+      const double grow = double(std::max(radius, child_radius)) * scale + 1.0;
+      Item next{&children[i], {0, 0, 0}, item.depth + 1};
+      bool enter = true;
+      for (int k = 0; k < 3; ++k) {
+        next.lo[k] = item.lo[k] + (((i >> k) & 1) ? half : 0.0);
+        enter &= g[k] >= next.lo[k] - grow && g[k] <= next.lo[k] + half + grow;
+      }
+      if (enter) stack[top++] = next;
+    }
+  }
+}
 
+float IrradianceCache::ClampToNeighbours(const IrradianceRecord& r) const {
+  float radius = r.radius;
+  ForEachNeighbour(TreeOf(r.level), r.position, r.radius, [&](const Block* b, int i) {
+    const Vec3 xj(b->x()[i], b->y()[i], b->z()[i]);
+    const float rj = std::min(b->radius()[i], b->cold()[i].clamped.load(std::memory_order_relaxed));
+    radius = std::min(radius, rj + neighbour_slope_ * Length(xj - r.position));
+  });
+  return radius;
+}
+
+void IrradianceCache::LowerNeighbours(const IrradianceRecord& r) const {
+  ForEachNeighbour(TreeOf(r.level), r.position, r.radius, [&](const Block* b, int i) {
+    const Vec3 xj(b->x()[i], b->y()[i], b->z()[i]);
+    const float bound = r.radius + neighbour_slope_ * Length(xj - r.position);
+    if (!(bound < b->radius()[i])) return;
+    // Lowered only, with a CAS loop: concurrent inserts may both lower the same record.
+    std::atomic<float>& c = const_cast<Block*>(b)->cold()[i].clamped;
+    float old = c.load(std::memory_order_relaxed);
+    while (bound < old && !c.compare_exchange_weak(old, bound, std::memory_order_relaxed)) {
+    }
+  });
+}
+
+void IrradianceCache::Insert(const IrradianceRecord& in) {
+  if (!IsValidRecord(in)) return;
+  IrradianceRecord r = in;
+  if (neighbour_slope_ > 0) r.radius = ClampToNeighbours(r);
+  InsertUnclamped(r);
+  if (neighbour_slope_ > 0) LowerNeighbours(r);
+}
+
+void IrradianceCache::InsertUnclamped(const IrradianceRecord& r) {
   Node* node = roots_[TreeOf(r.level)];
   uint32_t cell[3];
   if (CellOf(r.position, cell)) {

@@ -26,7 +26,8 @@
 // Measured (one thread, records on the walls of a room as in bench/micro_bench.cc, lookups at
 // a = a_max / 2, thread CPU time on the shared 2-vCPU machine): 0.5-0.8 / 0.8-0.9 / 0.9-1.1 us
 // per lookup at 1k / 10k / 100k records, 1.5-2.5x faster than the previous layout (every record
-// copied into up to 8 nodes) in the same run; 56 bytes per record, octree overhead 0.55-0.75x
+// copied into up to 8 nodes) in the same run; 64 bytes per record (56 before neighbour
+// clamping added its radius), octree overhead 0.55-0.75x
 // the records' bytes (tests/cache: RecordsAreCompactAndTheOctreeSmall). What remains is about
 // 10 node visits, ~130 candidates and ~6 full weighings per lookup at 100k records, mostly cache
 // misses and data-dependent branches; the 250 ns goal of issue 9 is not reached.
@@ -47,6 +48,11 @@ struct CacheSettings {
   // Largest accuracy `a` any lookup will use, in (0, 1] (clamped into it). Determines how far a
   // record reaches (a_max * R_i). 0.2 is rpict's default -aa.
   float max_accuracy = 0.2f;
+  // Neighbour clamping (Krivanek et al. 2006, as Mitsuba 0.5's irrcache does, gentler): a
+  // record's radius is kept within R_j + slope * |x_i - x_j| of every record j of its level, both
+  // for the record inserted and for the records it is inserted among, so that a record next to a
+  // small one (in a gap, a corner) cannot reach over it into light it never saw. 0 = off.
+  float neighbour_slope = 0;
 };
 
 struct LookupInfo {
@@ -120,8 +126,11 @@ class IrradianceCache {
     Vec3 normal;
     Vec3 irradiance;
     uint32_t origin;
-    uint8_t level;  // in what was padding before next_all: the record stays 56 bytes
+    uint8_t level;  // in what was padding before next_all
     uint64_t next_all;
+    // Neighbour clamping's radius, <= the hot part's R (which stays the octree's and the distance
+    // pre-test's upper bound); lowered by later inserts while lookups read it.
+    std::atomic<float> clamped{INFINITY};
   };
   // Bytes of one record in memory: 4 hot floats (x, y, z, R) and its Cold part.
   static constexpr size_t kRecordBytes = 4 * sizeof(float) + sizeof(Cold);
@@ -185,6 +194,14 @@ class IrradianceCache {
   // Cell of x at the deepest level; false if x is outside the root cube (or not finite).
   bool CellOf(const Vec3& x, uint32_t cell[3]) const;
   static void AddToNode(Node* node, const IrradianceRecord& r, std::atomic<uint64_t>* all);
+  void InsertUnclamped(const IrradianceRecord& r);
+  // Calls f(block, slot) for every ready record of tree `tree` within distance
+  // max(radius, R_j) / neighbour_slope_ of x (and maybe some farther ones).
+  template <typename F>
+  void ForEachNeighbour(int tree, const Vec3& x, float radius, F f) const;
+  // Neighbour clamping of r's radius against its neighbours, then of theirs against r's.
+  float ClampToNeighbours(const IrradianceRecord& r) const;
+  void LowerNeighbours(const IrradianceRecord& r) const;
   static void GrowRadius(std::atomic<float>* max_radius, float radius);
   static void DeleteTree(Node* node);
   static void AddMemory(const Node* node, CacheMemory* m);
@@ -195,6 +212,7 @@ class IrradianceCache {
   static int TreeOf(int level) { return level < kTrees ? level : kTrees - 1; }
 
   float max_accuracy_;
+  float neighbour_slope_;
   double root_lo_[3];
   double grid_scale_;  // grid cells per scene unit at depth kMaxDepth
   Node* roots_[kTrees];

@@ -365,6 +365,7 @@ CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& setting
                       ? std::max(settings.irrcache.accuracy, float(TargetAccuracy(settings)))
                       : settings.irrcache.accuracy;
   cs.max_accuracy = std::min(1.0f, a * std::max(1.0f, settings.irrcache.relaxed_factor));
+  cs.neighbour_slope = settings.irrcache.neighbour_slope;
   return cs;
 }
 

@@ -472,6 +472,59 @@ std::vector<IrradianceRecord> RoomRecords(int n, uint32_t seed) {
 // Issue 9's budget: at most 64 bytes per record in memory, and the octree (nodes, block headers,
 // unused slots) at most 1.5x the records' own bytes, on caches of a renderer's size and density
 // and on the random scene of the tests above (radii over four decades, records in the volume).
+// Neighbour clamping: a large record next to a small one (a record in a gap) no longer reaches
+// over it, whichever was inserted first; without clamping it does.
+TEST(IrradianceCacheTest, NeighbourClampingStopsALargeRecordReachingOverASmallOne) {
+  const Vec3 n(0, 0, 1);
+  const IrradianceRecord large = MakeRecord(Vec3(0, 0, 0), n, 1.0f, Vec3(1));
+  const IrradianceRecord small = MakeRecord(Vec3(0.1f, 0, 0), n, 0.01f, Vec3(0.01f));
+  const Vec3 beyond(0.25f, 0, 0);  // within the large record's reach 0.3 * 1, past the small one
+  for (const float slope : {0.0f, 3.0f})
+    for (const bool large_first : {true, false}) {
+      SCOPED_TRACE(testing::Message() << "slope " << slope << " large first " << large_first);
+      CacheSettings settings = UnitSettings(0.3f);
+      settings.neighbour_slope = slope;
+      IrradianceCache cache(settings);
+      cache.Insert(large_first ? large : small);
+      cache.Insert(large_first ? small : large);
+      Vec3 e;
+      LookupInfo info;
+      EXPECT_EQ(cache.Lookup(beyond, n, 0.3f, &e, &info), slope == 0);
+      // Clamped to R_small + slope * 0.1 = 0.31; the lookup agrees with brute force.
+      float radius = 0;
+      cache.ForEach([&](const IrradianceRecord& r) { radius = std::max(radius, r.radius); });
+      EXPECT_NEAR(radius, slope == 0 ? 1.0f : 0.31f, 1e-5f);
+      EXPECT_EQ(cache.LookupBruteForce(beyond, n, 0.3f, &e, &info), slope == 0);
+    }
+}
+
+// After inserts in any order, every pair of records of a random scene satisfies the clamp: the
+// octree walk finds every neighbour that bounds a radius.
+TEST(IrradianceCacheTest, NeighbourClampingHoldsForEveryPair) {
+  const RandomScene scene(1500, 0, 77);
+  CacheSettings settings = UnitSettings(0.2f);
+  settings.neighbour_slope = 3;
+  IrradianceCache cache(settings);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0, 1);
+  for (IrradianceRecord r : scene.records) {
+    r.radius = 0.002f + 0.5f * u(rng) * u(rng);  // radii spread over two orders of magnitude
+    cache.Insert(r);
+  }
+  std::vector<IrradianceRecord> all;
+  cache.ForEach([&](const IrradianceRecord& r) { all.push_back(r); });
+  ASSERT_EQ(all.size(), scene.records.size());
+  int clamped = 0, violations = 0;
+  for (size_t i = 0; i < all.size(); ++i) {
+    clamped += all[i].radius < 0.002f + 0.25f;
+    for (size_t j = 0; j < all.size(); ++j)
+      violations += all[i].radius >
+                    all[j].radius + 3 * Length(all[i].position - all[j].position) * 1.0001f + 1e-6f;
+  }
+  EXPECT_EQ(violations, 0);
+  EXPECT_GT(clamped, 0);
+}
+
 TEST(IrradianceCacheTest, RecordsAreCompactAndTheOctreeSmall) {
   const auto check = [](const std::vector<IrradianceRecord>& records, const char* what) {
     SCOPED_TRACE(what);
