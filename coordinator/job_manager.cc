@@ -1253,7 +1253,9 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   Job* chosen = nullptr;
   std::optional<TileLeaseInfo> lease;
   for (Job* candidate : candidates) {
-    lease = candidate->tiles->Lease(worker_id, now, options_.lease_time, others);
+    // Near its previous tile of the job: its tiles, and so its region, stay together.
+    const int near = worker.lease_job == candidate->stored.job().id() ? worker.lease_tile : -1;
+    lease = candidate->tiles->Lease(worker_id, now, options_.lease_time, others, near);
     if (lease) {
       chosen = candidate;
       break;
