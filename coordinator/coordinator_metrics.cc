@@ -31,6 +31,16 @@ CoordinatorMetrics::CoordinatorMetrics(MetricsRegistry* r)
       fanout_batches_dropped(
           r->AddCounter("irfarm_fanout_batches_dropped_total",
                         "Record batches not queued for a worker because its outbox was full.")),
+      records_withheld(r->AddCounter(
+          "irfarm_records_withheld_total",
+          "Records not sent to a worker: they reach no tile region of it (filtered fan-out).")),
+      records_backlog(r->AddCounter(
+          "irfarm_records_backlog_total",
+          "Withheld records sent later, when the worker's region grew to reach them.")),
+      regions_accepted(
+          r->AddCounter("irfarm_tile_regions_total", "TileRegion messages accepted from workers.")),
+      regions_rejected(r->AddCounter("irfarm_tile_regions_rejected_total",
+                                     "Malformed TileRegion messages (counted as violations).")),
       worker_violations(r->AddCounter("irfarm_worker_violations_total",
                                       "Invalid messages from workers (answered Rejected).")),
       records_computed(r->AddCounter("irfarm_records_computed_total",

@@ -25,6 +25,10 @@ struct CoordinatorMetrics {
   Counter* records_sent;      // records streamed to workers (fan-out and late join)
   Counter* record_bytes_sent;
   Counter* fanout_batches_dropped;  // a worker's outbox was full
+  Counter* records_withheld;        // not sent: outside the worker's region (filtered fan-out)
+  Counter* records_backlog;         // sent late, when a worker's region grew to reach them
+  Counter* regions_accepted;        // TileRegion messages that grew a worker's region or not
+  Counter* regions_rejected;        // malformed TileRegion messages (violations)
   Counter* worker_violations;
   Counter* records_computed;  // summed from workers' tile stats
   Counter* lookups;           // irradiance-cache queries, from workers' tile stats

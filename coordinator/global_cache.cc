@@ -4,7 +4,9 @@
 namespace irfarm {
 
 GlobalCache::GlobalCache(const CacheSettings& settings, const RecordBounds& bounds)
-    : bounds_(bounds), cache_(std::make_unique<IrradianceCache>(settings)) {}
+    : bounds_(bounds),
+      cache_(std::make_unique<IrradianceCache>(settings)),
+      max_accuracy_(cache_->max_accuracy()) {}
 
 std::vector<IrradianceRecord> GlobalCache::Check(const std::vector<IrradianceRecord>& records,
                                                  const char** problem) {

@@ -37,12 +37,16 @@ class GlobalCache {
   size_t size() const { return records_.size(); }
   size_t rejected() const { return rejected_; }
   const RecordBounds& bounds() const { return bounds_; }
+  // The largest lookup accuracy of the job (CacheSettings.max_accuracy, as clamped by the
+  // cache): a record reaches max_accuracy() * R_i (filtered fan-out, fanout_region.h).
+  float max_accuracy() const { return max_accuracy_; }
 
  private:
   RecordBounds bounds_;
   std::unique_ptr<IrradianceCache> cache_;  // null after ReleaseIndex
   std::vector<IrradianceRecord> records_;
   size_t rejected_ = 0;
+  float max_accuracy_;
 };
 
 }  // namespace irfarm

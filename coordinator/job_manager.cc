@@ -17,6 +17,7 @@
 
 #include "cache/snapshot.h"
 #include "coordinator/cache_seed.h"
+#include "coordinator/fanout_region.h"
 #include "render/image.h"
 #include "service/job_settings.h"
 #include "service/record_codec.h"
@@ -121,6 +122,19 @@ void JobManager::CollectMetrics(MetricsWriter& w) const {
     silent += worker.silent;
     leased += worker.has_lease;
   }
+  w.Family("irfarm_worker_records_delivered", "counter",
+           "Records of other workers (and imported ones) sent to a connected worker.");
+  for (const auto& [id, worker] : workers_)
+    w.Sample("irfarm_worker_records_delivered",
+             {{"worker", std::to_string(id)}, {"name", worker.name}},
+             double(worker.records_delivered));
+  w.Family("irfarm_worker_records_withheld", "counter",
+           "Records not sent to a connected worker when they reached none of its tile regions "
+           "(filtered fan-out; some are sent later from the backlog).");
+  for (const auto& [id, worker] : workers_)
+    w.Sample("irfarm_worker_records_withheld",
+             {{"worker", std::to_string(id)}, {"name", worker.name}},
+             double(worker.records_withheld));
   w.Family("irfarm_workers", "gauge", "Connected workers: all, holding a lease, silent.");
   w.Sample("irfarm_workers", {{"state", "connected"}}, double(workers_.size()));
   w.Sample("irfarm_workers", {{"state", "leased"}}, leased);
@@ -480,8 +494,90 @@ void JobManager::FinishJob(Job& job, v1::JobState state, const std::string& erro
     it->second.outbox.push_back(std::move(m));
     it->second.jobs.erase(j->id());
   }
+  for (const auto& [w, stats] : job.worker_stats)
+    if (stats.records_delivered() + stats.records_withheld() > 0)
+      spdlog::info("job {}: worker {} was sent {} records ({} from its backlog), withheld {}",
+                   j->id(), w, stats.records_delivered(), stats.records_backlog(),
+                   stats.records_withheld() - stats.records_backlog());
   job.workers.clear();
+  job.regions.clear();
   Changed();
+}
+
+void JobManager::CountFanout(Job& job, uint32_t worker_id, Worker& worker, size_t delivered,
+                             size_t withheld, size_t backlog) {
+  v1::WorkerJobStats& ws = job.worker_stats[worker_id];
+  ws.set_worker_id(worker_id);
+  if (ws.worker_name().empty()) ws.set_worker_name(worker.name);
+  ws.set_records_delivered(ws.records_delivered() + delivered);
+  ws.set_records_withheld(ws.records_withheld() + withheld);
+  ws.set_records_backlog(ws.records_backlog() + backlog);
+  worker.records_delivered += delivered;
+  worker.records_withheld += withheld;
+  metrics_.records_withheld->Add(double(withheld));
+  metrics_.records_backlog->Add(double(backlog));
+}
+
+absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion& region) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto wit = workers_.find(worker_id);
+  if (wit == workers_.end()) return absl::NotFoundError("no worker");
+  Worker& w = wit->second;
+  const bool current =
+      w.has_lease && w.lease_id == region.lease_id() && w.lease_job == region.job_id();
+  if (!current) return NotHolder(worker_id, &w, region.lease_id(), "tile region");
+  auto jit = jobs_.find(region.job_id());
+  if (jit == jobs_.end() || IsFinal(*jit->second))
+    return absl::FailedPreconditionError("tile region for a job that ended");
+  Job& job = *jit->second;
+  absl::StatusOr<Bounds3> box = ParseTileRegion(region, job.cache->bounds().box);
+  if (!box.ok()) {
+    metrics_.regions_rejected->Add();
+    return Violation(worker_id, w, std::string(box.status().message()));
+  }
+  Job::Region& r = job.regions[worker_id];
+  if (r.lease_id == region.lease_id())
+    return absl::FailedPreconditionError("tile region: one per lease, this one ignored");
+  r.lease_id = region.lease_id();
+  metrics_.regions_accepted->Add();
+  if (!Filtered(w) || !job.workers.count(worker_id)) return absl::OkStatus();
+  const Bounds3 old = r.box;
+  r.box.Extend(*box);
+  const auto same = [](const Vec3& u, const Vec3& v) {
+    return u.x == v.x && u.y == v.y && u.z == v.z;
+  };
+  if (!old.Empty() && same(old.lo, r.box.lo) && same(old.hi, r.box.hi)) return absl::OkStatus();
+  // Backlog: records that reach the grown region but not the old one were withheld (every
+  // record reaching the old region was sent, by fan-out or backlog). O(records of the job) per
+  // growth, at most once per lease.
+  const bool share = job.stored.job().settings().share_records();
+  const float a = job.cache->max_accuracy();
+  std::vector<IrradianceRecord> chunk;
+  const std::vector<IrradianceRecord>& all = job.cache->records();
+  for (size_t i = 0; i <= all.size(); ++i) {
+    if (i == all.size() || chunk.size() == options_.sync_batch_records) {
+      if (!chunk.empty()) {
+        v1::CoordinatorMessage m;
+        m.mutable_records()->set_job_id(region.job_id());
+        PackRecords(chunk, kSnapshotOrigin, m.mutable_records()->mutable_batch());
+        const size_t bytes = BatchBytes(m.records().batch());
+        v1::WorkerJobStats& ws = job.worker_stats[worker_id];
+        ws.set_bytes_received(ws.bytes_received() + bytes);
+        metrics_.records_sent->Add(chunk.size());
+        metrics_.record_bytes_sent->Add(bytes);
+        CountFanout(job, worker_id, w, chunk.size(), 0, chunk.size());
+        w.outbox_bytes += bytes;
+        w.outbox.push_back(std::move(m));
+        chunk.clear();
+      }
+      if (i == all.size()) break;
+    }
+    const IrradianceRecord& rec = all[i];
+    if (rec.origin == worker_id || (!share && rec.origin != kSnapshotOrigin)) continue;
+    if (RecordReachesBox(rec, r.box, a) && !RecordReachesBox(rec, old, a)) chunk.push_back(rec);
+  }
+  Changed();
+  return absl::OkStatus();
 }
 
 absl::StatusOr<v1::Job> JobManager::Cancel(const std::string& id, const Caller& caller) {
@@ -698,10 +794,12 @@ uint64_t JobManager::WaitForChange(uint64_t seen, std::chrono::milliseconds time
   return version_;
 }
 
-uint32_t JobManager::RegisterWorker(const std::string& name, const std::string& peer, int threads) {
+uint32_t JobManager::RegisterWorker(const std::string& name, const std::string& peer, int threads,
+                                    bool reports_regions) {
   std::lock_guard<std::mutex> lock(mu_);
   const uint32_t id = next_worker_++;
   Worker& w = workers_[id];
+  w.reports_regions = reports_regions;
   w.name = Printable(name, options_.limits.max_name_bytes);
   w.peer = peer;
   w.threads = threads;
@@ -880,15 +978,33 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
   }
   Job& job2 = *it->second;
   if (job2.stored.job().settings().share_records()) {
-    v1::CoordinatorMessage m;
-    m.mutable_records()->set_job_id(records.job_id());
-    PackRecords(accepted, worker, m.mutable_records()->mutable_batch());
-    const size_t bytes = BatchBytes(m.records().batch());
+    v1::CoordinatorMessage all;  // for workers whose fan-out is not filtered
+    all.mutable_records()->set_job_id(records.job_id());
+    PackRecords(accepted, worker, all.mutable_records()->mutable_batch());
+    const float max_accuracy = job2.cache->max_accuracy();
+    std::vector<IrradianceRecord> near;
     for (uint32_t other : job2.workers) {
       if (other == worker) continue;
       auto owit = workers_.find(other);
       if (owit == workers_.end()) continue;
       Worker& ow = owit->second;
+      const v1::CoordinatorMessage* m = &all;
+      v1::CoordinatorMessage filtered;
+      if (Filtered(ow)) {
+        const Bounds3& box = job2.regions[other].box;
+        near.clear();
+        for (const IrradianceRecord& r : accepted)
+          if (RecordReachesBox(r, box, max_accuracy)) near.push_back(r);
+        if (near.size() < accepted.size()) {
+          CountFanout(job2, other, ow, 0, accepted.size() - near.size(), 0);
+          if (near.empty()) continue;
+          filtered.mutable_records()->set_job_id(records.job_id());
+          PackRecords(near, worker, filtered.mutable_records()->mutable_batch());
+          m = &filtered;
+        }
+      }
+      const size_t bytes = BatchBytes(m->records().batch());
+      const size_t n = size_t(m->records().batch().origins_size());
       // A worker that does not keep up (or does not read) gets no more fan-out past the bound:
       // the records are an optimisation, it computes its own instead.
       if (ow.outbox_bytes + bytes > options_.limits.max_outbox_bytes) {
@@ -896,13 +1012,14 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
         metrics_.fanout_batches_dropped->Add();
         continue;
       }
-      ow.outbox.push_back(m);
+      ow.outbox.push_back(*m);
       ow.outbox_bytes += bytes;
-      metrics_.records_sent->Add(accepted.size());
+      metrics_.records_sent->Add(n);
       metrics_.record_bytes_sent->Add(bytes);
       v1::WorkerJobStats& os = job2.worker_stats[other];
       os.set_worker_id(other);
       os.set_bytes_received(os.bytes_received() + bytes);
+      CountFanout(job2, other, ow, n, 0, 0);
     }
   }
   Changed();
@@ -1136,7 +1253,9 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   Job* chosen = nullptr;
   std::optional<TileLeaseInfo> lease;
   for (Job* candidate : candidates) {
-    lease = candidate->tiles->Lease(worker_id, now, options_.lease_time, others);
+    // Near its previous tile of the job: its tiles, and so its region, stay together.
+    const int near = worker.lease_job == candidate->stored.job().id() ? worker.lease_tile : -1;
+    lease = candidate->tiles->Lease(worker_id, now, options_.lease_time, others, near);
     if (lease) {
       chosen = candidate;
       break;
@@ -1152,8 +1271,12 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
     *spec.mutable_job_spec()->mutable_scene() = job.stored.scene();
     *spec.mutable_job_spec()->mutable_settings() = job.stored.job().settings();
     out->push_back(std::move(spec));
-    // Late join: the job's records so far (imported ones always, others' when sharing).
+    // Late join: the job's records so far (imported ones always, others' when sharing). With
+    // filtered fan-out none yet: the worker's region is empty until its first TileRegion, whose
+    // backlog then brings the records that reach it.
     const bool share = job.stored.job().settings().share_records();
+    const bool filtered = Filtered(worker);
+    size_t withheld = 0;
     const std::vector<IrradianceRecord>& all = job.cache->records();
     std::vector<IrradianceRecord> chunk;
     for (size_t i = 0; i <= all.size(); ++i) {
@@ -1167,13 +1290,20 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
           ws.set_bytes_received(ws.bytes_received() + BatchBytes(m.records().batch()));
           metrics_.records_sent->Add(chunk.size());
           metrics_.record_bytes_sent->Add(BatchBytes(m.records().batch()));
+          CountFanout(job, worker_id, worker, chunk.size(), 0, 0);
           out->push_back(std::move(m));
           chunk.clear();
         }
         if (i == all.size()) break;
       }
-      if (share || all[i].origin == kSnapshotOrigin) chunk.push_back(all[i]);
+      if (!share && all[i].origin != kSnapshotOrigin) continue;
+      if (filtered && !RecordReachesBox(all[i], Bounds3(), 1.0f)) {
+        ++withheld;
+        continue;
+      }
+      chunk.push_back(all[i]);
     }
+    if (withheld > 0) CountFanout(job, worker_id, worker, 0, withheld, 0);
     job.workers.insert(worker_id);
     worker.jobs.insert(id);
   }

@@ -16,6 +16,14 @@
 // (cache_seed.h). Records and tile results come in through AddRecords and CompleteTile;
 // WorkerGone requeues the tiles of a worker whose stream broke.
 //
+// Filtered fan-out (options.filter_fanout, for workers that registered with reports_regions): a
+// worker gets only the records that reach the region its leased tiles see (fanout_region.h),
+// the union of the TileRegion boxes it sent for the job; at late join it gets none (its region
+// is empty), and whenever its region grows it gets the job's records that reach the grown region
+// but not the old one (the backlog of records withheld from it). Per worker and job the records
+// delivered, withheld and sent from the backlog are counted (WorkerJobStats, Prometheus, and a
+// log line when the job ends).
+//
 // Nothing a worker sends is trusted (issue 10): a tile result or TileFailed counts only from the
 // session holding that (random) lease; pixels must be finite and non-negative and stats sane;
 // records are merged only for a job the worker holds a lease of, while the job runs, and only
@@ -84,6 +92,9 @@ struct JobManagerOptions {
   std::chrono::milliseconds quarantine_time{30000};
   int max_violations = 16;  // invalid messages before the coordinator ends a worker's session
   size_t sync_batch_records = 16384;  // records per batch when catching up a late joiner
+  // Send a worker that reports regions only the records that reach them (false: every record to
+  // every worker of the job, `irfarm-coordinator --fanout=all`).
+  bool filter_fanout = true;
   JobLimits limits;
   // Scenes given by path (SceneSource.path, read from the coordinator's file system): allowed
   // under this directory; with none, only for admin callers (which, without authentication, is
@@ -150,7 +161,8 @@ class JobManager {
   // message (a result for a lease this worker lost, records for a job that just ended),
   // UNAVAILABLE when the store failed, or PERMISSION_DENIED / INVALID_ARGUMENT for an invalid
   // message (counted against the worker and answered with a Rejected message).
-  uint32_t RegisterWorker(const std::string& name, const std::string& peer = "", int threads = 0);
+  uint32_t RegisterWorker(const std::string& name, const std::string& peer = "", int threads = 0,
+                          bool reports_regions = false);
   void WorkerGone(uint32_t worker, const std::string& reason);
   // The worker will finish its tile and leave: give it no new lease.
   void Drain(uint32_t worker);
@@ -159,6 +171,11 @@ class JobManager {
   absl::Status AddRecords(uint32_t worker, const v1::JobRecords& records);
   absl::Status CompleteTile(uint32_t worker, const v1::TileResult& result);
   absl::Status FailTile(uint32_t worker, const v1::TileFailed& failed);
+  // Grows the worker's region of the job (filtered fan-out) and queues the backlog of records
+  // that now reach it. One region per lease; INVALID_ARGUMENT / PERMISSION_DENIED (counted as a
+  // violation) for a malformed box or a lease the worker never held, FAILED_PRECONDITION for a
+  // stale or repeated one (ignored).
+  absl::Status AddTileRegion(uint32_t worker, const v1::TileRegion& region);
   // True when the worker sent more than max_violations invalid messages: end its session.
   bool Expelled(uint32_t worker) const;
   std::vector<v1::CoordinatorMessage> Poll(uint32_t worker, std::chrono::milliseconds timeout);
@@ -183,6 +200,13 @@ class JobManager {
     std::map<int, std::string> pixels;
     std::map<uint32_t, v1::WorkerJobStats> worker_stats;
     std::set<uint32_t> workers;  // have the spec (and get the job's records)
+    // Filtered fan-out: per worker, the union of its TileRegion boxes (empty: none yet) and the
+    // lease its last accepted region came with (one region per lease).
+    struct Region {
+      Bounds3 box;
+      uint64_t lease_id = 0;
+    };
+    std::map<uint32_t, Region> regions;
     SteadyTime started, finished;
     bool has_started = false;
   };
@@ -203,6 +227,10 @@ class JobManager {
     uint32_t violations = 0;
     size_t outbox_bytes = 0;       // record payload queued in outbox
     uint64_t batches_dropped = 0;  // fan-out batches not queued: outbox over max_outbox_bytes
+    bool reports_regions = false;  // sends TileRegion messages (registered so)
+    // Records of other workers (and imported ones) sent to it, and withheld by the filter, over
+    // all its jobs (the Prometheus per-worker counters).
+    uint64_t records_delivered = 0, records_withheld = 0;
   };
   // Failure history of a worker name (survives reconnects, so a broken worker that reconnects
   // stays quarantined).
@@ -247,6 +275,14 @@ class JobManager {
   // record settings (cache_seed.h) into its cache, so its workers get them on joining.
   void SeedCache(Job& job);
   void Changed();
+  // Whether fan-out to `worker` is filtered by its regions.
+  bool Filtered(const Worker& worker) const {
+    return options_.filter_fanout && worker.reports_regions;
+  }
+  // Counts records delivered to / withheld from `worker_id` for `job` (backlog: delivered ones
+  // that had been withheld).
+  void CountFanout(Job& job, uint32_t worker_id, Worker& worker, size_t delivered, size_t withheld,
+                   size_t backlog);
   // The denoiser, loaded on first use (thread-safe); its error says why it is unavailable.
   absl::StatusOr<const Denoiser*> GetDenoiser() const;
 

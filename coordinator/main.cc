@@ -102,6 +102,11 @@ int main(int argc, char** argv) {
                  "records per worker message (65536)");
   app.add_option("--max-outbox-mib", max_outbox_mib,
                  "record fan-out queued per worker before batches are dropped (64)");
+  std::string fanout = "region";
+  app.add_option("--fanout", fanout,
+                 "which records a worker is sent: 'region' (those reaching what its tiles see) "
+                 "or 'all' (every record of its jobs); default region")
+      ->check(CLI::IsMember({"region", "all"}));
   app.add_option("--max-live-jobs", lim.max_live_jobs_per_client,
                  "queued + running jobs per client (64)");
   app.add_option("--metrics", metrics_address,
@@ -191,6 +196,7 @@ int main(int argc, char** argv) {
   irfarm::TimedJobStore timed_store(store.get(), &metrics);
   options.max_upload_bytes = size_t(max_upload_mib * 1024 * 1024);
   lim.max_outbox_bytes = size_t(max_outbox_mib * 1024 * 1024);
+  options.filter_fanout = fanout == "region";
   options.lease_time = std::chrono::milliseconds(int64_t(lease_seconds * 1000));
   options.heartbeat =
       std::chrono::milliseconds(std::max<int64_t>(50, int64_t(heartbeat_seconds * 1000)));

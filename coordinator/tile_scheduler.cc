@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <limits>
 #include <random>
 
 namespace irfarm {
@@ -39,13 +40,15 @@ TileScheduler::TileScheduler(int width, int height, int tile_size, const TileRet
 
 std::optional<TileLeaseInfo> TileScheduler::Lease(uint32_t worker, SteadyTime now,
                                                   std::chrono::milliseconds lease_time,
-                                                  const std::vector<uint32_t>& others) {
+                                                  const std::vector<uint32_t>& others, int near) {
   auto chosen = pending_.end();
+  if (near >= num_tiles()) near = -1;
+  int best = std::numeric_limits<int>::max();  // squared grid distance of a far `chosen` to near
   for (auto it = pending_.begin(); it != pending_.end(); ++it) {
     const std::set<uint32_t>& failed = failed_on_[size_t(*it)];
     if (failed.count(worker) &&
         std::any_of(others.begin(), others.end(), [&](uint32_t o) { return !failed.count(o); }))
-      continue;  // a worker it has not failed on will take it
+      continue;                                 // a worker it has not failed on will take it
     if (chosen == pending_.end()) chosen = it;  // the first eligible, if none is far
     bool far = true;
     for (const TileLeaseInfo& l : leases_) {
@@ -53,9 +56,15 @@ std::optional<TileLeaseInfo> TileScheduler::Lease(uint32_t worker, SteadyTime no
       const int dy = std::abs(*it / tiles_x_ - l.tile / tiles_x_);
       if (std::max(dx, dy) < 2) far = false;
     }
-    if (far) {
+    if (!far) continue;
+    if (near < 0) {
       chosen = it;
       break;
+    }
+    const int dx = *it % tiles_x_ - near % tiles_x_, dy = *it / tiles_x_ - near / tiles_x_;
+    if (dx * dx + dy * dy < best) {
+      best = dx * dx + dy * dy;
+      chosen = it;
     }
   }
   if (chosen == pending_.end()) return std::nullopt;

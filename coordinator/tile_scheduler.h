@@ -52,10 +52,13 @@ class TileScheduler {
   // Leases a pending tile to `worker`, preferring one at least two tiles away from every tile
   // leased now (so concurrent workers compute fewer overlapping records). A tile that failed on
   // `worker` is skipped while one of `others` (the other workers that could take a lease) has
-  // not failed it. nullopt when no tile is pending for this worker.
+  // not failed it. With `near` (the worker's previous tile of this job, -1: none), the far tile
+  // nearest to it is taken instead of the first (ties: queue order), so each worker's tiles stay
+  // together and see one part of the scene: what makes filtered record fan-out pay
+  // (fanout_region.h). nullopt when no tile is pending for this worker.
   std::optional<TileLeaseInfo> Lease(uint32_t worker, SteadyTime now,
                                      std::chrono::milliseconds lease_time,
-                                     const std::vector<uint32_t>& others = {});
+                                     const std::vector<uint32_t>& others = {}, int near = -1);
 
   // The current lease `lease_id` of `tile`, or nullptr (expired and re-leased, done, or never).
   const TileLeaseInfo* Current(int tile, uint64_t lease_id) const;

@@ -36,7 +36,8 @@ grpc::Status WorkerServiceImpl::Session(
   if (msg.register_().name().size() > manager_->options().limits.max_name_bytes)
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "worker name too long");
   const uint32_t id =
-      manager_->RegisterWorker(msg.register_().name(), context->peer(), msg.register_().threads());
+      manager_->RegisterWorker(msg.register_().name(), context->peer(), msg.register_().threads(),
+                               msg.register_().reports_regions());
   sessions_->Add();
   spdlog::info("worker {} connected from {}", id, context->peer());
   {
@@ -79,6 +80,9 @@ grpc::Status WorkerServiceImpl::Session(
         st = manager_->FailTile(id, msg.tile_failed());
         break;
       }
+      case v1::WorkerMessage::kTileRegion:
+        st = manager_->AddTileRegion(id, msg.tile_region());
+        break;
       case v1::WorkerMessage::kDrain:
         manager_->Drain(id);
         reason = "drained";

@@ -6,9 +6,11 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <optional>
 #include <thread>
 
 #include "service/record_codec.h"
+#include "worker/tile_region.h"
 
 namespace irfarm {
 namespace {
@@ -84,6 +86,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
     v1::WorkerMessage reg;
     reg.mutable_register_()->set_name(options_.name);
     reg.mutable_register_()->set_threads(options_.threads);
+    reg.mutable_register_()->set_reports_regions(true);
     v1::CoordinatorMessage reply;
     if (!stream->Write(reg) || !stream->Read(&reply) || !reply.has_registered()) {
       context.TryCancel();
@@ -218,6 +221,21 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
     }
     const PixelRect rect{lease.rect().x0(), lease.rect().y0(), lease.rect().x1(),
                          lease.rect().y1()};
+    // What the tile sees, before rendering it: the coordinator then sends the records that
+    // reach it (filtered fan-out), while the tile renders.
+    if (std::optional<Bounds3> box = TileRegionOf(job->scene(), rect)) {
+      v1::WorkerMessage rm;
+      v1::TileRegion* tr = rm.mutable_tile_region();
+      tr->set_job_id(lease.job_id());
+      tr->set_lease_id(lease.lease_id());
+      tr->set_min_x(box->lo.x);
+      tr->set_min_y(box->lo.y);
+      tr->set_min_z(box->lo.z);
+      tr->set_max_x(box->hi.x);
+      tr->set_max_y(box->hi.y);
+      tr->set_max_z(box->hi.z);
+      if (!write(rm)) break;
+    }
     RenderOutput out = RenderRect(job->scene(), job->settings(), job->cache(), rect);
     publish_all();  // the tile's records go out before its result
     v1::WorkerMessage m;

@@ -60,3 +60,20 @@ TEST(TileSchedulerTest, OneWorkerFailingRepeatedlyFailsAfterMaxAttempts) {
 
 }  // namespace
 }  // namespace irfarm
+
+namespace irfarm {
+namespace {
+
+// Affinity (filtered fan-out): a worker's next tile is the far tile nearest to its previous one.
+TEST(TileSchedulerTest, LeasePrefersTilesNearTheWorkersPreviousTile) {
+  TileScheduler s(64, 64, 16, TileRetryPolicy());        // 4 x 4 tiles, index = 4 y + x
+  EXPECT_EQ(s.Lease(1, SteadyTime(), kLease)->tile, 0);  // no previous tile: queue order
+  // Worker 2 was at tile 10 = (2, 2): it gets 10's nearest pending tile far from tile 0 (10).
+  EXPECT_EQ(s.Lease(2, SteadyTime(), kLease, {1}, 10)->tile, 10);
+  // Worker 3 near 10 too: the tiles at least 2 away from both leases ((0, 0) and (2, 2)) nearest
+  // to (2, 2) are (2, 0) = 2 and (0, 2) = 8 (squared distance 4); queue order takes 2.
+  EXPECT_EQ(s.Lease(3, SteadyTime(), kLease, {1, 2}, 10)->tile, 2);
+}
+
+}  // namespace
+}  // namespace irfarm
