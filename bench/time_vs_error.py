@@ -174,10 +174,10 @@ def main():
             for spp in [x for x in a.irrcache_spp.split(",") if x]:
                 add("irrcache", render(a.irfarm, d, ["--spp", spp, "--adaptive", "off"], tmp,
                                        name + "-irr" + spp))
-            for t in a.targets.split(","):
+            for t in [x for x in a.targets.split(",") if x]:
                 add("irrcache-target", render(a.irfarm, d, ["--target-error", t], tmp,
                                               name + "-t" + t))
-            for spp in a.path_spp.split(","):
+            for spp in [x for x in a.path_spp.split(",") if x]:
                 add("path", render(a.irfarm, d, ["--integrator", "path", "--spp", spp], tmp,
                                    name + "-path" + spp))
             if a.baseline_bin:
@@ -196,7 +196,8 @@ def main():
                 print(f"{name}: Mitsuba live failed ({e}); using its curve file", file=sys.stderr)
         default = runs[0]
         path_curve = [(r["seconds"], r["relmse"]) for r in runs if r["method"] == "path"]
-        t_path, path_flag = time_for(path_curve, default["relmse"])
+        t_path, path_flag = (time_for(path_curve, default["relmse"]) if path_curve else
+                             (float("nan"), ""))
         t_mit, mit_flag = time_for([(m[0], m[1]) for m in mit], default["relmse"]) if mit else (
             float("nan"), "")
         mit256 = next((m[1] for m in mit if m[2] == 256), float("nan"))
