@@ -56,6 +56,7 @@ class RedisServer {
   RedisServer& operator=(const RedisServer&) = delete;
 
   std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  int port() const { return port_; }
   pid_t pid() const { return pid_; }
   // A store connected to this server, retried for up to 5 s while it starts; null if it never
   // answered.
