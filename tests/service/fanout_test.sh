@@ -12,13 +12,7 @@
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/two-rooms/scene.xml
 OPTS=(-Dmax_depth=4 --spp 32 --record-rays 256 --tile-size 48)
-command -v redis-server >/dev/null || fail "redis-server not installed (deploy/setup.sh installs it)"
-RPORT=$(free_port)
-mkdir -p "$WORK/redis"
-redis-server --port "$RPORT" --bind 127.0.0.1 --dir "$WORK/redis" --save "" --appendonly no \
-  >"$WORK/redis.log" 2>&1 &
-PIDS+=("$!")
-for _ in $(seq 50); do redis-cli -p "$RPORT" ping >/dev/null 2>&1 && break; sleep 0.1; done
+start_redis
 
 # cluster MODE PREFIX: a coordinator with --fanout=MODE and two workers, both registered (counted
 # in the coordinator log, which all clusters append to: WANT_CONNECTED lines).

@@ -19,6 +19,20 @@ fail() { echo "FAIL: $*" >&2; for f in "$WORK"/*.log; do echo "--- $f"; tail -20
 
 free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
 
+# start_redis: a real redis-server on a free loopback port, no persistence, in $WORK/redis; sets
+# RPORT and REDIS_PID and waits until it answers.
+start_redis() {
+  command -v redis-server >/dev/null || fail "redis-server not installed (deploy/setup.sh installs it)"
+  RPORT=$(free_port)
+  mkdir -p "$WORK/redis"
+  redis-server --port "$RPORT" --bind 127.0.0.1 --dir "$WORK/redis" --save "" --appendonly no \
+    >"$WORK/redis.log" 2>&1 &
+  REDIS_PID=$!
+  PIDS+=("$REDIS_PID")
+  for _ in $(seq 50); do redis-cli -p "$RPORT" ping >/dev/null 2>&1 && return 0; sleep 0.1; done
+  fail "redis-server did not answer on port $RPORT"
+}
+
 # start_coordinator ADDR [args...]: starts it and waits until it answers.
 start_coordinator() {
   local addr=$1; shift

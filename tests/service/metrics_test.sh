@@ -19,14 +19,7 @@ for p in python3 /usr/bin/python3; do
   if "$p" -c 'import prometheus_client' 2>/dev/null; then PY=$p; break; fi
 done
 [[ -n $PY ]] || { echo "SKIP: prometheus_client not installed (apt-get install python3-prometheus-client)"; exit 77; }
-command -v redis-server >/dev/null || fail "redis-server not installed (deploy/setup.sh installs it)"
-
-RPORT=$(free_port)
-mkdir -p "$WORK/redis"
-redis-server --port "$RPORT" --bind 127.0.0.1 --dir "$WORK/redis" --save "" --appendonly no \
-  >"$WORK/redis.log" 2>&1 &
-PIDS+=("$!")
-for _ in $(seq 50); do redis-cli -p "$RPORT" ping >/dev/null 2>&1 && break; sleep 0.1; done
+start_redis
 
 ADDR=127.0.0.1:$(free_port)
 CM=127.0.0.1:$(free_port)

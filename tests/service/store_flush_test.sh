@@ -4,13 +4,7 @@
 # silently). Real redis-server and coordinator on 127.0.0.1, no workers (jobs stay queued).
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/cornell-box/scene.xml
-command -v redis-server >/dev/null || fail "redis-server not installed (deploy/setup.sh installs it)"
-RPORT=$(free_port)
-mkdir -p "$WORK/redis"
-redis-server --port "$RPORT" --bind 127.0.0.1 --dir "$WORK/redis" --save "" --appendonly no \
-  >"$WORK/redis.log" 2>&1 &
-PIDS+=("$!")
-for _ in $(seq 50); do redis-cli -p "$RPORT" ping >/dev/null 2>&1 && break; sleep 0.1; done
+start_redis
 ADDR=127.0.0.1:$(free_port)
 start_coordinator "$ADDR" --redis "127.0.0.1:$RPORT"
 submit() { "$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" -Dresx=32 -Dresy=32 -q "$@"; }
