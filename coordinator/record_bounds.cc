@@ -9,21 +9,10 @@ namespace {
 
 constexpr float kInterreflectionFactor = 100.0f;  // 1 / (1 - 0.99), see record_bounds.h
 
-float MaxChannel(const Vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
-
-float Length3(const Vec3& v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
-
 }  // namespace
 
 Bounds3 SceneShapeBounds(const SceneDesc& desc) {
-  Bounds3 b;
-  for (const ShapeDesc& s : desc.shapes) {
-    if (s.type == ShapeType::kSphere) {
-      b.Extend(s.center - Vec3(s.radius));
-      b.Extend(s.center + Vec3(s.radius));
-    }
-    for (const Vec3& p : s.mesh.positions) b.Extend(p);
-  }
+  Bounds3 b = ShapeBounds(desc);
   if (b.Empty()) {
     b.Extend(Vec3(-1));
     b.Extend(Vec3(1));
@@ -33,22 +22,22 @@ Bounds3 SceneShapeBounds(const SceneDesc& desc) {
 
 float EmitterIrradianceBound(const SceneDesc& desc) {
   const Bounds3 shapes = SceneShapeBounds(desc);
-  const float diag = std::max(Length3(shapes.Diagonal()), 1e-6f);
+  const float diag = std::max(Length(shapes.Diagonal()), 1e-6f);
   const float d_min = 1e-3f * diag;
   double direct = 0;  // W/m^2, summed over emitters (double: many emitters, no overflow)
   for (const ShapeDesc& s : desc.shapes)
-    if (s.area_radiance) direct += kPi * std::max(0.0f, MaxChannel(*s.area_radiance));
+    if (s.area_radiance) direct += kPi * std::max(0.0f, MaxComponent(*s.area_radiance));
   for (const EmitterDesc& e : desc.emitters) {
     switch (e.type) {
       case EmitterType::kPoint:
       case EmitterType::kSpot:
-        direct += std::max(0.0f, MaxChannel(e.intensity)) / (double(d_min) * d_min);
+        direct += std::max(0.0f, MaxComponent(e.intensity)) / (double(d_min) * d_min);
         break;
       case EmitterType::kDirectional:
-        direct += std::max(0.0f, MaxChannel(e.irradiance));
+        direct += std::max(0.0f, MaxComponent(e.irradiance));
         break;
       case EmitterType::kConstant:
-        direct += kPi * std::max(0.0f, MaxChannel(e.radiance));
+        direct += kPi * std::max(0.0f, MaxComponent(e.radiance));
         break;
       case EmitterType::kEnvmap:
         return std::numeric_limits<float>::max();
@@ -64,13 +53,13 @@ float EmitterIrradianceBound(const SceneDesc& desc) {
 RecordBounds RecordBoundsForScene(const SceneDesc& desc) {
   RecordBounds b;
   const Bounds3 shapes = SceneShapeBounds(desc);
-  const float margin = 0.01f * Length3(shapes.Diagonal());
+  const float margin = 0.01f * Length(shapes.Diagonal());
   b.box.lo = shapes.lo - Vec3(margin);
   b.box.hi = shapes.hi + Vec3(margin);
   Bounds3 with_camera = shapes;
   const Mat4& m = desc.camera.to_world;
   with_camera.Extend(Vec3(float(m.m[0][3]), float(m.m[1][3]), float(m.m[2][3])));
-  b.max_radius = 2.0f * std::max(Length3(with_camera.Diagonal()), 1e-6f);
+  b.max_radius = 2.0f * std::max(Length(with_camera.Diagonal()), 1e-6f);
   b.max_irradiance = EmitterIrradianceBound(desc);
   return b;
 }
@@ -82,7 +71,7 @@ const char* RecordProblem(const RecordBounds& b, const IrradianceRecord& r) {
       p.y > b.box.hi.y || p.z > b.box.hi.z)
     return "position outside the scene's bounds";
   if (r.radius > b.max_radius) return "radius larger than the scene";
-  if (MaxChannel(r.irradiance) > b.max_irradiance)
+  if (MaxComponent(r.irradiance) > b.max_irradiance)
     return "irradiance above the bound from the scene's emitters";
   return nullptr;
 }

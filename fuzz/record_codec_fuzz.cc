@@ -7,29 +7,16 @@
 #include <string>
 
 #include "coordinator/record_bounds.h"
-#include "render/scene_loader.h"
+#include "fuzz/cornell_record_bounds.h"
 #include "service/record_codec.h"
-
-namespace {
-
-const irfarm::RecordBounds& Bounds() {
-  static const irfarm::RecordBounds bounds = [] {  // built once: the harness's fixed scene
-    absl::StatusOr<irfarm::SceneDesc> d =
-        irfarm::LoadSceneFile(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml", {});
-    if (!d.ok()) __builtin_trap();
-    return irfarm::RecordBoundsForScene(*d);
-  }();
-  return bounds;
-}
-
-}  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   irfarm::v1::RecordBatch batch;
   if (!batch.ParseFromArray(data, int(size))) return 0;
   absl::StatusOr<std::vector<irfarm::IrradianceRecord>> recs = irfarm::DecodeRecords(batch);
   if (!recs.ok()) return 0;
-  for (const irfarm::IrradianceRecord& r : *recs) (void)irfarm::RecordProblem(Bounds(), r);
+  for (const irfarm::IrradianceRecord& r : *recs)
+    (void)irfarm::RecordProblem(irfarm::CornellRecordBounds(), r);
   irfarm::v1::RecordBatch again;
   irfarm::PackRecords(*recs, 1, &again);
   absl::StatusOr<std::vector<irfarm::IrradianceRecord>> back = irfarm::DecodeRecords(again);

@@ -8,28 +8,14 @@
 
 #include "cache/snapshot.h"
 #include "coordinator/record_bounds.h"
-#include "render/scene_loader.h"
-
-namespace {
-
-const irfarm::RecordBounds& Bounds() {
-  static const irfarm::RecordBounds bounds = [] {  // built once: the harness's fixed scene
-    absl::StatusOr<irfarm::SceneDesc> d =
-        irfarm::LoadSceneFile(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml", {});
-    if (!d.ok()) __builtin_trap();
-    return irfarm::RecordBoundsForScene(*d);
-  }();
-  return bounds;
-}
-
-}  // namespace
+#include "fuzz/cornell_record_bounds.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string bytes(reinterpret_cast<const char*>(data), size);
   absl::StatusOr<irfarm::Snapshot> snap = irfarm::ParseSnapshot(bytes, "fuzz");
   if (!snap.ok()) return 0;
   for (const irfarm::IrradianceRecord& r : snap->records) {
-    if (irfarm::RecordProblem(Bounds(), r) != nullptr) continue;
+    if (irfarm::RecordProblem(irfarm::CornellRecordBounds(), r) != nullptr) continue;
     if (!(r.radius > 0) || !std::isfinite(r.radius) || !(r.irradiance.x >= 0) ||
         !std::isfinite(r.position.x))
       __builtin_trap();

@@ -140,4 +140,18 @@ struct SceneDesc {
       warnings;  // e.g. "scene.xml:12: sampler 'stratified' treated as independent"
 };
 
+// Bounds of the shapes' positions (meshes' vertices, spheres' extents); empty for a scene without
+// shapes.
+inline Bounds3 ShapeBounds(const SceneDesc& desc) {
+  Bounds3 b;
+  for (const ShapeDesc& s : desc.shapes) {
+    if (s.type == ShapeType::kSphere) {
+      b.Extend(s.center - Vec3(s.radius));
+      b.Extend(s.center + Vec3(s.radius));
+    }
+    for (const Vec3& p : s.mesh.positions) b.Extend(p);
+  }
+  return b;
+}
+
 }  // namespace irfarm

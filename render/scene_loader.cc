@@ -1293,14 +1293,7 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
 // scene.h) stay under 1.6e-4 of its size; a scene nearer the origin keeps its coordinates
 // exactly (no rounding from a shift), so its images do not change.
 std::optional<std::array<double, 3>> FarOrigin(const SceneDesc& desc) {
-  Bounds3 b;
-  for (const ShapeDesc& s : desc.shapes) {
-    if (s.type == ShapeType::kSphere) {
-      b.Extend(s.center - Vec3(s.radius));
-      b.Extend(s.center + Vec3(s.radius));
-    }
-    for (const Vec3& p : s.mesh.positions) b.Extend(p);
-  }
+  const Bounds3 b = ShapeBounds(desc);
   if (b.Empty()) return std::nullopt;
   const Vec3 c = b.Center(), d = b.Diagonal();
   const double size = std::sqrt(double(d.x) * d.x + double(d.y) * d.y + double(d.z) * d.z);

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -507,16 +508,20 @@ TEST(IrradianceCacheTest, NeighbourClampingHoldsForEveryPair) {
   IrradianceCache cache(settings);
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(0, 1);
+  std::vector<float> inserted;  // each record's radius as given to Insert
   for (IrradianceRecord r : scene.records) {
     r.radius = 0.002f + 0.5f * u(rng) * u(rng);  // radii spread over two orders of magnitude
+    inserted.push_back(r.radius);
     cache.Insert(r);
   }
   std::vector<IrradianceRecord> all;
   cache.ForEach([&](const IrradianceRecord& r) { all.push_back(r); });
   ASSERT_EQ(all.size(), scene.records.size());
+  std::reverse(all.begin(), all.end());  // ForEach is newest first: now in insert order
   int clamped = 0, violations = 0;
   for (size_t i = 0; i < all.size(); ++i) {
-    clamped += all[i].radius < 0.002f + 0.25f;
+    ASSERT_EQ(LengthSquared(all[i].position - scene.records[i].position), 0.0f);
+    clamped += all[i].radius < inserted[i];  // lowered by a neighbour, at or after its insert
     for (size_t j = 0; j < all.size(); ++j)
       violations += all[i].radius >
                     all[j].radius + 3 * Length(all[i].position - all[j].position) * 1.0001f + 1e-6f;

@@ -34,27 +34,8 @@ std::string MovedCornellBox(const std::string& transform) {
 }
 
 LoadedScene LoadMoved(const std::string& transform) {
-  LoadedScene s;
-  absl::StatusOr<SceneDesc> desc =
-      LoadSceneString(MovedCornellBox(transform), TestScenePath("cornell-box"),
-                      LoadOptions{{{"resx", "64"}, {"resy", "64"}}});
-  EXPECT_TRUE(desc.ok()) << desc.status();
-  s.desc = *desc;
-  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(s.desc);
-  EXPECT_TRUE(scene.ok()) << scene.status();
-  s.scene = std::move(*scene);
-  return s;
-}
-
-// relmse_est_ref_vs_truth of the cornell box's reference / 16 (box-filtered by 4x4), as in
-// golden_image_test.
-double ReferenceError() {
-  std::ifstream f(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/reference.json");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  const std::string s = ss.str();
-  const size_t at = s.find("\"relmse_est_ref_vs_truth\":");
-  return at == std::string::npos ? 0 : std::atof(s.c_str() + at + 26) / 16.0;
+  return BuildLoaded(LoadSceneString(MovedCornellBox(transform), TestScenePath("cornell-box"),
+                                     LoadOptions{{{"resx", "64"}, {"resy", "64"}}}));
 }
 
 constexpr int kPathSpp = 64;
@@ -80,7 +61,7 @@ TEST_P(FarFromOriginTest, RendersLikeTheSceneAtTheOrigin) {
   EXPECT_NEAR(s.desc.world_origin[2], -5e5, 2);
   EXPECT_EQ(LoadQuarter("cornell-box").desc.world_origin, (std::array<double, 3>{0, 0, 0}));
   const Image ref = QuarterReference("cornell-box");
-  const double ref_err = ReferenceError();
+  const double ref_err = ReferenceError("cornell-box");
   const RenderOutput path = RenderWith(s, "path", kPathSpp, 1);
   EXPECT_EQ(path.stats.nonfinite_pixels, 0);
   const double path_err = CompareImages(path.image, ref).relmse;

@@ -22,18 +22,6 @@
 namespace irfarm {
 namespace {
 
-// relmse_est_ref_vs_truth from the scene's reference.json; box-filtering by 4x4 divides the
-// variance of the reference's noise by 16.
-double ReferenceError(const std::string& name) {
-  std::ifstream f(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference.json");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  const std::string s = ss.str();
-  const size_t at = s.find("\"relmse_est_ref_vs_truth\":");
-  if (at == std::string::npos) return 0;
-  return std::atof(s.c_str() + at + 26) / 16.0;
-}
-
 // mitsuba_quarter_64spp_noise from reference.json when the reference recorded it: Mitsuba's own
 // noise at 1/4 size and 64 spp (relMSE of two Mitsuba renders / 2); -1 when absent.
 double MitsubaNoise(const std::string& name) {

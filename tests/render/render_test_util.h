@@ -5,7 +5,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+#include <fstream>
 #include <memory>
+#include <sstream>
 #include <string>
 
 #include "render/image.h"
@@ -24,21 +27,37 @@ struct LoadedScene {
   std::unique_ptr<Scene> scene;
 };
 
-// Loads test scene `name` at 1/4 of its resolution (matching reference-x4.exr).
-inline LoadedScene LoadQuarter(const std::string& name) {
+// Builds the Embree scene of a loaded description (test failures, not exceptions, on errors).
+inline LoadedScene BuildLoaded(const absl::StatusOr<SceneDesc>& desc) {
   LoadedScene s;
-  absl::StatusOr<SceneDesc> full = LoadSceneFile(TestScenePath(name), LoadOptions{});
-  EXPECT_TRUE(full.ok()) << full.status();
-  LoadOptions opt;
-  opt.defines["resx"] = std::to_string(full->camera.width / 4);
-  opt.defines["resy"] = std::to_string(full->camera.height / 4);
-  absl::StatusOr<SceneDesc> desc = LoadSceneFile(TestScenePath(name), opt);
   EXPECT_TRUE(desc.ok()) << desc.status();
   s.desc = *desc;
   absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(s.desc);
   EXPECT_TRUE(scene.ok()) << scene.status();
   s.scene = std::move(*scene);
   return s;
+}
+
+// Loads test scene `name` at 1/4 of its resolution (matching reference-x4.exr).
+inline LoadedScene LoadQuarter(const std::string& name) {
+  absl::StatusOr<SceneDesc> full = LoadSceneFile(TestScenePath(name), LoadOptions{});
+  EXPECT_TRUE(full.ok()) << full.status();
+  LoadOptions opt;
+  opt.defines["resx"] = std::to_string(full->camera.width / 4);
+  opt.defines["resy"] = std::to_string(full->camera.height / 4);
+  return BuildLoaded(LoadSceneFile(TestScenePath(name), opt));
+}
+
+// relmse_est_ref_vs_truth from the scene's reference.json; box-filtering by 4x4 divides the
+// variance of the reference's noise by 16 (the error of reference-x4.exr); 0 when absent.
+inline double ReferenceError(const std::string& name) {
+  std::ifstream f(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference.json");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  const std::string s = ss.str();
+  const size_t at = s.find("\"relmse_est_ref_vs_truth\":");
+  if (at == std::string::npos) return 0;
+  return std::atof(s.c_str() + at + 26) / 16.0;
 }
 
 inline Image QuarterReference(const std::string& name) {
