@@ -128,6 +128,23 @@ Vec3 LightSampler::AnalyticIrradiance(int i, const Vec3& p, const Vec3& n) const
   return l.radiance * float(PolygonProjectedSolidAngle(p, n, c, 4));
 }
 
+namespace {
+// Rect lights whose diagonal is under kSphericalRectSize times the distance to their centre are
+// sampled by area: their area pdf is then within about 2x of proportional to solid angle across
+// the light, and spherical-rectangle sampling's four acos and a sincos per sample cost more than
+// the variance they save. Measured on cornell-box (the sampler was 25% of a path render's
+// profile), path 64 spp: CPU 7.83 -> 6.51 s, relMSE 4.61e-3 -> 4.66e-3; irrcache default:
+// CPU 12.6 -> 10.6 s, relMSE 3.10e-4 -> 3.10e-4; room-a irrcache: 12.4 -> 9.8 s, 7.94e-4 ->
+// 7.96e-4. Area sampling everywhere (no threshold) lost 4% relMSE on cornell-box path.
+constexpr float kSphericalRectSize = 0.5f;
+
+bool RectBySolidAngle(const Light& l, const Vec3& p) {
+  const Vec3 c = l.corner + (l.edge_u + l.edge_v) * 0.5f;
+  return LengthSquared(l.edge_u) + LengthSquared(l.edge_v) >=
+         kSphericalRectSize * kSphericalRectSize * LengthSquared(c - p);
+}
+}  // namespace
+
 bool LightSampler::SampleOne(int i, const Vec3& p, float u1, float u2, float u3,
                              LightSample* s) const {
   const Light& l = lights_[i];
@@ -140,7 +157,7 @@ bool LightSampler::SampleOne(int i, const Vec3& p, float u1, float u2, float u3,
       if (l.shape == AreaShape::kRect) {
         if (Dot(p - l.corner, l.normal) <= 0) return false;
         SphericalRect sr;
-        if (sr.Init(p, l.corner, l.edge_u, l.edge_v)) {
+        if (RectBySolidAngle(l, p) && sr.Init(p, l.corner, l.edge_u, l.edge_v)) {
           q = sr.Sample(u2, u3);
           pdf = float(1 / sr.solid_angle());
         } else {
@@ -272,7 +289,8 @@ float LightSampler::PdfOne(int i, const Vec3& p, const Vec3& q, const Vec3& nq, 
   if (l.shape == AreaShape::kRect) {
     if (Dot(p - l.corner, l.normal) <= 0) return 0;
     SphericalRect sr;
-    if (sr.Init(p, l.corner, l.edge_u, l.edge_v)) return float(1 / sr.solid_angle());
+    if (RectBySolidAngle(l, p) && sr.Init(p, l.corner, l.edge_u, l.edge_v))
+      return float(1 / sr.solid_angle());
     return AreaToSolidAngle(dist2, cos_l, l.area);
   }
   if (l.shape == AreaShape::kSphere) {
