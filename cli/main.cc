@@ -41,9 +41,11 @@ struct RenderArgs {
   bool no_overture = false, quiet = false;
   bool aovs = false;     // write the AOV layers (render/aov.h) into the output EXR
   bool denoise = false;  // OUT.exr denoised (render/denoiser.h), OUT.noisy.exr as rendered
-  // Empty: measured best per integrator (docs/denoise/summary.txt, 9 scenes): the whole image for
-  // irrcache (better in 15 of 18 cases), demodulated for path (11 of 18; geo-mean relMSE 0.92x).
-  std::string denoise_mode;
+  // Default "image" for both integrators (bench/denoise_bench.py, 10 scenes with living-room):
+  // demodulated was better for path at 16 spp in 5 of 10 scenes, 1.04x worse in geometric mean
+  // and 1.73x worse on living-room (textured, the real interior); for irrcache image was never
+  // worse by more than 2% and 1.56x better on living-room.
+  std::string denoise_mode = "image";
   std::string cache_in;  // warm-start from this cache snapshot
   std::vector<std::string> defines;
 };
@@ -79,10 +81,7 @@ int RunRender(const RenderArgs& args) {
   std::unique_ptr<Denoiser> denoiser;
   DenoiseMode denoise_mode = DenoiseMode::kImage;
   if (args.denoise) {
-    const std::string integrator = args.integrator.empty() ? "irrcache" : args.integrator;
-    absl::StatusOr<DenoiseMode> mode = ParseDenoiseMode(
-        !args.denoise_mode.empty() ? args.denoise_mode
-                                   : (integrator == "path" ? "demodulated" : "image"));
+    absl::StatusOr<DenoiseMode> mode = ParseDenoiseMode(args.denoise_mode);
     absl::StatusOr<std::unique_ptr<Denoiser>> d =
         mode.ok() ? Denoiser::Open(args.threads) : mode.status();
     if (!d.ok()) {
@@ -322,7 +321,7 @@ int main(int argc, char** argv) {
                    "denoise with Open Image Denoise (OUT.exr), keep the render as OUT.noisy.exr");
   render
       ->add_option("--denoise-mode", ra.denoise_mode,
-                   "image (default for irrcache), demodulated (by albedo; default for path) "
+                   "image (default), demodulated (by albedo) "
                    "or indirect (only)")
       ->check(CLI::IsMember({"image", "demodulated", "indirect"}));
   render->add_option("--cache-in", ra.cache_in, "warm-start from this cache snapshot file")
