@@ -1,6 +1,9 @@
 #include "render/sample_film.h"
 
+#include <algorithm>
+
 namespace irfarm {
+
 SampleFilm::SampleFilm(size_t pixels, int slots)
     : slots_(slots),
       stride_(1 + 3 * size_t(slots)),
@@ -41,11 +44,17 @@ Vec3 SampleFilm::HalfValue(size_t p, int h) const {
 
 double SampleFilm::RelativeError(size_t p) const {
   if (count_[p] < 2) return 0;
-  const Vec3 v = Value(p), a = HalfValue(p, 0), b = HalfValue(p, 1);
+  const Vec3 a = HalfValue(p, 0), b = HalfValue(p, 1);
   double e = 0;
   for (int c = 0; c < 3; ++c) {
     const double d = double(a[c]) - double(b[c]);
-    e += d * d / 4 / (double(v[c]) * v[c] + 0.01);
+    // Normalised by the product of the halves, not by the pixel's own value squared: E[a b] is
+    // the squared mean for independent halves, while v^2 is largest exactly when a rare bright
+    // sample (a light's edge, a caustic) makes the variance large, which hid those pixels'
+    // error (cornell-box --target-error 1e-3: estimate 5.1e-4 against 1.45e-3 measured, 74% of
+    // it in the 0.1% of pixels at the lamp's edge; with a b: 8.2e-4 against 7.9e-4).
+    const double mean_sq = std::max(0.0, double(a[c]) * double(b[c]));
+    e += d * d / 4 / (mean_sq + 0.01);
   }
   return e / 3;
 }

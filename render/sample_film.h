@@ -28,7 +28,8 @@ class SampleFilm {
     return count_[p] ? (Half(p, 0)[0] + Half(p, 1)[0]) / float(count_[p]) : Vec3();
   }
   // Estimated squared error of Value(p), relative as relMSE weighs it:
-  // mean over channels of ((h0 - h1)^2 / 4) / (v^2 + 0.01). 0 with fewer than 2 samples.
+  // mean over channels of ((h0 - h1)^2 / 4) / (max(h0 h1, 0) + 0.01). 0 with fewer than 2
+  // samples.
   double RelativeError(size_t p) const;
 
  private:
