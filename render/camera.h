@@ -1,10 +1,12 @@
 // The perspective camera of Mitsuba 3: camera space looks along +z with +y up and +x to the
 // image's left; the ray through film point (x, y) (pixels, row 0 at the top) has direction
 // f + (2x/w - 1) tan(fov_x/2) r + (1 - 2y/h) tan(fov_y/2) u with r = -column0 (image right).
+// It carries the film's reconstruction filter, which places each camera sample on the film.
 #pragma once
 
 #include <cmath>
 
+#include "render/pixel_filter.h"
 #include "render/scene_desc.h"
 
 namespace irfarm {
@@ -18,7 +20,8 @@ class Camera {
         film_w_(d.film_width > 0 ? d.film_width : d.width),
         film_h_(d.film_height > 0 ? d.film_height : d.height),
         crop_x_(float(d.crop_x)),
-        crop_y_(float(d.crop_y)) {
+        crop_y_(float(d.crop_y)),
+        filter_(d.filter, d.width, d.height) {
     origin_ = d.to_world.ApplyPoint(Vec3(0, 0, 0));
     forward_ = Normalize(d.to_world.ApplyVector(Vec3(0, 0, 1)));
     right_ = Normalize(d.to_world.ApplyVector(Vec3(-1, 0, 0)));
@@ -33,6 +36,15 @@ class Camera {
     return Normalize(forward_ + right_ * ((2 * x / film_w_ - 1) * tan_x_) +
                      up_ * ((1 - 2 * y / film_h_) * tan_y_));
   }
+  // Unit direction of camera sample (u, v) in [0, 1)^2 of pixel (px, py): its film point is drawn
+  // from the pixel's filter (PixelFilter), so the pixel's value is the plain mean of its samples
+  // whatever the integrator. The one place camera samples are placed on the film.
+  Vec3 SampleDirection(int px, int py, float u, float v) const {
+    float x, y;
+    filter_.FilmPoint(px, py, u, v, &x, &y);
+    return Direction(x, y);
+  }
+  const PixelFilter& filter() const { return filter_; }
   const Vec3& origin() const { return origin_; }
   int width() const { return width_; }
   int height() const { return height_; }
@@ -43,6 +55,7 @@ class Camera {
   int width_ = 1, height_ = 1;
   int film_w_ = 1, film_h_ = 1;
   float crop_x_ = 0, crop_y_ = 0;
+  PixelFilter filter_;
   Vec3 origin_, forward_{0, 0, 1}, right_{-1, 0, 0}, up_{0, 1, 0};
   float tan_x_ = 1, tan_y_ = 1;
 };

@@ -178,9 +178,9 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     SampleAov sample_aov;
     SampleAov* aov = settings.aovs ? &sample_aov : nullptr;
     for (int s = from; s < to; ++s) {
-      float fx, fy;
-      ps.film.Get(s, &fx, &fy);
-      const Ray ray{cam.origin(), cam.Direction(fx + float(x), fy + float(y)), INFINITY};
+      float fu, fv;
+      ps.film.Get(s, &fu, &fv);
+      const Ray ray{cam.origin(), cam.SampleDirection(x, y, fu, fv), INFINITY};
       ++c.camera_rays;
       Vec3 L;
       DirectTerms terms;

@@ -20,6 +20,23 @@ struct SourceLoc {
   std::string ToString() const { return file + ":" + std::to_string(line); }
 };
 
+// The film's reconstruction filter (hdrfilm's <rfilter>), as Mitsuba 3 defines it: a pixel's
+// value is the average of the radiance over the film weighted by w(x - cx) w(y - cy) around its
+// centre (cx, cy), the filter truncated to the image (Mitsuba samples only inside the crop
+// window, sample_border = false). Separable, non-negative, in pixel units:
+//   box:      w = 1 for |t| <= 0.5 (the pixel's own square)
+//   tent:     w = max(0, 1 - |t| / radius)                       radius default 1
+//   gaussian: w = max(0, exp(-t^2 / (2 stddev^2)) - exp(-8))     stddev default 0.5, cut at
+//             radius = 4 stddev, where the subtracted exp(-8) takes it to 0
+// A film that names no filter gets gaussian, Mitsuba's default.
+enum class FilterType { kBox, kTent, kGaussian };
+
+struct FilterDesc {
+  FilterType type = FilterType::kGaussian;
+  float radius = 2;     // pixels: the support is [-radius, radius] (box: 0.5)
+  float stddev = 0.5f;  // gaussian only, pixels
+};
+
 struct CameraDesc {
   Mat4 to_world;         // camera space: +z forward, +y up, +x image left (Mitsuba)
   float fov_x_deg = 45;  // horizontal field of view over the whole image, after fov_axis
@@ -29,6 +46,7 @@ struct CameraDesc {
   // image is its window at (crop_x, crop_y), as Mitsuba 3 renders it.
   int film_width = 0, film_height = 0, crop_x = 0, crop_y = 0;
   int spp = 4;  // sampler sample_count
+  FilterDesc filter;
   SourceLoc loc;
 };
 

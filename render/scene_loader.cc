@@ -745,7 +745,7 @@ absl::Status Parser::ParseSensor(pugi::xml_node n) {
   if (films.size() > 1) return Error(films[1]->node, "a sensor has at most one <film>");
   if (samplers.size() > 1) return Error(samplers[1]->node, "a sensor has at most one <sampler>");
   if (films.empty()) {
-    Warn(n, "no <film>: using hdrfilm 768 x 576 with a box filter");
+    Warn(n, "no <film>: using Mitsuba's default hdrfilm, 768 x 576 with a gaussian filter");
   } else {
     LOADER_RETURN_IF_ERROR(ParseFilm(films[0]->node));
   }
@@ -821,24 +821,28 @@ absl::Status Parser::ParseFilm(pugi::xml_node n) {
   cam.film_width = film_w;
   cam.film_height = film_h;
   if (filters.size() > 1) return Error(filters[1]->node, "a film has at most one <rfilter>");
-  if (filters.empty()) {
-    Warn(n, "film has no <rfilter>: Mitsuba would use a gaussian filter, irfarm uses box");
-  } else {
+  // No <rfilter>: the default FilterDesc, gaussian with stddev 0.5, as Mitsuba 3.
+  if (!filters.empty()) {
     const pugi::xml_node f = filters[0]->node;
     LOADER_ASSIGN_OR_RETURN(const std::string type,
                             PluginType(f, "rfilter", {"box", "gaussian", "tent"}));
     LOADER_ASSIGN_OR_RETURN(Params fp, Collect(f, "rfilter"));
-    if (type == "gaussian") {
+    FilterDesc& filter = cam.filter;
+    if (type == "box") {
+      filter = FilterDesc{FilterType::kBox, 0.5f, 0.5f};
+    } else if (type == "gaussian") {
       LOADER_ASSIGN_OR_RETURN(const float stddev, GetFloat(fp, "stddev", 0.5f));
-      if (!(stddev > 0)) return Error(NodeOf(fp, "stddev"), "stddev must be positive");
-    } else if (type == "tent") {
+      if (!(stddev > 0 && std::isfinite(4 * stddev)))
+        return Error(NodeOf(fp, "stddev"), "stddev must be positive and finite");
+      // Mitsuba cuts the gaussian off at 4 standard deviations (rfilters/gaussian.cpp).
+      filter = FilterDesc{FilterType::kGaussian, 4 * stddev, stddev};
+    } else {
       LOADER_ASSIGN_OR_RETURN(const float radius, GetFloat(fp, "radius", 1.0f));
-      if (!(radius > 0)) return Error(NodeOf(fp, "radius"), "radius must be positive");
+      if (!(radius > 0 && std::isfinite(radius)))
+        return Error(NodeOf(fp, "radius"), "radius must be positive and finite");
+      filter = FilterDesc{FilterType::kTent, radius, 0.5f};
     }
     LOADER_RETURN_IF_ERROR(Finish(fp));
-    if (type != "box")
-      Warn(f, absl::StrCat("rfilter '", type,
-                           "' is treated as box (each sample counts for its own pixel only)"));
     LOADER_RETURN_IF_ERROR(RegisterId(f, "rfilter", -1));
   }
   return RegisterId(n, "film", -1);

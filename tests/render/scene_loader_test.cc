@@ -291,6 +291,62 @@ TEST(SceneLoaderErrorTest, UnsupportedFeatures) {
               "s.xml:1:", "no <sensor>");
 }
 
+// The film's reconstruction filter: Mitsuba 3's plugins, parameters and defaults (gaussian
+// stddev 0.5 cut at 4 stddev, tent radius 1, gaussian when the film or the filter is missing).
+TEST(SceneLoaderTest, ReconstructionFilters) {
+  auto film = [](const std::string& filter) {
+    return "<scene version=\"3.0.0\">\n  <sensor type=\"perspective\">\n"
+           "    <film type=\"hdrfilm\">\n" +
+           filter + "    </film>\n  </sensor>\n</scene>\n";
+  };
+  auto filter_of = [](const absl::StatusOr<SceneDesc>& s) {
+    EXPECT_TRUE(s.ok()) << s.status();
+    EXPECT_TRUE(!s.ok() || s->warnings.empty()) << s->warnings[0];
+    return s.ok() ? s->camera.filter : FilterDesc{};
+  };
+  FilterDesc f = filter_of(LoadSceneString(film(""), "s.xml", {}));
+  EXPECT_EQ(f.type, FilterType::kGaussian);
+  EXPECT_FLOAT_EQ(f.stddev, 0.5f);
+  EXPECT_FLOAT_EQ(f.radius, 2);
+  f = filter_of(LoadSceneString(film("      <rfilter type=\"gaussian\"/>\n"), "s.xml", {}));
+  EXPECT_EQ(f.type, FilterType::kGaussian);
+  EXPECT_FLOAT_EQ(f.radius, 2);
+  f = filter_of(
+      LoadSceneString(film("      <rfilter type=\"gaussian\"><float name=\"stddev\" value=\"0.3\"/>"
+                           "</rfilter>\n"),
+                      "s.xml", {}));
+  EXPECT_FLOAT_EQ(f.stddev, 0.3f);
+  EXPECT_FLOAT_EQ(f.radius, 1.2f);
+  f = filter_of(LoadSceneString(film("      <rfilter type=\"tent\"/>\n"), "s.xml", {}));
+  EXPECT_EQ(f.type, FilterType::kTent);
+  EXPECT_FLOAT_EQ(f.radius, 1);
+  f = filter_of(LoadSceneString(
+      film("      <rfilter type=\"tent\"><float name=\"radius\" value=\"1.5\"/></rfilter>\n"),
+      "s.xml", {}));
+  EXPECT_FLOAT_EQ(f.radius, 1.5f);
+  f = filter_of(LoadSceneString(film("      <rfilter type=\"box\"/>\n"), "s.xml", {}));
+  EXPECT_EQ(f.type, FilterType::kBox);
+  EXPECT_FLOAT_EQ(f.radius, 0.5f);
+  // No film at all: Mitsuba's default film, with its gaussian filter (and a warning).
+  const auto no_film = LoadSceneString(
+      "<scene version=\"3.0.0\">\n  <sensor type=\"perspective\"/>\n</scene>\n", "s.xml", {});
+  ASSERT_TRUE(no_film.ok()) << no_film.status();
+  EXPECT_EQ(no_film->camera.filter.type, FilterType::kGaussian);
+
+  ExpectError(LoadSceneString(film("      <rfilter type=\"gaussian\">\n        <float "
+                                   "name=\"stddev\" value=\"0\"/>\n      </rfilter>\n"),
+                              "s.xml", {}),
+              "s.xml:5:", "stddev must be positive");
+  ExpectError(LoadSceneString(film("      <rfilter type=\"tent\">\n        <float "
+                                   "name=\"radius\" value=\"-1\"/>\n      </rfilter>\n"),
+                              "s.xml", {}),
+              "s.xml:5:", "radius must be positive");
+  ExpectError(LoadSceneString(film("      <rfilter type=\"box\">\n        <float "
+                                   "name=\"radius\" value=\"1\"/>\n      </rfilter>\n"),
+                              "s.xml", {}),
+              "s.xml:5:", "radius");
+}
+
 // ---------------------------------------------------------------- transforms and camera
 
 TEST(SceneLoaderTest, TransformsApplyInDocumentOrder) {
@@ -501,9 +557,9 @@ TEST(SceneLoaderTest, UpgradesMitsuba05Syntax) {
   EXPECT_EQ(scene->bsdfs[0].type, "roughplastic");
   EXPECT_FLOAT_EQ(scene->bsdfs[0].Float("int_ior", 0), 1.5f);
   ExpectNear(scene->bsdfs[0].Color("diffuse_reflectance", Vec3()).value, Vec3(0.5f, 0.4f, 0.3f));
-  bool warned_tent = false;
-  for (const std::string& w : scene->warnings) warned_tent |= w.find("'tent'") != std::string::npos;
-  EXPECT_TRUE(warned_tent);
+  EXPECT_EQ(scene->camera.filter.type, FilterType::kTent);
+  EXPECT_FLOAT_EQ(scene->camera.filter.radius, 1);  // Mitsuba's default
+  for (const std::string& w : scene->warnings) EXPECT_EQ(w.find("rfilter"), std::string::npos) << w;
   // The same names in a version 3 file are unknown parameters.
   ExpectError(LoadSceneString("<scene version=\"3.0.0\">\n  <bsdf type=\"plastic\">\n"
                               "    <float name=\"intIOR\" value=\"1.5\"/>\n  </bsdf>\n</scene>\n",

@@ -1,0 +1,69 @@
+// Where a camera sample of a pixel lands on the film, for the film's reconstruction filter
+// (FilterDesc, Mitsuba 3's box, tent and gaussian): filter importance sampling, as pbrt-v4 does.
+// Mitsuba spreads each sample over the pixels its filter reaches and divides by the sum of
+// weights; its pixel converges to the filter-weighted average of the radiance around the pixel's
+// centre. Drawing each sample's film point from the pixel's own normalised filter instead, and
+// counting it with weight 1 for that pixel only, has exactly that expected value, keeps every
+// pixel (and tile) independent of its neighbours and leaves the film a plain per-pixel mean (the
+// adaptive sampler's half-images, the AOVs and the irradiance cache's per-pixel ratio estimator
+// need nothing else). Both axes are drawn by inverting the filter's 1D distribution function,
+// truncated to the image as Mitsuba's film truncates it (it samples only inside the image), so
+// a monotone warp keeps stratified (u, v) stratified. Box gives exactly px + u, as before filters.
+#pragma once
+
+#include <array>
+
+#include "render/scene_desc.h"
+
+namespace irfarm {
+
+class PixelFilter {
+ public:
+  PixelFilter() = default;  // box over a 1 x 1 image
+  // The filter of a width x height image (the crop window, in pixels).
+  PixelFilter(const FilterDesc& desc, int width, int height);
+
+  // The film point (x, y) (pixels, row 0 at the top) of the camera sample (u, v) in [0, 1)^2 of
+  // pixel (px, py). Its density is w(x - px - 0.5) w(y - py - 0.5) normalised over the image.
+  void FilmPoint(int px, int py, float u, float v, float* x, float* y) const {
+    if (desc_.type == FilterType::kBox) {
+      *x = u + float(px);
+      *y = v + float(py);
+      return;
+    }
+    *x = float(double(px) + 0.5 + Offset(u, px, width_));
+    *y = float(double(py) + 0.5 + Offset(v, py, height_));
+  }
+
+  // Mitsuba's 1D weight w(t) at offset t (pixels) from a pixel's centre; 0 outside the support.
+  double Weight(double t) const;
+  // An offset t in [lo, hi] (lo <= 0 <= hi) with density proportional to Weight(t) there, by the
+  // inverse distribution function at u in [0, 1). [lo, hi] is clipped to the support.
+  double SampleOffset(double u, double lo, double hi) const;
+
+  const FilterDesc& desc() const { return desc_; }
+  // How far (pixels) beyond its own square a pixel's samples can land: 0 for box.
+  float reach() const { return desc_.type == FilterType::kBox ? 0.0f : desc_.radius - 0.5f; }
+
+ private:
+  // Offset of pixel p's sample along an axis of n pixels: the filter truncated to [0, n].
+  double Offset(float u, int p, int n) const {
+    const double c = double(p) + 0.5;
+    return SampleOffset(double(u), -c, double(n) - c);
+  }
+  // W(t): the integral of Weight from -radius to t, for |t| <= radius.
+  double Cumulative(double t) const;
+
+  FilterDesc desc_{FilterType::kBox, 0.5f, 0.5f};
+  int width_ = 1, height_ = 1;
+  // gaussian: the inverse of W at kTable + 1 equally spaced values from 0 to W(radius), the
+  // bracket and first guess of the Newton iteration that inverts W exactly.
+  static constexpr int kTable = 128;
+  std::array<double, kTable + 1> inverse_{};
+  double total_ = 1;  // W(radius)
+  // gaussian: 1 / (2 stddev^2), the weight at the radius (exp(-8)) that Mitsuba subtracts, and
+  // G(t) = erf_scale_ erf(erf_arg_ t) - bias_ t, W(t) = G(t) + g_radius_.
+  double inv_two_var_ = 2, bias_ = 0, erf_scale_ = 0, erf_arg_ = 0, g_radius_ = 0;
+};
+
+}  // namespace irfarm
