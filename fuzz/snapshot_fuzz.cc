@@ -6,7 +6,10 @@
 // 64-bit checksum valid with probability 2^-64). Oracles: a record that passes RecordProblem
 // must be finite with R > 0 and E >= 0, and a snapshot that parses must serialise back to the
 // same bytes. Seeds: tests/data/fuzz/snapshot_fuzz/ (real snapshots exported by the service,
-// fuzz/make_snapshot_seed.sh).
+// fuzz/make_snapshot_seed.sh). Measured, 60 s each, side by side on a loaded machine, with this
+// file, cache/snapshot.cc and coordinator/record_bounds.cc instrumented (the rest not): the
+// previous harness without a seed 84 edges (5.2 M runs), with the seed 215; this harness with
+// the seed 281 edges, 569 features (562 k runs).
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
