@@ -15,12 +15,6 @@ constexpr char kMagic[8] = {'I', 'R', 'F', 'S', 'N', 'A', 'P', '\0'};
 constexpr uint32_t kRecordBytes = 44;
 constexpr size_t kHeaderBytes = 32;
 
-uint64_t Fnv1a(const char* data, size_t n) {
-  uint64_t h = 1469598103934665603ull;
-  for (size_t i = 0; i < n; ++i) h = (h ^ static_cast<unsigned char>(data[i])) * 1099511628211ull;
-  return h;
-}
-
 template <typename T>
 void Put(std::string* out, const T& v) {  // the project targets little-endian x86-64 / arm64
   out->append(reinterpret_cast<const char*>(&v), sizeof(T));
@@ -41,6 +35,12 @@ std::string Hex(uint64_t v) {
 
 }  // namespace
 
+uint64_t SnapshotChecksum(const char* data, size_t n) {
+  uint64_t h = 1469598103934665603ull;  // FNV-1a 64 offset basis and prime
+  for (size_t i = 0; i < n; ++i) h = (h ^ static_cast<unsigned char>(data[i])) * 1099511628211ull;
+  return h;
+}
+
 std::string SerializeSnapshot(const Snapshot& snapshot) {
   std::string out;
   out.reserve(kHeaderBytes + snapshot.records.size() * kRecordBytes + 8);
@@ -55,7 +55,7 @@ std::string SerializeSnapshot(const Snapshot& snapshot) {
     for (float f : v) Put(&out, f);
     Put(&out, r.origin);
   }
-  Put(&out, Fnv1a(out.data(), out.size()));
+  Put(&out, SnapshotChecksum(out.data(), out.size()));
   return out;
 }
 
@@ -77,7 +77,7 @@ absl::StatusOr<Snapshot> ParseSnapshot(const std::string& in, const std::string&
       in.size() != kHeaderBytes + count * kRecordBytes + 8)
     return bad("size does not match the record count " + std::to_string(count));
   const size_t body = in.size() - 8;
-  if (Fnv1a(in.data(), body) != Get<uint64_t>(in, body)) return bad("checksum mismatch");
+  if (SnapshotChecksum(in.data(), body) != Get<uint64_t>(in, body)) return bad("checksum mismatch");
   s.records.reserve(count);
   for (uint64_t i = 0; i < count; ++i) {
     const size_t o = kHeaderBytes + i * kRecordBytes;

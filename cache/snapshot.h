@@ -33,6 +33,8 @@ struct Snapshot {
 
 // The file's bytes.
 std::string SerializeSnapshot(const Snapshot& snapshot);
+// The trailing checksum of a snapshot whose bytes before the checksum are data[0, n): FNV-1a 64.
+uint64_t SnapshotChecksum(const char* data, size_t n);
 // Parses and validates bytes; `name` (a path or "upload") is used in error messages.
 absl::StatusOr<Snapshot> ParseSnapshot(const std::string& bytes, const std::string& name);
 

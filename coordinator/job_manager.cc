@@ -13,6 +13,7 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "cache/snapshot.h"
@@ -523,9 +524,10 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
   auto wit = workers_.find(worker_id);
   if (wit == workers_.end()) return absl::NotFoundError("no worker");
   Worker& w = wit->second;
-  const bool current =
-      w.has_lease && w.lease_id == region.lease_id() && w.lease_job == region.job_id();
-  if (!current) return NotHolder(worker_id, &w, region.lease_id(), "tile region");
+  absl::StatusOr<LeaseToken> token = TokenOf(worker_id, w, region.lease_token(), "tile region");
+  if (!token.ok()) return token.status();
+  const bool current = w.has_lease && w.lease == *token && w.lease_job == region.job_id();
+  if (!current) return NotHolder(worker_id, &w, *token, "tile region");
   auto jit = jobs_.find(region.job_id());
   if (jit == jobs_.end() || IsFinal(*jit->second))
     return absl::FailedPreconditionError("tile region for a job that ended");
@@ -536,9 +538,9 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
     return Violation(worker_id, w, std::string(box.status().message()));
   }
   Job::Region& r = job.regions[worker_id];
-  if (r.lease_id == region.lease_id())
+  if (r.lease == *token)
     return absl::FailedPreconditionError("tile region: one per lease, this one ignored");
-  r.lease_id = region.lease_id();
+  r.lease = *token;
   metrics_.regions_accepted->Add();
   if (!Filtered(w) || !job.workers.count(worker_id)) return absl::OkStatus();
   const Bounds3 old = r.box;
@@ -855,7 +857,8 @@ bool JobManager::Expelled(uint32_t worker) const {
   return it != workers_.end() && int(it->second.violations) > options_.max_violations;
 }
 
-absl::Status JobManager::Violation(uint32_t worker_id, Worker& worker, const std::string& reason) {
+absl::Status JobManager::Violation(uint32_t worker_id, Worker& worker, const std::string& reason,
+                                   absl::StatusCode code) {
   ++worker.violations;
   ++violations_total_;
   metrics_.worker_violations->Add();
@@ -864,24 +867,36 @@ absl::Status JobManager::Violation(uint32_t worker_id, Worker& worker, const std
   m.mutable_rejected()->set_reason(reason);
   m.mutable_rejected()->set_violations(worker.violations);
   m.mutable_rejected()->set_limit(uint32_t(options_.max_violations));
+  m.mutable_rejected()->set_code(int32_t(code));  // absl and gRPC share the google.rpc.Code numbers
   worker.outbox.push_back(std::move(m));
   Changed();
-  return absl::PermissionDeniedError("worker " + std::to_string(worker_id) + ": " + reason);
+  return absl::Status(code, "worker " + std::to_string(worker_id) + ": " + reason);
 }
 
-absl::Status JobManager::NotHolder(uint32_t worker_id, Worker* worker, uint64_t lease_id,
+absl::StatusOr<LeaseToken> JobManager::TokenOf(uint32_t worker_id, Worker& worker,
+                                               const std::string& bytes, const std::string& what) {
+  std::optional<LeaseToken> token = LeaseToken::FromBytes(bytes);
+  if (!token)
+    return Violation(worker_id, worker,
+                     what + ": lease token is " + std::to_string(bytes.size()) +
+                         " bytes, expected " + std::to_string(LeaseToken::kBytes),
+                     absl::StatusCode::kInvalidArgument);
+  return *token;
+}
+
+absl::Status JobManager::NotHolder(uint32_t worker_id, Worker* worker, const LeaseToken& token,
                                    const std::string& what) {
   if (worker == nullptr) return absl::NotFoundError("no worker " + std::to_string(worker_id));
   const bool held = std::any_of(worker->past_leases.begin(), worker->past_leases.end(),
-                                [&](const auto& l) { return l.first == lease_id; });
+                                [&](const auto& l) { return l.first == token; });
   if (!held) return Violation(worker_id, *worker, what + " for a lease this worker does not hold");
   // Harmless and not answered (an answer per stale message would let a worker that does not
   // read grow its outbox without bound).
   return absl::FailedPreconditionError(what + ": the lease expired (tile re-leased or done)");
 }
 
-void JobManager::ReleaseLease(Worker& worker, uint64_t lease_id) {
-  if (worker.has_lease && worker.lease_id == lease_id) worker.has_lease = false;
+void JobManager::ReleaseLease(Worker& worker, const LeaseToken& token) {
+  if (worker.has_lease && worker.lease == token) worker.has_lease = false;
 }
 
 void JobManager::TileFailedOn(const Worker& worker) {
@@ -1031,15 +1046,17 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   auto wit = workers_.find(worker);
   if (wit == workers_.end()) return absl::NotFoundError("no worker " + std::to_string(worker));
   Worker& w = wit->second;
-  ReleaseLease(w, result.lease_id());  // its lease is over, whether the result counts or not
+  const absl::StatusOr<LeaseToken> token = TokenOf(worker, w, result.lease_token(), "tile result");
+  if (!token.ok()) return token.status();
+  ReleaseLease(w, *token);  // its lease is over, whether the result counts or not
   auto it = jobs_.find(result.job_id());
   const int tile = result.tile_index();
   const TileLeaseInfo* lease = it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
                                        tile >= it->second->tiles->num_tiles()
                                    ? nullptr
-                                   : it->second->tiles->Current(tile, result.lease_id());
+                                   : it->second->tiles->Current(tile, *token);
   if (lease == nullptr || lease->worker != worker)
-    return NotHolder(worker, &w, result.lease_id(), "tile result");
+    return NotHolder(worker, &w, *token, "tile result");
   Job& job = *it->second;
   const SteadyTime lease_start = lease->start;
   Changed();
@@ -1087,7 +1104,7 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
     metrics_.tiles_failed->Add();
     TileFailedOn(w);
     absl::Status st = job.tiles->Requeue(
-        tile, result.lease_id(), "worker " + std::to_string(worker) + " sent an invalid result");
+        tile, *token, "worker " + std::to_string(worker) + " sent an invalid result");
     if (!st.ok()) FinishJob(job, v1::JOB_STATE_FAILED, std::string(st.message()));
     return Violation(worker, w, bad);
   }
@@ -1104,16 +1121,16 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   lock.lock();
   it = jobs_.find(job_id);
   if (it == jobs_.end() || IsFinal(*it->second) ||
-      it->second->tiles->Current(tile, result.lease_id()) == nullptr)
+      it->second->tiles->Current(tile, *token) == nullptr)
     return absl::FailedPreconditionError("tile result: the lease ended while it was stored");
   Job& done = *it->second;
   if (!st.ok()) {
     // Not stored, so not done: the tile is rendered again.
-    (void)done.tiles->Requeue(tile, result.lease_id(), "job store failed", false);
+    (void)done.tiles->Requeue(tile, *token, "job store failed", false);
     Changed();
     return Unavailable(st);
   }
-  st = done.tiles->Complete(tile, result.lease_id());
+  st = done.tiles->Complete(tile, *token);
   if (!st.ok()) return st;
   wit = workers_.find(worker);
   const std::string worker_name = wit == workers_.end() ? std::string() : wit->second.name;
@@ -1144,20 +1161,22 @@ absl::Status JobManager::FailTile(uint32_t worker, const v1::TileFailed& failed)
   auto wit = workers_.find(worker);
   if (wit == workers_.end()) return absl::NotFoundError("no worker " + std::to_string(worker));
   Worker& w = wit->second;
-  ReleaseLease(w, failed.lease_id());
+  const absl::StatusOr<LeaseToken> token = TokenOf(worker, w, failed.lease_token(), "tile failure");
+  if (!token.ok()) return token.status();
+  ReleaseLease(w, *token);
   auto it = jobs_.find(failed.job_id());
   const int tile = failed.tile_index();
   const TileLeaseInfo* lease = it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
                                        tile >= it->second->tiles->num_tiles()
                                    ? nullptr
-                                   : it->second->tiles->Current(tile, failed.lease_id());
+                                   : it->second->tiles->Current(tile, *token);
   if (lease == nullptr || lease->worker != worker)
-    return NotHolder(worker, &w, failed.lease_id(), "tile failure");
+    return NotHolder(worker, &w, *token, "tile failure");
   Job& job = *it->second;
   metrics_.tiles_failed->Add();
   TileFailedOn(w);
   absl::Status st = job.tiles->Requeue(
-      tile, failed.lease_id(),
+      tile, *token,
       "worker " + std::to_string(worker) + " (" + w.name + "): " + Printable(failed.reason()));
   if (!st.ok()) FinishJob(job, v1::JOB_STATE_FAILED, std::string(st.message()));
   Changed();
@@ -1319,7 +1338,7 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   v1::TileLease* l = m.mutable_lease();
   l->set_job_id(id);
   l->set_tile_index(lease->tile);
-  l->set_lease_id(lease->lease_id);
+  l->set_lease_token(lease->token.Bytes());
   const PixelRect& r = job.tiles->rect(lease->tile);
   l->mutable_rect()->set_x0(r.x0);
   l->mutable_rect()->set_y0(r.y0);
@@ -1332,9 +1351,9 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   out->push_back(std::move(m));
   worker.has_lease = true;
   worker.lease_job = id;
-  worker.lease_id = lease->lease_id;
+  worker.lease = lease->token;
   worker.lease_tile = lease->tile;
-  worker.past_leases.emplace_back(lease->lease_id, id);
+  worker.past_leases.emplace_back(lease->token, id);
   if (worker.past_leases.size() > kPastLeases) worker.past_leases.pop_front();
   Changed();
 }

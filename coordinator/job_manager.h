@@ -52,6 +52,7 @@
 #include "coordinator/coordinator_metrics.h"
 #include "coordinator/global_cache.h"
 #include "coordinator/job_store.h"
+#include "coordinator/lease_token.h"
 #include "coordinator/record_bounds.h"
 #include "coordinator/store_writer.h"
 #include "coordinator/tile_scheduler.h"
@@ -204,7 +205,7 @@ class JobManager {
     // lease its last accepted region came with (one region per lease).
     struct Region {
       Bounds3 box;
-      uint64_t lease_id = 0;
+      LeaseToken lease;
     };
     std::map<uint32_t, Region> regions;
     SteadyTime started, finished;
@@ -216,12 +217,12 @@ class JobManager {
     std::set<std::string> jobs;
     bool has_lease = false, draining = false;
     std::string lease_job;
-    uint64_t lease_id = 0;
+    LeaseToken lease;
     int lease_tile = -1;
     int threads = 0;  // as registered (0: all its cores)
-    // The last kPastLeases leases it was given (lease id, job id): a late message about one of
+    // The last kPastLeases leases it was given (token, job id): a late message about one of
     // them is stale, not invalid.
-    std::deque<std::pair<uint64_t, std::string>> past_leases;
+    std::deque<std::pair<LeaseToken, std::string>> past_leases;
     SteadyTime last_heard;
     bool silent = false;  // no message for 3 heartbeat periods: leases taken, gets none
     uint32_t violations = 0;
@@ -254,14 +255,19 @@ class JobManager {
   absl::StatusOr<Job*> Find(const std::string& id, const Caller& caller) const;
   // PERMISSION_DENIED unless `caller` may load the coordinator-side scene file `path`.
   absl::Status CheckScenePath(const std::string& path, const Caller& caller) const;
-  // Counts an invalid message of `worker`, queues a Rejected notice; returns
-  // PERMISSION_DENIED(reason).
-  absl::Status Violation(uint32_t worker_id, Worker& worker, const std::string& reason);
-  // A result or failure for `lease_id` of a tile that is not (or no longer) this worker's:
+  // Counts an invalid message of `worker`, queues a Rejected notice (with `code`); returns
+  // that status with `reason`.
+  absl::Status Violation(uint32_t worker_id, Worker& worker, const std::string& reason,
+                         absl::StatusCode code = absl::StatusCode::kPermissionDenied);
+  // The lease token of a worker's message about a lease (`what`: "tile result", ...), or a
+  // violation (INVALID_ARGUMENT) when `bytes` is not LeaseToken::kBytes long.
+  absl::StatusOr<LeaseToken> TokenOf(uint32_t worker_id, Worker& worker, const std::string& bytes,
+                                     const std::string& what);
+  // A result or failure under `token` for a tile that is not (or no longer) this worker's:
   // harmless when the worker held that lease before (it expired), else a violation.
-  absl::Status NotHolder(uint32_t worker_id, Worker* worker, uint64_t lease_id,
+  absl::Status NotHolder(uint32_t worker_id, Worker* worker, const LeaseToken& token,
                          const std::string& what);
-  void ReleaseLease(Worker& worker, uint64_t lease_id);
+  void ReleaseLease(Worker& worker, const LeaseToken& token);
   void TileFailedOn(const Worker& worker);
   bool Quarantined(const Worker& worker, SteadyTime now) const;
   // The workers other than `worker_id` that could take a lease now.

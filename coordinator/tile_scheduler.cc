@@ -1,25 +1,11 @@
 // TileScheduler: tiles, leases, deadlines and retries of one job (see tile_scheduler.h).
 #include "coordinator/tile_scheduler.h"
 
-#include <sys/random.h>
-
 #include <algorithm>
 #include <cstdlib>
 #include <limits>
-#include <random>
 
 namespace irfarm {
-
-uint64_t RandomLeaseId() {
-  uint64_t id = 0;
-  while (id == 0) {
-    if (getrandom(&id, sizeof id, 0) != ssize_t(sizeof id)) {
-      std::random_device rd;  // fallback: also backed by the kernel on Linux
-      id = (uint64_t(rd()) << 32) ^ rd();
-    }
-  }
-  return id;
-}
 
 TileScheduler::TileScheduler(int width, int height, int tile_size, const TileRetryPolicy& policy)
     : policy_(policy) {
@@ -68,22 +54,22 @@ std::optional<TileLeaseInfo> TileScheduler::Lease(uint32_t worker, SteadyTime no
     }
   }
   if (chosen == pending_.end()) return std::nullopt;
-  TileLeaseInfo lease{*chosen, RandomLeaseId(), worker, now, now + lease_time};
+  TileLeaseInfo lease{*chosen, LeaseToken::Random(), worker, now, now + lease_time};
   pending_.erase(chosen);
   state_[size_t(lease.tile)] = State::kLeased;
   leases_.push_back(lease);
   return lease;
 }
 
-const TileLeaseInfo* TileScheduler::Current(int tile, uint64_t lease_id) const {
+const TileLeaseInfo* TileScheduler::Current(int tile, const LeaseToken& token) const {
   for (const TileLeaseInfo& l : leases_)
-    if (l.tile == tile && l.lease_id == lease_id) return &l;
+    if (l.tile == tile && l.token == token) return &l;
   return nullptr;
 }
 
-absl::Status TileScheduler::Complete(int tile, uint64_t lease_id) {
+absl::Status TileScheduler::Complete(int tile, const LeaseToken& token) {
   auto it = std::find_if(leases_.begin(), leases_.end(), [&](const TileLeaseInfo& l) {
-    return l.tile == tile && l.lease_id == lease_id;
+    return l.tile == tile && l.token == token;
   });
   if (it == leases_.end())
     return absl::FailedPreconditionError("tile " + std::to_string(tile) +
@@ -104,10 +90,10 @@ void TileScheduler::MarkDone(int tile) {
   ++done_count_;
 }
 
-absl::Status TileScheduler::Requeue(int tile, uint64_t lease_id, const std::string& reason,
+absl::Status TileScheduler::Requeue(int tile, const LeaseToken& token, const std::string& reason,
                                     bool count_failure) {
   auto it = std::find_if(leases_.begin(), leases_.end(), [&](const TileLeaseInfo& l) {
-    return l.tile == tile && l.lease_id == lease_id;
+    return l.tile == tile && l.token == token;
   });
   if (it == leases_.end()) return absl::OkStatus();  // already completed or requeued
   const uint32_t worker = it->worker;
@@ -130,7 +116,7 @@ absl::Status TileScheduler::ReleaseWorker(uint32_t worker, const std::string& re
   absl::Status result;
   const std::vector<TileLeaseInfo> leases = leases_;
   for (const TileLeaseInfo& l : leases)
-    if (l.worker == worker) result.Update(Requeue(l.tile, l.lease_id, reason, count_failure));
+    if (l.worker == worker) result.Update(Requeue(l.tile, l.token, reason, count_failure));
   return result;
 }
 
@@ -139,7 +125,7 @@ absl::Status TileScheduler::ExpireLeases(SteadyTime now) {
   const std::vector<TileLeaseInfo> leases = leases_;
   for (const TileLeaseInfo& l : leases)
     if (l.deadline < now)
-      result.Update(Requeue(l.tile, l.lease_id,
+      result.Update(Requeue(l.tile, l.token,
                             "worker " + std::to_string(l.worker) + " missed the lease deadline"));
   return result;
 }

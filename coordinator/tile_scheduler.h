@@ -1,9 +1,9 @@
 // TileScheduler: the tiles of one job and who renders them. The image is cut into square tiles
 // (many more than workers, so a slow or lost worker costs little); a worker leases one tile at a
-// time until a deadline, under a random, unguessable lease id (64 bits from the kernel's CSPRNG)
-// bound to that worker: a result is accepted only from the lease's holder. A tile whose worker
-// fails it, dies or misses its deadline goes back to the front of the queue, but is leased to a
-// worker it has not failed on first; the job fails only when the tile failed on
+// time until a deadline, under a random, unguessable lease token (128 bits from the kernel's
+// CSPRNG, lease_token.h) bound to that worker: a result is accepted only from the lease's holder. A
+// tile whose worker fails it, dies or misses its deadline goes back to the front of the queue, but
+// is leased to a worker it has not failed on first; the job fails only when the tile failed on
 // `failure_workers` distinct workers, or `max_attempts` times in all (a single worker left).
 // Not thread-safe: JobManager serialises access.
 #pragma once
@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "coordinator/lease_token.h"
 #include "render/renderer.h"
 
 namespace irfarm {
@@ -25,7 +26,7 @@ using SteadyTime = std::chrono::steady_clock::time_point;
 
 struct TileLeaseInfo {
   int tile = -1;
-  uint64_t lease_id = 0;
+  LeaseToken token;
   uint32_t worker = 0;
   SteadyTime start, deadline;
 };
@@ -34,9 +35,6 @@ struct TileRetryPolicy {
   int failure_workers = 3;  // a tile failing on this many distinct workers fails the job
   int max_attempts = 10;    // ... or failing this many times in all
 };
-
-// A random lease id from the kernel's CSPRNG (getrandom), never 0.
-uint64_t RandomLeaseId();
 
 class TileScheduler {
  public:
@@ -60,11 +58,12 @@ class TileScheduler {
                                      std::chrono::milliseconds lease_time,
                                      const std::vector<uint32_t>& others = {}, int near = -1);
 
-  // The current lease `lease_id` of `tile`, or nullptr (expired and re-leased, done, or never).
-  const TileLeaseInfo* Current(int tile, uint64_t lease_id) const;
-  // The tile's result arrived under `lease_id`. FAILED_PRECONDITION when that lease is no longer
+  // The current lease of `tile` with `token`, or nullptr (expired and re-leased, done, never, or
+  // a wrong token).
+  const TileLeaseInfo* Current(int tile, const LeaseToken& token) const;
+  // The tile's result arrived under `token`. FAILED_PRECONDITION when that lease is no longer
   // current: the result is then ignored.
-  absl::Status Complete(int tile, uint64_t lease_id);
+  absl::Status Complete(int tile, const LeaseToken& token);
   // Marks a tile done without a lease (restoring finished tiles from a store).
   void MarkDone(int tile);
 
@@ -72,7 +71,7 @@ class TileScheduler {
   // the tile (the worker failed it, died or missed the deadline); a worker that only went silent
   // does not count. Returns an error (the job must fail) when the tile has now failed on
   // failure_workers distinct workers or max_attempts times.
-  absl::Status Requeue(int tile, uint64_t lease_id, const std::string& reason,
+  absl::Status Requeue(int tile, const LeaseToken& token, const std::string& reason,
                        bool count_failure = true);
   // Requeues every tile leased to `worker`.
   absl::Status ReleaseWorker(uint32_t worker, const std::string& reason, bool count_failure);

@@ -2,9 +2,9 @@
 // FailTile, Drain), as WorkerService calls them for each message of a Session stream. The input
 // is a serialized WorkerMessage from a registered worker of a coordinator (in-memory store) with
 // a running 32x32 cornell-box job of 4 tiles. So that the fuzzer reaches the paths behind the
-// lease check, a lease id of 0 stands for the lease the worker holds now (and its tile) and an
-// empty job id for the job it works on. The harness keeps one coordinator across inputs (a new job
-// when one ends, a new worker when one is expelled), like a long-lived coordinator facing one
+// lease check, an empty lease token stands for the lease the worker holds now (and its tile) and
+// an empty job id for the job it works on. The harness keeps one coordinator across inputs (a new
+// job when one ends, a new worker when one is expelled), like a long-lived coordinator facing one
 // hostile worker.
 #include <chrono>
 #include <cstddef>
@@ -26,7 +26,7 @@ struct Harness {
   irfarm::v1::SubmitJobRequest request;
   uint32_t worker = 0;
   std::string job;
-  uint64_t lease = 0;
+  std::string lease;  // token bytes
   int tile = 0;
 
   Harness() {
@@ -56,7 +56,7 @@ struct Harness {
     for (const irfarm::v1::CoordinatorMessage& m :
          manager->Poll(worker, std::chrono::milliseconds(0)))
       if (m.has_lease()) {
-        lease = m.lease().lease_id();
+        lease = m.lease().lease_token();
         tile = m.lease().tile_index();
         job = m.lease().job_id();
       }
@@ -77,16 +77,16 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       (void)h->manager->AddRecords(h->worker, m.records());
       break;
     case WorkerMessage::kTileResult:
-      if (m.tile_result().lease_id() == 0) {
-        m.mutable_tile_result()->set_lease_id(h->lease);
+      if (m.tile_result().lease_token().empty()) {
+        m.mutable_tile_result()->set_lease_token(h->lease);
         m.mutable_tile_result()->set_tile_index(h->tile);
       }
       if (m.tile_result().job_id().empty()) m.mutable_tile_result()->set_job_id(h->job);
       (void)h->manager->CompleteTile(h->worker, m.tile_result());
       break;
     case WorkerMessage::kTileFailed:
-      if (m.tile_failed().lease_id() == 0) {
-        m.mutable_tile_failed()->set_lease_id(h->lease);
+      if (m.tile_failed().lease_token().empty()) {
+        m.mutable_tile_failed()->set_lease_token(h->lease);
         m.mutable_tile_failed()->set_tile_index(h->tile);
       }
       if (m.tile_failed().job_id().empty()) m.mutable_tile_failed()->set_job_id(h->job);

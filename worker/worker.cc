@@ -213,7 +213,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
       v1::TileFailed* tf = m.mutable_tile_failed();
       tf->set_job_id(lease.job_id());
       tf->set_tile_index(lease.tile_index());
-      tf->set_lease_id(lease.lease_id());
+      tf->set_lease_token(lease.lease_token());
       tf->set_reason(failure);
       write(m);
       metrics_.tiles_failed->Add();
@@ -227,7 +227,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
       v1::WorkerMessage rm;
       v1::TileRegion* tr = rm.mutable_tile_region();
       tr->set_job_id(lease.job_id());
-      tr->set_lease_id(lease.lease_id());
+      tr->set_lease_token(lease.lease_token());
       tr->set_min_x(box->lo.x);
       tr->set_min_y(box->lo.y);
       tr->set_min_z(box->lo.z);
@@ -242,7 +242,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
     v1::TileResult* tr = m.mutable_tile_result();
     tr->set_job_id(lease.job_id());
     tr->set_tile_index(lease.tile_index());
-    tr->set_lease_id(lease.lease_id());
+    tr->set_lease_token(lease.lease_token());
     *tr->mutable_rect() = lease.rect();
     tr->mutable_pixels()->Reserve(int(out.image.pixels.size() * 3));
     for (const Vec3& p : out.image.pixels) {

@@ -81,9 +81,11 @@ class FakeWorker {
     return m->lease();
   }
   // Waits for the Rejected answer to the last message; returns its reason ("" if none came).
-  std::string NextRejection() {
+  std::string NextRejection() { return NextRejected().reason(); }
+  // The same, whole (reason and status code; empty if none came).
+  v1::Rejected NextRejected() {
     auto m = ReadUntil([](const v1::CoordinatorMessage& m) { return m.has_rejected(); });
-    return m ? m->rejected().reason() : "";
+    return m ? m->rejected() : v1::Rejected();
   }
   bool Send(const v1::WorkerMessage& m) { return stream_->Write(m); }
   // Cancels the session (thread-safe: another thread may be blocked reading).
@@ -136,15 +138,28 @@ IrradianceRecord Record(Vec3 p, float radius, float e) {
   return r;
 }
 
-v1::WorkerMessage Result(const std::string& job, int tile, uint64_t lease, int floats,
-                         float value) {
+v1::WorkerMessage Result(const std::string& job, int tile, const std::string& lease_token,
+                         int floats, float value) {
   v1::WorkerMessage m;
   v1::TileResult* r = m.mutable_tile_result();
   r->set_job_id(job);
   r->set_tile_index(tile);
-  r->set_lease_id(lease);
+  r->set_lease_token(lease_token);
   for (int i = 0; i < floats; ++i) r->add_pixels(value);
   return m;
+}
+
+// A guessed lease token: 16 bytes holding a small counter (what sequential lease ids gave).
+std::string GuessedToken(uint64_t n) {
+  std::string t(16, '\0');
+  for (int i = 0; i < 8; ++i) t[size_t(i)] = char(n >> (8 * i));
+  return t;
+}
+
+// `token` with bit `bit` (0-127) flipped: a forgery that differs from the real one in one bit.
+std::string FlipBit(std::string token, int bit) {
+  token[size_t(bit / 8)] = char(token[size_t(bit / 8)] ^ (1 << (bit % 8)));
+  return token;
 }
 
 int LeaseFloats(const v1::TileLease& l) {
@@ -440,23 +455,23 @@ TEST_F(AttackTest, HijackedLeasesNanPixelsAndForgedStatsAreRefused) {
   std::optional<v1::TileLease> lease = f.NextLease();
   ASSERT_TRUE(lease.has_value());
   const int floats = LeaseFloats(*lease);
-  EXPECT_GT(lease->lease_id(), 1000u);  // random, not counting from 1
+  EXPECT_EQ(lease->lease_token().size(), 16u);  // 128 random bits, not a counter
   // Guessed leases of other tiles, NaN pixels.
   for (int t = 0; t < 4; ++t) {
     if (t == lease->tile_index()) continue;
-    ASSERT_TRUE(f.Send(Result(a, t, uint64_t(t + 1), floats, std::nanf(""))));
+    ASSERT_TRUE(f.Send(Result(a, t, GuessedToken(uint64_t(t + 1)), floats, std::nanf(""))));
     EXPECT_NE(f.NextRejection().find("does not hold"), std::string::npos);
   }
   // Its own lease: NaN pixels, then (on its next lease) negative ones, then forged stats.
-  ASSERT_TRUE(f.Send(Result(a, lease->tile_index(), lease->lease_id(), floats, std::nanf(""))));
+  ASSERT_TRUE(f.Send(Result(a, lease->tile_index(), lease->lease_token(), floats, std::nanf(""))));
   EXPECT_NE(f.NextRejection().find("not finite"), std::string::npos);
   lease = f.NextLease();
   ASSERT_TRUE(lease.has_value());
-  ASSERT_TRUE(f.Send(Result(a, lease->tile_index(), lease->lease_id(), floats, -1)));
+  ASSERT_TRUE(f.Send(Result(a, lease->tile_index(), lease->lease_token(), floats, -1)));
   EXPECT_NE(f.NextRejection().find("non-negative"), std::string::npos);
   lease = f.NextLease();
   ASSERT_TRUE(lease.has_value());
-  v1::WorkerMessage forged = Result(a, lease->tile_index(), lease->lease_id(), floats, 0.5f);
+  v1::WorkerMessage forged = Result(a, lease->tile_index(), lease->lease_token(), floats, 0.5f);
   forged.mutable_tile_result()->mutable_stats()->set_records_computed(1000000000000ull);
   forged.mutable_tile_result()->mutable_stats()->set_wall_seconds(-5);
   ASSERT_TRUE(f.Send(forged));
@@ -467,7 +482,7 @@ TEST_F(AttackTest, HijackedLeasesNanPixelsAndForgedStatsAreRefused) {
   EXPECT_NE(job.state(), v1::JOB_STATE_FAILED);  // three bad tiles on one worker fail nothing
   // Keep going until the coordinator ends the session.
   for (int i = 0; i < 2 * kMaxViolations; ++i)
-    if (!f.Send(Result(a, 0, 42, floats, std::nanf("")))) break;
+    if (!f.Send(Result(a, 0, GuessedToken(42), floats, std::nanf("")))) break;
   const grpc::Status end = f.Finish();
   EXPECT_EQ(end.error_code(), grpc::StatusCode::PERMISSION_DENIED) << end.error_message();
   EXPECT_GE(Cluster().workers_disconnected(), 1u);
@@ -499,6 +514,125 @@ TEST_F(AttackTest, HijackedLeasesNanPixelsAndForgedStatsAreRefused) {
   EXPECT_LE(e.relmse, tol);
 }
 
+// Why 2, with lease tokens: a foreign worker names another worker's current lease with a guessed
+// token, with the holder's token one bit off, with a 64-bit (8-byte) id of the old format, and
+// even with the holder's exact token; in a result, a failure and a region. Each is refused
+// (Rejected with PERMISSION_DENIED, INVALID_ARGUMENT for the 8 bytes), and so is the holder's own
+// result under its token with the top bit flipped: all 128 bits are checked. The lease is
+// unaffected: the holder's result under the real token counts, the job list does not change, the
+// holder is not charged with a failure, and the job finishes within noise.
+TEST_F(AttackTest, ForgedLeaseTokensAreRefusedAndTheLeaseIsUnaffected) {
+  StartServer();
+  const double tol = CleanTolerance();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  FakeWorker victim(channel_, kWorker, "victim");
+  const std::optional<v1::TileLease> held = victim.NextLease();
+  ASSERT_TRUE(held.has_value());
+  FakeWorker mallory(channel_, kWorker, "mallory");
+  ASSERT_TRUE(mallory.NextLease().has_value());
+  const std::string list = JobList();
+  const int tile = held->tile_index();
+  const int floats = LeaseFloats(*held);
+  const std::string token = held->lease_token();
+  ASSERT_EQ(token.size(), 16u);
+
+  struct Forgery {
+    std::string what, token;
+    grpc::StatusCode code;
+  };
+  const std::vector<Forgery> forgeries = {
+      {"guessed", GuessedToken(1), grpc::StatusCode::PERMISSION_DENIED},
+      {"one bit off (low)", FlipBit(token, 0), grpc::StatusCode::PERMISSION_DENIED},
+      {"one bit off (high)", FlipBit(token, 127), grpc::StatusCode::PERMISSION_DENIED},
+      {"64-bit id", token.substr(0, 8), grpc::StatusCode::INVALID_ARGUMENT},
+      {"the holder's own", token, grpc::StatusCode::PERMISSION_DENIED},  // bound to the holder
+  };
+  // Results and failures from one forger, regions from a second (15 forgeries in all would
+  // expel a single one, after kMaxViolations = 12, before the last were answered).
+  FakeWorker mallory2(channel_, kWorker, "mallory2");
+  uint32_t sent = 0, sent2 = 0;
+  for (const Forgery& f : forgeries) {
+    const bool denied = f.code == grpc::StatusCode::PERMISSION_DENIED;
+    ASSERT_TRUE(mallory.Send(Result(a, tile, f.token, floats, std::nanf(""))));
+    v1::Rejected r = mallory.NextRejected();
+    EXPECT_EQ(r.code(), int(f.code)) << f.what << ": " << r.reason();
+    EXPECT_EQ(r.reason().find("does not hold") != std::string::npos, denied) << r.reason();
+    EXPECT_EQ(r.violations(), ++sent) << f.what;
+    v1::WorkerMessage failed;
+    failed.mutable_tile_failed()->set_job_id(a);
+    failed.mutable_tile_failed()->set_tile_index(tile);
+    failed.mutable_tile_failed()->set_lease_token(f.token);
+    failed.mutable_tile_failed()->set_reason("forged");
+    ASSERT_TRUE(mallory.Send(failed));
+    r = mallory.NextRejected();
+    EXPECT_EQ(r.code(), int(f.code)) << f.what << " (failure): " << r.reason();
+    EXPECT_EQ(r.violations(), ++sent) << f.what;
+    v1::WorkerMessage region;
+    region.mutable_tile_region()->set_job_id(a);
+    region.mutable_tile_region()->set_lease_token(f.token);
+    ASSERT_TRUE(mallory2.Send(region));
+    r = mallory2.NextRejected();
+    EXPECT_EQ(r.code(), int(f.code)) << f.what << " (region): " << r.reason();
+    EXPECT_EQ(r.violations(), ++sent2) << f.what;
+  }
+  // The holder itself, its token with the top bit flipped.
+  ASSERT_TRUE(victim.Send(Result(a, tile, FlipBit(token, 127), floats, 0.5f)));
+  const v1::Rejected own = victim.NextRejected();
+  EXPECT_EQ(own.code(), int(grpc::StatusCode::PERMISSION_DENIED)) << own.reason();
+  EXPECT_NE(own.reason().find("does not hold"), std::string::npos) << own.reason();
+
+  // Nothing changed: no tile done or failed, the lease still the victim's.
+  v1::Job job;
+  ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+  EXPECT_EQ(job.tiles_done(), 0);
+  EXPECT_EQ(job.state(), v1::JOB_STATE_RUNNING);
+  EXPECT_EQ(JobList(), list);
+  const v1::GetClusterResponse cluster = Cluster();
+  for (const v1::WorkerInfo& w : cluster.workers()) {
+    if (w.name() == "victim") {
+      EXPECT_TRUE(w.has_lease());
+      EXPECT_EQ(w.lease_job(), a);
+      EXPECT_EQ(w.lease_tile(), tile);
+      EXPECT_EQ(w.consecutive_failures(), 0u);
+      EXPECT_EQ(w.violations(), 1u);
+    } else if (w.name() == "mallory") {
+      EXPECT_EQ(w.violations(), sent);
+    } else if (w.name() == "mallory2") {
+      EXPECT_EQ(w.violations(), sent2);
+    }
+  }
+  // The holder's result under the real token counts: the reference's own pixels of its tile.
+  absl::StatusOr<Image> ref = ReadExr(kReference);
+  ASSERT_TRUE(ref.ok());
+  v1::WorkerMessage honest = Result(a, tile, token, 0, 0);
+  for (int y = held->rect().y0(); y < held->rect().y1(); ++y)
+    for (int x = held->rect().x0(); x < held->rect().x1(); ++x)
+      for (int c = 0; c < 3; ++c) honest.mutable_tile_result()->add_pixels(ref->at(x, y)[c]);
+  ASSERT_TRUE(victim.Send(honest));
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (job.tiles_done() == 0 && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+  }
+  EXPECT_EQ(job.tiles_done(), 1);
+  // The forger keeps going until the coordinator ends its session.
+  for (int i = 0; i < 2 * kMaxViolations; ++i)
+    if (!mallory.Send(Result(a, tile, FlipBit(token, i % 128), floats, 0.5f))) break;
+  const grpc::Status end = mallory.Finish();
+  EXPECT_EQ(end.error_code(), grpc::StatusCode::PERMISSION_DENIED) << end.error_message();
+  victim.Close();
+  mallory2.Close();
+
+  StartHonestWorker();
+  job = WaitFinal(a);
+  ASSERT_EQ(job.state(), v1::JOB_STATE_SUCCEEDED) << job.error();
+  const ImageError e = ImageOf(kAlice, a);
+  std::printf("MEASURED forged-token job relMSE %g (tolerance %g)\n", e.relmse, tol);
+  EXPECT_EQ(e.nonfinite, 0);
+  EXPECT_LE(e.relmse, tol);
+}
+
 // Why 4: forged TileFailed for leases the worker does not hold change nothing; a worker that
 // fails every tile it gets is quarantined while an honest worker finishes every job.
 TEST_F(AttackTest, FailingWorkerIsQuarantinedAndJobsSucceed) {
@@ -512,7 +646,7 @@ TEST_F(AttackTest, FailingWorkerIsQuarantinedAndJobsSucceed) {
     v1::WorkerMessage m;
     m.mutable_tile_failed()->set_job_id(ids[0]);
     m.mutable_tile_failed()->set_tile_index(t + 5);
-    m.mutable_tile_failed()->set_lease_id(uint64_t(t + 1));
+    m.mutable_tile_failed()->set_lease_token(GuessedToken(uint64_t(t + 1)));
     m.mutable_tile_failed()->set_reason("forged");
     ASSERT_TRUE(f.Send(m));
     EXPECT_NE(f.NextRejection().find("does not hold"), std::string::npos);
@@ -525,7 +659,7 @@ TEST_F(AttackTest, FailingWorkerIsQuarantinedAndJobsSucceed) {
       v1::WorkerMessage m;
       m.mutable_tile_failed()->set_job_id(l->job_id());
       m.mutable_tile_failed()->set_tile_index(l->tile_index());
-      m.mutable_tile_failed()->set_lease_id(l->lease_id());
+      m.mutable_tile_failed()->set_lease_token(l->lease_token());
       m.mutable_tile_failed()->set_reason("cannot open the scene");
       if (!f.Send(m)) break;
       l = f.NextLease();
@@ -560,7 +694,7 @@ TEST_F(AttackTest, JobFailsOnlyWhenATileFailedOnThreeWorkers) {
         v1::WorkerMessage m;
         m.mutable_tile_failed()->set_job_id(l->job_id());
         m.mutable_tile_failed()->set_tile_index(l->tile_index());
-        m.mutable_tile_failed()->set_lease_id(l->lease_id());
+        m.mutable_tile_failed()->set_lease_token(l->lease_token());
         m.mutable_tile_failed()->set_reason("broken " + std::to_string(i));
         ++failed[size_t(i)];
         if (!fakes[size_t(i)]->Send(m)) break;
@@ -797,8 +931,8 @@ class TlsTest : public AttackTest {
       }
       creds = grpc::SslCredentials(o);
     }
-    auto stub = v1::JobService::NewStub(
-        grpc::CreateChannel("localhost:" + std::to_string(port_), creds));
+    auto stub =
+        v1::JobService::NewStub(grpc::CreateChannel("localhost:" + std::to_string(port_), creds));
     grpc::ClientContext c;
     Auth(&c, token);
     c.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));

@@ -35,7 +35,7 @@ IrradianceRecord FloorRecord(float x, float radius) {
 v1::TileRegion Region(const v1::TileLease& lease, float x0, float x1) {
   v1::TileRegion r;
   r.set_job_id(lease.job_id());
-  r.set_lease_id(lease.lease_id());
+  r.set_lease_token(lease.lease_token());
   r.set_min_x(x0);
   r.set_max_x(x1);
   r.set_min_y(0);
@@ -153,7 +153,9 @@ TEST_F(FanoutRegionTest, MalformedRegionsAreRefused) {
   v1::TileRegion inverted = Region(lease_a_, 1.0f, -1.0f);
   v1::TileRegion outside = Region(lease_a_, 100.0f, 200.0f);
   v1::TileRegion not_held = Region(lease_a_, -2.5f, -0.5f);
-  not_held.set_lease_id(lease_a_.lease_id() ^ 1);
+  std::string flipped = lease_a_.lease_token();
+  flipped[0] = char(flipped[0] ^ 1);
+  not_held.set_lease_token(flipped);
   Received(a_);
   for (const v1::TileRegion& r : {bad, inverted, outside, not_held})
     EXPECT_TRUE(absl::IsPermissionDenied(manager_->AddTileRegion(a_, r)));

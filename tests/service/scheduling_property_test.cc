@@ -18,9 +18,11 @@
 #include <map>
 #include <random>
 #include <set>
+#include <string>
 
 #include "coordinator/in_memory_job_store.h"
 #include "coordinator/job_manager.h"
+#include "coordinator/lease_token.h"
 #include "coordinator/tile_scheduler.h"
 #include "service/scene_bundle.h"
 
@@ -32,7 +34,7 @@ using std::chrono::milliseconds;
 // What the scheduler should hold, tile by tile.
 struct TileModel {
   enum State { kPending, kLeased, kDone } state = kPending;
-  uint64_t lease = 0;
+  LeaseToken lease;
   uint32_t worker = 0;
   SteadyTime deadline;
   std::set<uint32_t> failed_on;
@@ -102,8 +104,7 @@ TEST(SchedulingPropertyTest, TileSchedulerKeepsEveryTileAndCountsEachOnce) {
                   << "seed " << seed << ": tile " << l->tile << " went back to worker " << worker
                   << " that failed it while worker " << o << " had not";
           }
-          m = TileModel{TileModel::kLeased, l->lease_id, worker,
-                        l->deadline,        m.failed_on, m.failures};
+          m = TileModel{TileModel::kLeased, l->token, worker, l->deadline, m.failed_on, m.failures};
         } else {
           for (int t = 0; t < s.num_tiles(); ++t) {
             const TileModel& m = model[size_t(t)];
@@ -122,12 +123,15 @@ TEST(SchedulingPropertyTest, TileSchedulerKeepsEveryTileAndCountsEachOnce) {
         model[size_t(t)].state = TileModel::kDone;
         // The same result again, or under a forged lease: refused.
         EXPECT_FALSE(s.Complete(t, model[size_t(t)].lease).ok()) << "seed " << seed;
-      } else if (op == 5) {  // a result for a random tile under a forged or stale lease id
+      } else if (op == 5) {  // a result for a random tile under a forged or stale lease token
         const int t = pick(s.num_tiles());
-        const uint64_t forged = rng();
-        if (model[size_t(t)].state != TileModel::kLeased || model[size_t(t)].lease != forged) {
-          EXPECT_FALSE(s.Complete(t, forged).ok()) << "seed " << seed;
-        }
+        // Forged: the tile's own token (or, for a tile not leased, the last one it had) with one
+        // of its 128 bits flipped, or the all-zero token.
+        std::string bytes = model[size_t(t)].lease.Bytes();
+        const int bit = pick(129);
+        if (bit < 128) bytes[size_t(bit / 8)] = char(bytes[size_t(bit / 8)] ^ (1 << (bit % 8)));
+        const LeaseToken forged = bit < 128 ? *LeaseToken::FromBytes(bytes) : LeaseToken();
+        EXPECT_FALSE(s.Complete(t, forged).ok()) << "seed " << seed;
       } else if (op == 6 && !leased.empty()) {  // the worker reports a failure
         const int t = leased[size_t(pick(int(leased.size())))];
         const absl::Status st = s.Requeue(t, model[size_t(t)].lease, "failed");
@@ -168,7 +172,7 @@ TEST(SchedulingPropertyTest, TileSchedulerKeepsEveryTileAndCountsEachOnce) {
         }
       const std::optional<TileLeaseInfo> l = s.Lease(1, now, milliseconds(1000));
       if (!l) continue;
-      ASSERT_TRUE(s.Complete(l->tile, l->lease_id).ok());
+      ASSERT_TRUE(s.Complete(l->tile, l->token).ok());
       model[size_t(l->tile)].state = TileModel::kDone;
     }
     ASSERT_TRUE(s.all_done()) << "seed " << seed << ": tiles lost";
@@ -201,7 +205,7 @@ TEST(SchedulingPropertyTest, JobStatesOnlyMoveForwardAndEveryTileCountsOnce) {
     struct Held {
       std::string job;
       int tile = 0;
-      uint64_t lease = 0;
+      std::string lease;  // token bytes
       int floats = 0;
     };
     std::map<uint32_t, std::optional<Held>> workers;
@@ -227,7 +231,7 @@ TEST(SchedulingPropertyTest, JobStatesOnlyMoveForwardAndEveryTileCountsOnce) {
       for (const v1::CoordinatorMessage& msg : m->Poll(w, milliseconds(0)))
         if (msg.has_lease()) {
           const v1::TileLease& l = msg.lease();
-          workers[w] = Held{l.job_id(), l.tile_index(), l.lease_id(),
+          workers[w] = Held{l.job_id(), l.tile_index(), l.lease_token(),
                             (l.rect().x1() - l.rect().x0()) * (l.rect().y1() - l.rect().y0()) * 3};
         } else if (msg.has_job_closed() && workers[w] &&
                    workers[w]->job == msg.job_closed().job_id()) {
@@ -238,7 +242,7 @@ TEST(SchedulingPropertyTest, JobStatesOnlyMoveForwardAndEveryTileCountsOnce) {
       v1::TileResult r;
       r.set_job_id(held.job);
       r.set_tile_index(held.tile);
-      r.set_lease_id(held.lease);
+      r.set_lease_token(held.lease);
       for (int i = 0; i < floats; ++i) r.add_pixels(value);
       const absl::Status st = m->CompleteTile(w, r);
       if (st.ok()) ++accepted[{held.job, held.tile}];
@@ -271,7 +275,7 @@ TEST(SchedulingPropertyTest, JobStatesOnlyMoveForwardAndEveryTileCountsOnce) {
           v1::TileFailed f;
           f.set_job_id(it->second->job);
           f.set_tile_index(it->second->tile);
-          f.set_lease_id(it->second->lease);
+          f.set_lease_token(it->second->lease);
           (void)m->FailTile(w, f);
           it->second.reset();
         } else if (op == 10) {
@@ -291,7 +295,7 @@ TEST(SchedulingPropertyTest, JobStatesOnlyMoveForwardAndEveryTileCountsOnce) {
     for (int guard = 0; guard < 1000; ++guard) {
       for (const v1::CoordinatorMessage& msg : m->Poll(honest, milliseconds(0)))
         if (msg.has_lease())
-          h = Held{msg.lease().job_id(), msg.lease().tile_index(), msg.lease().lease_id(),
+          h = Held{msg.lease().job_id(), msg.lease().tile_index(), msg.lease().lease_token(),
                    (msg.lease().rect().x1() - msg.lease().rect().x0()) *
                        (msg.lease().rect().y1() - msg.lease().rect().y0()) * 3};
       if (!h) break;

@@ -1,5 +1,5 @@
-// TileScheduler's retry rules (issue 10, part 3): random lease ids; a failed tile goes to a worker
-// it has not failed on while one exists, back to a worker it failed on when every other one
+// TileScheduler's retry rules (issue 10, part 3): random lease tokens; a failed tile goes to a
+// worker it has not failed on while one exists, back to a worker it failed on when every other one
 // failed it too (no tile is stranded); the job fails only when a tile failed on
 // failure_workers distinct workers or max_attempts times; a silent worker's release is no
 // failure.
@@ -8,22 +8,28 @@
 #include <gtest/gtest.h>
 
 #include <set>
+#include <string>
 
 namespace irfarm {
 namespace {
 
 const auto kLease = std::chrono::milliseconds(60000);
 
-TEST(TileSchedulerTest, LeaseIdsAreRandomAndDistinct) {
+TEST(TileSchedulerTest, LeaseTokensAreRandomAndDistinct) {
   TileScheduler s(64, 64, 16, TileRetryPolicy());
-  std::set<uint64_t> ids;
+  std::set<std::string> tokens;
   for (int i = 0; i < 16; ++i) {
     auto l = s.Lease(1, SteadyTime(), kLease);
     ASSERT_TRUE(l.has_value());
-    EXPECT_GT(l->lease_id, uint64_t(1) << 20);  // not a small counter (2^-44 chance to fail)
-    ids.insert(l->lease_id);
+    EXPECT_FALSE(l->token.empty());
+    tokens.insert(l->token.Bytes());
+    // The tile's lease is found by its token only.
+    const TileLeaseInfo* current = s.Current(l->tile, l->token);
+    ASSERT_NE(current, nullptr);
+    EXPECT_EQ(current->worker, 1u);
+    EXPECT_EQ(s.Current(l->tile, LeaseToken()), nullptr);
   }
-  EXPECT_EQ(ids.size(), 16u);
+  EXPECT_EQ(tokens.size(), 16u);
   EXPECT_FALSE(s.Lease(1, SteadyTime(), kLease).has_value());
 }
 
@@ -31,11 +37,11 @@ TEST(TileSchedulerTest, FailedTileGoesToAnotherWorkerFirstAndIsNeverStranded) {
   TileScheduler s(16, 16, 16, TileRetryPolicy{3, 10});  // one tile
   auto l = s.Lease(1, SteadyTime(), kLease, {2});
   ASSERT_TRUE(l.has_value());
-  ASSERT_TRUE(s.Requeue(l->tile, l->lease_id, "broken").ok());
+  ASSERT_TRUE(s.Requeue(l->tile, l->token, "broken").ok());
   EXPECT_FALSE(s.Lease(1, SteadyTime(), kLease, {2}).has_value());  // worker 2 has not failed it
   l = s.Lease(2, SteadyTime(), kLease, {1});
   ASSERT_TRUE(l.has_value());
-  ASSERT_TRUE(s.Requeue(l->tile, l->lease_id, "broken too").ok());
+  ASSERT_TRUE(s.Requeue(l->tile, l->token, "broken too").ok());
   // Both failed it: it goes back to one of them rather than waiting forever.
   l = s.Lease(1, SteadyTime(), kLease, {2});
   ASSERT_TRUE(l.has_value());
@@ -43,7 +49,7 @@ TEST(TileSchedulerTest, FailedTileGoesToAnotherWorkerFirstAndIsNeverStranded) {
   ASSERT_TRUE(s.ReleaseWorker(1, "silent", /*count_failure=*/false).ok());
   l = s.Lease(3, SteadyTime(), kLease, {1, 2});
   ASSERT_TRUE(l.has_value());
-  const absl::Status st = s.Requeue(l->tile, l->lease_id, "third");
+  const absl::Status st = s.Requeue(l->tile, l->token, "third");
   EXPECT_EQ(st.code(), absl::StatusCode::kAborted);  // third distinct worker
   EXPECT_NE(st.message().find("on 3 workers"), std::string::npos) << st.message();
 }
@@ -53,7 +59,7 @@ TEST(TileSchedulerTest, OneWorkerFailingRepeatedlyFailsAfterMaxAttempts) {
   for (int i = 1; i <= 4; ++i) {
     auto l = s.Lease(1, SteadyTime(), kLease);
     ASSERT_TRUE(l.has_value());
-    const absl::Status st = s.Requeue(l->tile, l->lease_id, "again");
+    const absl::Status st = s.Requeue(l->tile, l->token, "again");
     EXPECT_EQ(st.ok(), i < 4) << i;
   }
 }
