@@ -6,12 +6,7 @@
 // tile, from the coordinator), records computed, records and bytes sent and received, and the
 // ratio of the 2-worker speed-up to the Embree loop's (issue 3 wants >= 0.95). Every timed
 // figure is the best of --repeats runs, so that a busy moment of a shared machine counts less.
-#include <fcntl.h>
 #include <grpcpp/grpcpp.h>
-#include <netinet/in.h>
-#include <signal.h>
-#include <sys/socket.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -25,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench/child_process.h"
 #include "irfarm/v1/jobs.grpc.pb.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
@@ -37,66 +33,6 @@ using Clock = std::chrono::steady_clock;
 
 double Seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
-}
-
-int FreePort() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof a;
-  int port = 0;
-  if (bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
-      getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) == 0)
-    port = ntohs(a.sin_port);
-  close(fd);
-  return port;
-}
-
-// A child process (coordinator or worker) with its output in `log`; stopped by Stop().
-class Child {
- public:
-  Child(const std::vector<std::string>& argv, const std::string& log) {
-    pid_ = fork();
-    if (pid_ == 0) {
-      const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      if (fd >= 0) {
-        dup2(fd, 1);
-        dup2(fd, 2);
-      }
-      std::vector<char*> args;
-      for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-      args.push_back(nullptr);
-      execv(args[0], args.data());
-      _exit(127);
-    }
-  }
-  ~Child() { Stop(); }
-  // SIGTERM, then SIGKILL after 5 s.
-  void Stop() {
-    if (pid_ <= 0) return;
-    kill(pid_, SIGTERM);
-    for (int i = 0; i < 100; ++i) {
-      if (waitpid(pid_, nullptr, WNOHANG) == pid_) {
-        pid_ = 0;
-        return;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    kill(pid_, SIGKILL);
-    waitpid(pid_, nullptr, 0);
-    pid_ = 0;
-  }
-
- private:
-  pid_t pid_ = 0;
-};
-
-bool LogContains(const std::string& path, const std::string& text) {
-  std::ifstream f(path);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str().find(text) != std::string::npos;
 }
 
 struct JobFigures {
@@ -113,27 +49,20 @@ JobFigures RunJob(const std::string& bin, const std::string& scene, int res, int
                   bool share, const std::string& tmp) {
   JobFigures f;
   const std::string addr = "127.0.0.1:" + std::to_string(FreePort());
-  Child coordinator({bin + "/irfarm-coordinator", "--listen", addr}, tmp + "/coordinator.log");
+  ChildProcess coordinator({bin + "/irfarm-coordinator", "--listen", addr},
+                           tmp + "/coordinator.log");
   grpc::ChannelArguments args;
   args.SetMaxSendMessageSize(-1);
   auto stub = v1::JobService::NewStub(
       grpc::CreateCustomChannel(addr, grpc::InsecureChannelCredentials(), args));
-  bool up = false;
-  for (int i = 0; i < 100 && !up; ++i) {
-    grpc::ClientContext c;
-    c.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(200));
-    v1::ListJobsResponse r;
-    up = stub->ListJobs(&c, v1::ListJobsRequest(), &r).ok();
-    if (!up) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  if (!up) {
+  if (!WaitForJobService(stub.get(), std::chrono::seconds(10))) {
     f.error = "coordinator did not come up";
     return f;
   }
-  std::vector<std::unique_ptr<Child>> ws;
+  std::vector<std::unique_ptr<ChildProcess>> ws;
   for (int i = 0; i < workers; ++i) {
     const std::string log = tmp + "/worker-" + std::to_string(i) + ".log";
-    ws.push_back(std::make_unique<Child>(
+    ws.push_back(std::make_unique<ChildProcess>(
         std::vector<std::string>{bin + "/irfarm-worker", "--coordinator", addr, "--threads", "1",
                                  "--name", "w" + std::to_string(i + 1)},
         log));

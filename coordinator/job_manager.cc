@@ -256,6 +256,40 @@ v1::Job JobManager::View(const Job& job) const {
 void JobManager::Changed() {
   ++version_;
   changed_cv_.notify_all();
+  for (auto& [id, w] : workers_) WakeWorker(w);
+}
+
+void JobManager::Touched(Worker* worker) {
+  ++version_;
+  changed_cv_.notify_all();
+  if (worker != nullptr) WakeWorker(*worker);
+}
+
+size_t JobManager::QueueRecords(Worker& worker, const std::string& job_id,
+                                const std::vector<IrradianceRecord>& records) {
+  const bool was_empty = worker.outbox.empty();
+  v1::CoordinatorMessage* m = nullptr;
+  if (!was_empty) {
+    v1::CoordinatorMessage& back = worker.outbox.back();
+    if (back.has_records() && back.records().job_id() == job_id &&
+        size_t(back.records().batch().origins_size()) + records.size() <=
+            options_.sync_batch_records)
+      m = &back;
+  }
+  if (m == nullptr) {
+    worker.outbox.emplace_back();
+    m = &worker.outbox.back();
+    m->mutable_records()->set_job_id(job_id);
+  }
+  const size_t before = BatchBytes(m->records().batch());
+  PackRecords(records, kSnapshotOrigin, m->mutable_records()->mutable_batch());
+  const size_t bytes = BatchBytes(m->records().batch()) - before;
+  worker.outbox_bytes += bytes;
+  if (was_empty) {
+    worker.records_queued_at = std::chrono::steady_clock::now();
+    WakeWorker(worker);
+  }
+  return bytes;
 }
 
 absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
@@ -559,17 +593,12 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
   for (size_t i = 0; i <= all.size(); ++i) {
     if (i == all.size() || chunk.size() == options_.sync_batch_records) {
       if (!chunk.empty()) {
-        v1::CoordinatorMessage m;
-        m.mutable_records()->set_job_id(region.job_id());
-        PackRecords(chunk, kSnapshotOrigin, m.mutable_records()->mutable_batch());
-        const size_t bytes = BatchBytes(m.records().batch());
+        const size_t bytes = QueueRecords(w, region.job_id(), chunk);
         v1::WorkerJobStats& ws = job.worker_stats[worker_id];
         ws.set_bytes_received(ws.bytes_received() + bytes);
         metrics_.records_sent->Add(chunk.size());
         metrics_.record_bytes_sent->Add(bytes);
         CountFanout(job, worker_id, w, chunk.size(), 0, chunk.size());
-        w.outbox_bytes += bytes;
-        w.outbox.push_back(std::move(m));
         chunk.clear();
       }
       if (i == all.size()) break;
@@ -578,7 +607,7 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
     if (rec.origin == worker_id || (!share && rec.origin != kSnapshotOrigin)) continue;
     if (RecordReachesBox(rec, r.box, a) && !RecordReachesBox(rec, old, a)) chunk.push_back(rec);
   }
-  Changed();
+  Touched(&w);
   return absl::OkStatus();
 }
 
@@ -830,6 +859,7 @@ void JobManager::WorkerGone(uint32_t worker, const std::string& reason) {
   if (h != health_.end() && h->second.consecutive_failures == 0 &&
       h->second.quarantined_until <= std::chrono::steady_clock::now())
     health_.erase(h);
+  WakeWorker(wit->second);  // its Poll returns now
   workers_.erase(wit);
   Changed();
 }
@@ -993,9 +1023,8 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
   }
   Job& job2 = *it->second;
   if (job2.stored.job().settings().share_records()) {
-    v1::CoordinatorMessage all;  // for workers whose fan-out is not filtered
-    all.mutable_records()->set_job_id(records.job_id());
-    PackRecords(accepted, worker, all.mutable_records()->mutable_batch());
+    // Each receiver's records are appended to its outbox's last records message (QueueRecords):
+    // no message per sender and receiver, and no copy of a shared message per receiver.
     const float max_accuracy = job2.cache->max_accuracy();
     std::vector<IrradianceRecord> near;
     for (uint32_t other : job2.workers) {
@@ -1003,8 +1032,7 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
       auto owit = workers_.find(other);
       if (owit == workers_.end()) continue;
       Worker& ow = owit->second;
-      const v1::CoordinatorMessage* m = &all;
-      v1::CoordinatorMessage filtered;
+      const std::vector<IrradianceRecord>* send = &accepted;
       if (Filtered(ow)) {
         const Bounds3& box = job2.regions[other].box;
         near.clear();
@@ -1013,22 +1041,19 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
         if (near.size() < accepted.size()) {
           CountFanout(job2, other, ow, 0, accepted.size() - near.size(), 0);
           if (near.empty()) continue;
-          filtered.mutable_records()->set_job_id(records.job_id());
-          PackRecords(near, worker, filtered.mutable_records()->mutable_batch());
-          m = &filtered;
+          send = &near;
         }
       }
-      const size_t bytes = BatchBytes(m->records().batch());
-      const size_t n = size_t(m->records().batch().origins_size());
+      const size_t n = send->size();
       // A worker that does not keep up (or does not read) gets no more fan-out past the bound:
       // the records are an optimisation, it computes its own instead.
-      if (ow.outbox_bytes + bytes > options_.limits.max_outbox_bytes) {
+      if (ow.outbox_bytes + n * (kFloatsPerRecord + 1) * sizeof(float) >
+          options_.limits.max_outbox_bytes) {
         ++ow.batches_dropped;
         metrics_.fanout_batches_dropped->Add();
         continue;
       }
-      ow.outbox.push_back(*m);
-      ow.outbox_bytes += bytes;
+      const size_t bytes = QueueRecords(ow, records.job_id(), *send);
       metrics_.records_sent->Add(n);
       metrics_.record_bytes_sent->Add(bytes);
       v1::WorkerJobStats& os = job2.worker_stats[other];
@@ -1037,7 +1062,7 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
       CountFanout(job2, other, ow, n, 0, 0);
     }
   }
-  Changed();
+  Touched(nullptr);  // job views (records merged); receivers were woken by QueueRecords
   return result;
 }
 
@@ -1059,7 +1084,7 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
     return NotHolder(worker, &w, *token, "tile result");
   Job& job = *it->second;
   const SteadyTime lease_start = lease->start;
-  Changed();
+  Touched(&w);  // it may get its next lease
   // The result of the lease this worker holds: check it before it counts.
   const PixelRect& r = job.tiles->rect(tile);
   const int64_t pixels = int64_t(r.width()) * r.height();
@@ -1152,7 +1177,7 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   metrics_.lookups->Add(ts.lookups());
   metrics_.lookup_hits->Add(ts.lookup_hits());
   if (done.tiles->all_done()) FinishJob(done, v1::JOB_STATE_SUCCEEDED, "");
-  Changed();
+  Touched(wit != workers_.end() ? &wit->second : nullptr);
   return absl::OkStatus();
 }
 
@@ -1355,7 +1380,7 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   worker.lease_tile = lease->tile;
   worker.past_leases.emplace_back(lease->token, id);
   if (worker.past_leases.size() > kPastLeases) worker.past_leases.pop_front();
-  Changed();
+  Touched(nullptr);  // job views; the lease goes out with this Poll
 }
 
 std::vector<v1::CoordinatorMessage> JobManager::Poll(uint32_t worker,
@@ -1367,18 +1392,29 @@ std::vector<v1::CoordinatorMessage> JobManager::Poll(uint32_t worker,
     auto it = workers_.find(worker);
     if (it == workers_.end()) return out;
     Worker& w = it->second;
+    const std::shared_ptr<Wake> wake = w.wake;  // outlives the worker's erasure
+    const uint64_t seen = wake->seq;
+    const SteadyTime now = std::chrono::steady_clock::now();
+    // Fan-out batching: a worker rendering a tile gets records only options_.fanout_linger after
+    // the first of them was queued (others' batches are appended meanwhile); anything else in
+    // its outbox goes at once.
+    const SteadyTime linger_end = w.records_queued_at + options_.fanout_linger;
+    if (!w.outbox.empty() && w.has_lease && now < linger_end && now < deadline &&
+        std::all_of(w.outbox.begin(), w.outbox.end(),
+                    [](const v1::CoordinatorMessage& m) { return m.has_records(); })) {
+      wake->cv.wait_until(lock, std::min(deadline, linger_end), [&] { return wake->seq != seen; });
+      continue;
+    }
     while (!w.outbox.empty()) {
       if (w.outbox.front().has_records())
         w.outbox_bytes -= std::min(w.outbox_bytes, BatchBytes(w.outbox.front().records().batch()));
       out.push_back(std::move(w.outbox.front()));
       w.outbox.pop_front();
     }
-    if (!w.has_lease && !w.draining && !w.silent &&
-        !Quarantined(w, std::chrono::steady_clock::now()))
+    if (!w.has_lease && !w.draining && !w.silent && !Quarantined(w, now))
       TryAssign(worker, w, &out);
-    if (!out.empty()) return out;
-    const uint64_t seen = version_;
-    if (!changed_cv_.wait_until(lock, deadline, [&] { return version_ != seen; })) return out;
+    if (!out.empty() || now >= deadline) return out;
+    wake->cv.wait_until(lock, deadline, [&] { return wake->seq != seen; });
   }
 }
 

@@ -96,6 +96,12 @@ struct JobManagerOptions {
   // Send a worker that reports regions only the records that reach them (false: every record to
   // every worker of the job, `irfarm-coordinator --fanout=all`).
   bool filter_fanout = true;
+  // Fan-out batching: records for a worker that is rendering a tile wait up to this long after
+  // the first of them was queued, so that the batches of many senders leave as one message (one
+  // write instead of one per sender; bench/scale_sim.cc measured the difference). Adds at most
+  // this much to a record's delivery latency; 0 sends each batch as soon as the worker's stream
+  // takes it.
+  std::chrono::milliseconds fanout_linger{10};
   JobLimits limits;
   // Scenes given by path (SceneSource.path, read from the coordinator's file system): allowed
   // under this directory; with none, only for admin callers (which, without authentication, is
@@ -211,9 +217,20 @@ class JobManager {
     SteadyTime started, finished;
     bool has_started = false;
   };
+  // What a worker's Poll waits on: bumped and notified when something was queued for it, or
+  // anything changed that may give it a lease. Shared, so that a Poll in progress keeps it while
+  // WorkerGone erases the worker.
+  struct Wake {
+    std::condition_variable cv;
+    uint64_t seq = 0;
+  };
   struct Worker {
     std::string name, peer;
+    std::shared_ptr<Wake> wake = std::make_shared<Wake>();
+    // Messages to send; consecutive record batches of one job are appended to one message (up
+    // to sync_batch_records records).
     std::deque<v1::CoordinatorMessage> outbox;
+    SteadyTime records_queued_at;  // when records were queued into an empty outbox
     std::set<std::string> jobs;
     bool has_lease = false, draining = false;
     std::string lease_job;
@@ -280,7 +297,21 @@ class JobManager {
   // When `job` starts: merges the records of earlier jobs of the same sensor-free scene and
   // record settings (cache_seed.h) into its cache, so its workers get them on joining.
   void SeedCache(Job& job);
+  // Something changed that any worker's Poll or WaitForChange may act on: wakes them all.
   void Changed();
+  // Something changed for `worker` alone (its outbox, its lease) or, with null, for job views
+  // only (record counts): wakes the WaitForChange callers and that worker's Poll, not the other
+  // workers' Polls.
+  void Touched(Worker* worker);
+  static void WakeWorker(Worker& worker) {
+    ++worker.wake->seq;
+    worker.wake->cv.notify_one();
+  }
+  // Queues `records` (origins set) for `worker` in job `job_id`, appended to the last message of
+  // its outbox when that is a records message of the job with room left; returns the payload
+  // bytes added. Wakes the worker when its outbox was empty (later appends ride along).
+  size_t QueueRecords(Worker& worker, const std::string& job_id,
+                      const std::vector<IrradianceRecord>& records);
   // Whether fan-out to `worker` is filtered by its regions.
   bool Filtered(const Worker& worker) const {
     return options_.filter_fanout && worker.reports_regions;

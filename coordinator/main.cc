@@ -107,6 +107,11 @@ int main(int argc, char** argv) {
                  "which records a worker is sent: 'region' (those reaching what its tiles see) "
                  "or 'all' (every record of its jobs); default region")
       ->check(CLI::IsMember({"region", "all"}));
+  int fanout_linger_ms = int(options.fanout_linger.count());
+  app.add_option("--fanout-linger-ms", fanout_linger_ms,
+                 "records for a rendering worker wait this long for others to join them in one "
+                 "message (default 10; 0 = send each batch at once)")
+      ->check(CLI::Range(0, 1000));
   app.add_option("--max-live-jobs", lim.max_live_jobs_per_client,
                  "queued + running jobs per client (64)");
   app.add_option("--metrics", metrics_address,
@@ -197,6 +202,7 @@ int main(int argc, char** argv) {
   options.max_upload_bytes = size_t(max_upload_mib * 1024 * 1024);
   lim.max_outbox_bytes = size_t(max_outbox_mib * 1024 * 1024);
   options.filter_fanout = fanout == "region";
+  options.fanout_linger = std::chrono::milliseconds(fanout_linger_ms);
   options.lease_time = std::chrono::milliseconds(int64_t(lease_seconds * 1000));
   options.heartbeat =
       std::chrono::milliseconds(std::max<int64_t>(50, int64_t(heartbeat_seconds * 1000)));
