@@ -268,7 +268,7 @@ void SimWorker::Run() {
       v1::TileFailed* tf = m.mutable_tile_failed();
       tf->set_job_id(lease.job_id());
       tf->set_tile_index(lease.tile_index());
-      tf->set_lease_id(lease.lease_id());
+      tf->set_lease_token(lease.lease_token());
       tf->set_reason("simulated worker: no job spec for the lease");
       ok = write(m);
       continue;
@@ -278,7 +278,7 @@ void SimWorker::Run() {
       v1::WorkerMessage rm;
       v1::TileRegion* tr = rm.mutable_tile_region();
       tr->set_job_id(lease.job_id());
-      tr->set_lease_id(lease.lease_id());
+      tr->set_lease_token(lease.lease_token());
       tr->set_min_x(tile->region->lo.x);
       tr->set_min_y(tile->region->lo.y);
       tr->set_min_z(tile->region->lo.z);
@@ -335,7 +335,7 @@ void SimWorker::Run() {
     v1::TileResult* tr = m.mutable_tile_result();
     tr->set_job_id(lease.job_id());
     tr->set_tile_index(lease.tile_index());
-    tr->set_lease_id(lease.lease_id());
+    tr->set_lease_token(lease.lease_token());
     *tr->mutable_rect() = lease.rect();
     const int floats = rect.width() * rect.height() * 3;
     tr->mutable_pixels()->Resize(floats, 0.18f);
