@@ -334,7 +334,8 @@ int main(int argc, char** argv) {
   irfarm::ServiceConnection conn{default_coordinator, {}};
   // --coordinator and the credentials (--token-file or $IRFARM_TOKEN, TLS) of a subcommand.
   const auto add_connection = [](CLI::App* sub, irfarm::ServiceConnection* c) {
-    sub->add_option("--coordinator", c->address, "coordinator address");
+    sub->add_option("--coordinator", c->address,
+                    "coordinator address, or several separated by commas (active and standbys)");
     sub->add_option("--token-file", c->auth.token_file, "client token file ($IRFARM_TOKEN)");
     sub->add_option("--tls-ca", c->auth.tls_ca, "use TLS, trusting this CA (PEM)");
     sub->add_option("--tls-cert", c->auth.tls_cert, "client certificate (mutual TLS, PEM)");

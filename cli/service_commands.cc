@@ -8,17 +8,25 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
+#include <optional>
 #include <sstream>
 
 #include "cache/snapshot.h"
 #include "cli/job_progress.h"
 #include "irfarm/v1/jobs.grpc.pb.h"
+#include "service/coordinator_list.h"
 #include "service/scene_bundle.h"
 
 namespace irfarm {
 namespace {
 
 constexpr int kRpcSeconds = 60;  // deadline of unary calls
+// Given several coordinator addresses: how long to look for the one accepting connections (a
+// standby takes over within ~4 s of the active one's death, irfarm-coordinator --ha), and how
+// many times a broken WatchJob stream is followed again on the next active one.
+constexpr int kFindSeconds = 10;
+constexpr int kMaxFailovers = 10;
 
 // A stub and the token its calls carry.
 struct Client {
@@ -39,8 +47,66 @@ Client Connect(const ServiceConnection& c) {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(-1);
   args.SetMaxSendMessageSize(-1);
-  client.stub = v1::JobService::NewStub(grpc::CreateCustomChannel(c.address, *creds, args));
+  absl::StatusOr<std::vector<std::string>> addresses = CoordinatorList::Parse(c.address);
+  if (!addresses.ok()) {
+    client.status = addresses.status();
+    return client;
+  }
+  if (addresses->size() == 1) {
+    client.stub = v1::JobService::NewStub(grpc::CreateCustomChannel(c.address, *creds, args));
+    return client;
+  }
+  // A coordinator that starts listening while we look is seen within 1 s.
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
+  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 100);
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
+  CoordinatorList list(*addresses, *creds, args);
+  std::optional<size_t> i =
+      list.FindConnected(std::chrono::system_clock::now() + std::chrono::seconds(kFindSeconds));
+  if (!i) {
+    client.status = absl::UnavailableError("no coordinator of " + list.ToString() +
+                                           " accepts connections (waited " +
+                                           std::to_string(kFindSeconds) + " s)");
+    return client;
+  }
+  client.stub = v1::JobService::NewStub(list.channel(*i));
   return client;
+}
+
+bool IsFinal(v1::JobState s) {
+  return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
+}
+
+// Follows a job (WatchJob), handing each update to `on_update`, until the stream ends. Given
+// several coordinator addresses, a stream that broke before the job ended (UNAVAILABLE, or
+// CANCELLED by a coordinator shutting down) is followed again on the coordinator that accepts
+// connections next (a standby that took over), up to kMaxFailovers times.
+grpc::Status FollowJob(const ServiceConnection& c, Client* client, const std::string& job_id,
+                       const std::function<void(const v1::Job&)>& on_update) {
+  const bool several = c.address.find(',') != std::string::npos;
+  for (int failovers = 0;; ++failovers) {
+    grpc::ClientContext context;
+    AddToken(&context, client->token);
+    v1::WatchJobRequest req;
+    req.set_job_id(job_id);
+    auto reader = client->stub->WatchJob(&context, req);
+    v1::WatchJobResponse r;
+    bool final = false;
+    while (reader->Read(&r)) {
+      final = IsFinal(r.job().state());
+      on_update(r.job());
+    }
+    const grpc::Status st = reader->Finish();
+    if (!several || final || failovers >= kMaxFailovers ||
+        (st.error_code() != grpc::StatusCode::UNAVAILABLE &&
+         st.error_code() != grpc::StatusCode::CANCELLED))
+      return st;
+    std::fprintf(stderr, "coordinator gone (%s); following job %s on the next one\n",
+                 st.error_message().c_str(), job_id.c_str());
+    Client next = Connect(c);
+    if (!next.stub) return st;
+    *client = std::move(next);
+  }
 }
 
 void SetDeadline(grpc::ClientContext* c, const Client& client) {
@@ -68,10 +134,6 @@ std::string StateName(v1::JobState s) {
 void PrintProgress(const v1::Job& job, bool tty) {
   // "\033[K" clears what a longer previous line left on the terminal.
   std::fprintf(stderr, "%s%s%s", tty ? "\r" : "", ProgressLine(job).c_str(), tty ? "\033[K" : "\n");
-}
-
-bool IsFinal(v1::JobState s) {
-  return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
 }
 
 // Streams a file-like response (GetResult / ExportCache) into `path` via a temporary name.
@@ -163,18 +225,11 @@ int RunSubmit(const SubmitArgs& args) {
   if (!args.wait) return 0;
   const bool tty = !args.quiet && isatty(STDERR_FILENO);
   for (size_t i = 0; i < ids.size(); ++i) {
-    grpc::ClientContext context;
-    AddToken(&context, client.token);
-    v1::WatchJobRequest req;
-    req.set_job_id(ids[i]);
-    auto reader = stub->WatchJob(&context, req);
-    v1::WatchJobResponse r;
     v1::Job last;
-    while (reader->Read(&r)) {
-      last = r.job();
+    const grpc::Status st = FollowJob(args.coordinator, &client, ids[i], [&](const v1::Job& job) {
+      last = job;
       if (!args.quiet && (tty || IsFinal(last.state()))) PrintProgress(last, tty);
-    }
-    const grpc::Status st = reader->Finish();
+    });
     if (tty) std::fprintf(stderr, "\n");
     if (!st.ok()) return Fail(st);
     if (last.state() != v1::JOB_STATE_SUCCEEDED) {
@@ -294,30 +349,23 @@ int RunWatch(const ServiceConnection& coordinator, const std::string& job_id) {
   Client client = Connect(coordinator);
   if (!client.stub) return Fail(client.status);
   const bool tty = isatty(STDOUT_FILENO);
-  grpc::ClientContext context;
-  AddToken(&context, client.token);
-  v1::WatchJobRequest req;
-  req.set_job_id(job_id);
-  auto reader = client.stub->WatchJob(&context, req);
-  v1::WatchJobResponse r;
   v1::Job last;
   bool printed_last = true;
   auto next_print = std::chrono::steady_clock::now();
-  while (reader->Read(&r)) {
-    last = r.job();
+  const grpc::Status st = FollowJob(coordinator, &client, job_id, [&](const v1::Job& job) {
+    last = job;
     const auto now = std::chrono::steady_clock::now();
     // Updates come with every tile and record batch: a terminal is redrawn at most 10 times a
     // second, a log gets at most a line a second (and always the last state).
     if (now < next_print && !IsFinal(last.state())) {
       printed_last = false;
-      continue;
+      return;
     }
     std::printf("%s%s%s", tty ? "\r" : "", ProgressLine(last).c_str(), tty ? "\033[K" : "\n");
     std::fflush(stdout);
     printed_last = true;
     next_print = now + std::chrono::milliseconds(tty ? 100 : 1000);
-  }
-  const grpc::Status st = reader->Finish();
+  });
   if (!printed_last) std::printf("%s%s", tty ? "\r" : "", ProgressLine(last).c_str());
   if (tty || !printed_last) std::printf("\n");
   if (!st.ok()) return Fail(st);

@@ -2,7 +2,9 @@
 // fetch, snapshot.
 // Each returns the process exit code (0 ok, 1 failed, 2 bad usage) and prints errors as
 // "error: CODE: message" on stderr. Every call carries the client's token and goes over TLS when
-// asked (service/client_auth.h).
+// asked (service/client_auth.h). The address may be a comma-separated list (an active
+// coordinator and its standbys): a command uses the one accepting connections, and `watch` and
+// `submit --wait` follow the job on to the coordinator that takes over when it dies.
 #pragma once
 
 #include <cstdint>
@@ -18,7 +20,7 @@ std::string DefaultCoordinator();
 
 // Where the coordinator is and how to authenticate to it.
 struct ServiceConnection {
-  std::string address;
+  std::string address;  // HOST:PORT, or HOST:PORT,HOST:PORT,... (service/coordinator_list.h)
   ClientAuthOptions auth;
 };
 

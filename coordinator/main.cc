@@ -7,17 +7,29 @@
 // 5 s deadline). --metrics ADDR serves Prometheus metrics at http://ADDR/metrics
 // (coordinator_metrics.h); finished jobs expire after --job-ttl seconds or beyond
 // --max-finished-jobs (JobManagerOptions).
+// --ha (with --redis): active/standby failover. Several coordinators run on one Redis; the one
+// holding the lease (coordinator_lease.h) serves, the others wait without listening on --listen
+// (so clients and workers with a list of addresses, or a Kubernetes Service with a TCP readiness
+// probe, find only the active one) and the first to get the lease after the active one dies
+// loads the jobs from Redis as a restarted coordinator does, then listens. A coordinator that
+// loses its lease stops at once and exits with status 3 (its store writes are already refused:
+// they are fenced by the lease owner, redis_job_store.h); SIGTERM releases the lease after the
+// graceful shutdown (1 s for in-flight calls with --ha), so a standby takes over without
+// waiting for the lease to expire.
 #include <grpcpp/grpcpp.h>
 #include <signal.h>
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
 
+#include <condition_variable>
 #include <fstream>
 #include <memory>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
 #include "coordinator/auth.h"
+#include "coordinator/coordinator_lease.h"
 #include "coordinator/dashboard.h"
 
 #include "coordinator/in_memory_job_store.h"
@@ -51,6 +63,15 @@ bool ReadFile(const std::string& path, std::string* out) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Signals are taken by a dedicated thread with sigwait: no handler, no global state. Blocked
+  // first, before anything starts a thread (gRPC's credentials start its threads, which would
+  // otherwise inherit an open mask and let SIGTERM kill the process: exit 143, no graceful
+  // shutdown).
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   CLI::App app{"irfarm-coordinator: job API and tile/record coordination for irfarm workers"};
   std::string listen = "127.0.0.1:50051", redis, metrics_address, http_address;
   double job_ttl_seconds = 7 * 24 * 3600;
@@ -59,7 +80,8 @@ int main(int argc, char** argv) {
   irfarm::JobManagerOptions options;
   irfarm::JobLimits& lim = options.limits;
   std::string client_tokens, worker_tokens, admin_tokens, tls_cert, tls_key, tls_client_ca;
-  bool insecure = false;
+  bool insecure = false, ha = false;
+  int ha_lease_ms = 3000;
   app.add_option("--listen", listen, "address to serve on (default 127.0.0.1:50051)");
   app.add_option("--redis", redis, "HOST:PORT of a Redis server to keep jobs in");
   int redis_timeout_ms = 500;
@@ -67,6 +89,13 @@ int main(int argc, char** argv) {
                  "deadline of a Redis call; a hung Redis makes calls fail UNAVAILABLE after it "
                  "(default 500)")
       ->check(CLI::Range(10, 60000));
+  app.add_flag("--ha", ha,
+               "active/standby with other coordinators on the same --redis: serve only while "
+               "holding the lease in Redis, else wait for it without listening");
+  app.add_option("--ha-lease-ms", ha_lease_ms,
+                 "--ha lease time: renewed every third of it; a standby takes over at most this "
+                 "plus a twelfth after the active coordinator stops (default 3000)")
+      ->check(CLI::Range(300, 600000));
   app.add_option("--client-token-file", client_tokens, "client tokens ('[NAME] TOKEN' lines)");
   app.add_option("--worker-token-file", worker_tokens, "worker tokens, one a line");
   app.add_option("--admin-token-file", admin_tokens, "admin tokens (see every client's jobs)");
@@ -128,6 +157,10 @@ int main(int argc, char** argv) {
     return 1;
   }
   options.job_ttl = std::chrono::milliseconds(int64_t(job_ttl_seconds * 1000));
+  if (ha && redis.empty()) {
+    spdlog::error("--ha needs --redis: the coordinators share their jobs and the lease there");
+    return 1;
+  }
 
   std::vector<irfarm::NamedToken> tokens[3];
   const std::string* files[3] = {&client_tokens, &worker_tokens, &admin_tokens};
@@ -177,19 +210,48 @@ int main(int argc, char** argv) {
     spdlog::warn("listening on {} without TLS: tokens travel in clear text", listen);
   }
 
-  // Signals are taken by a dedicated thread with sigwait: no handler, no global state.
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  // Stop requests: a signal (exit 0) or a lost lease (exit kLeaseLost). Taken by the main thread,
+  // which shuts the server down.
+  constexpr int kLeaseLost = 3;
+  std::mutex stop_mu;
+  std::condition_variable stop_cv;
+  bool stop_requested = false;
+  int exit_code = 0;
+  const auto request_stop = [&](int code) {
+    {
+      std::lock_guard<std::mutex> lock(stop_mu);
+      if (stop_requested) return;
+      stop_requested = true;
+      exit_code = code;
+    }
+    stop_cv.notify_all();
+  };
+  std::thread shutdown([&] {
+    int sig = 0;
+    sigwait(&signals, &sig);
+    spdlog::info("signal {}: shutting down", sig);
+    request_stop(0);
+  });
+  shutdown.detach();  // stays blocked in sigwait when the process ends another way
 
+  irfarm::RedisOptions redis_options{"irfarm:", std::chrono::milliseconds(redis_timeout_ms)};
+  irfarm::LeaseOptions lease_options;
+  std::string lease_owner;
+  if (ha) {
+    lease_owner = irfarm::NewOwnerId(listen);
+    lease_options.key = redis_options.prefix + "coordinator_lease";
+    lease_options.ttl = std::chrono::milliseconds(ha_lease_ms);
+    lease_options.renew_every = lease_options.ttl / 3;
+    lease_options.timeout = redis_options.timeout;
+    redis_options.fence_key = lease_options.key;  // every store write checks the lease owner
+    redis_options.fence_owner = lease_owner;
+  }
   std::unique_ptr<irfarm::JobStore> store;
   if (redis.empty()) {
     store = std::make_unique<irfarm::InMemoryJobStore>();
   } else {
-    absl::StatusOr<std::unique_ptr<irfarm::RedisJobStore>> r = irfarm::RedisJobStore::Connect(
-        redis, irfarm::RedisOptions{"irfarm:", std::chrono::milliseconds(redis_timeout_ms)});
+    absl::StatusOr<std::unique_ptr<irfarm::RedisJobStore>> r =
+        irfarm::RedisJobStore::Connect(redis, redis_options);
     if (!r.ok()) {
       spdlog::error("{}", r.status().ToString());
       return 1;
@@ -198,6 +260,64 @@ int main(int argc, char** argv) {
   }
   irfarm::MetricsRegistry metrics;
   irfarm::AddProcessMetrics(&metrics);
+  irfarm::Gauge* active = metrics.AddGauge(
+      "irfarm_coordinator_active",
+      "1 while this coordinator serves; 0 while it waits as a standby (--ha) or shuts down");
+  // Served from the start, so that a standby is scraped (and probed for liveness) too.
+  std::unique_ptr<irfarm::HttpServer> metrics_server;
+  if (!metrics_address.empty()) {
+    absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> http =
+        irfarm::ServeMetrics(metrics_address, &metrics);
+    if (!http.ok()) {
+      spdlog::error("--metrics: {}", http.status().ToString());
+      return 1;
+    }
+    metrics_server = std::move(*http);
+    spdlog::info("metrics on http://{}/metrics", metrics_address);
+  }
+
+  std::unique_ptr<irfarm::CoordinatorLease> lease;
+  if (ha) {
+    absl::StatusOr<std::unique_ptr<irfarm::CoordinatorLease>> l =
+        irfarm::CoordinatorLease::Create(redis, lease_owner, lease_options);
+    if (!l.ok()) {
+      spdlog::error("{}", l.status().ToString());
+      return 1;
+    }
+    lease = std::move(*l);
+    // Standby: poll for the lease (a twelfth of its time: 250 ms at the default 3 s).
+    const auto poll = std::max(lease_options.ttl / 12, std::chrono::milliseconds(10));
+    const auto standby_since = std::chrono::steady_clock::now();
+    std::string last_seen;
+    std::chrono::steady_clock::time_point acquired_at;
+    for (;;) {
+      const auto sent = std::chrono::steady_clock::now();
+      std::string holder;
+      absl::StatusOr<bool> got = lease->TryAcquire(&holder);
+      if (got.ok() && *got) {
+        acquired_at = sent;
+        break;
+      }
+      const std::string seen = got.ok() ? holder : got.status().ToString();
+      if (seen != last_seen)
+        spdlog::info("standby: {} {}; waiting for the coordinator lease",
+                     got.ok() ? "the lease is held by" : "cannot ask Redis:", seen);
+      last_seen = seen;
+      std::unique_lock<std::mutex> lock(stop_mu);
+      if (stop_cv.wait_for(lock, poll, [&] { return stop_requested; })) return exit_code;
+    }
+    spdlog::info("coordinator lease {} acquired as {} after {:.3f} s of standby; loading jobs",
+                 lease_options.key, lease_owner,
+                 std::chrono::duration<double>(acquired_at - standby_since).count());
+    lease->Start(acquired_at, [&](const std::string& why) {
+      active->Set(0);
+      spdlog::error(
+          "coordinator lease lost ({}): the store refuses this coordinator's writes; "
+          "stopping",
+          why);
+      request_stop(kLeaseLost);
+    });
+  }
   irfarm::TimedJobStore timed_store(store.get(), &metrics);
   options.max_upload_bytes = size_t(max_upload_mib * 1024 * 1024);
   lim.max_outbox_bytes = size_t(max_outbox_mib * 1024 * 1024);
@@ -226,26 +346,15 @@ int main(int argc, char** argv) {
     spdlog::error("cannot listen on {}", listen);
     return 1;
   }
+  active->Set(lease == nullptr || lease->held() ? 1 : 0);
   spdlog::info(
-      "irfarm-coordinator listening on {} (store: {}; {}; client tokens: {}, worker "
+      "irfarm-coordinator listening on {} (store: {}{}; {}; client tokens: {}, worker "
       "tokens: {})",
-      listen, redis.empty() ? "memory" : "redis " + redis,
+      listen, redis.empty() ? "memory" : "redis " + redis, ha ? ", active (--ha)" : "",
       tls_cert.empty()        ? "no TLS"
       : tls_client_ca.empty() ? "TLS"
                               : "mutual TLS",
       tokens[0].size() + tokens[2].size(), tokens[1].size());
-
-  std::unique_ptr<irfarm::HttpServer> metrics_server;
-  if (!metrics_address.empty()) {
-    absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> http =
-        irfarm::ServeMetrics(metrics_address, &metrics);
-    if (!http.ok()) {
-      spdlog::error("--metrics: {}", http.status().ToString());
-      return 1;
-    }
-    metrics_server = std::move(*http);
-    spdlog::info("metrics on http://{}/metrics", metrics_address);
-  }
 
   std::unique_ptr<irfarm::HttpServer> dashboard;
   if (!http_address.empty()) {
@@ -267,18 +376,26 @@ int main(int argc, char** argv) {
       std::this_thread::sleep_for(std::chrono::milliseconds(250));
     }
   });
-  std::thread shutdown([&] {
-    int sig = 0;
-    sigwait(&signals, &sig);
-    spdlog::info("signal {}: shutting down", sig);
-    stop = true;
-    server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(5));
-  });
+  {
+    std::unique_lock<std::mutex> lock(stop_mu);
+    stop_cv.wait(lock, [&] { return stop_requested; });
+  }
+  // A signal lets in-flight calls end within 5 s, or 1 s with --ha, where a standby is waiting
+  // for the lease (worker sessions and watches never end by themselves: the whole grace period
+  // is waited whenever one is open). A lost lease stops at once: its writes are refused anyway,
+  // and another coordinator serves.
+  active->Set(0);
+  const std::chrono::seconds grace(exit_code == kLeaseLost ? 0 : ha ? 1 : 5);
+  server->Shutdown(std::chrono::system_clock::now() + grace);
   server->Wait();
   stop = true;
   expiry.join();
   metrics_server.reset();
   dashboard.reset();
-  shutdown.detach();  // still blocked in sigwait when the server ended another way
-  return 0;
+  manager->reset();  // lands the job states still queued (StoreWriter) while the lease is held
+  if (lease && exit_code != kLeaseLost) {
+    absl::Status st = lease->Release();  // a standby takes over now, not after the lease time
+    if (!st.ok()) spdlog::warn("coordinator lease not released: {}", st.ToString());
+  }
+  return exit_code;
 }

@@ -21,6 +21,22 @@ timeval ToTimeval(std::chrono::milliseconds t) {
   return timeval{time_t(t.count() / 1000), suseconds_t((t.count() % 1000) * 1000)};
 }
 
+// The write scripts (RedisJobStore::Write puts the fence check in front): KEYS[1] / ARGV[1] are
+// the lease key and owner id, the job's keys and arguments follow.
+constexpr char kFenceCheck[] =
+    "if ARGV[1] ~= '' and redis.call('GET', KEYS[1]) ~= ARGV[1] then "
+    "return redis.error_reply('FENCED this coordinator does not hold the lease ' .. KEYS[1]) "
+    "end ";
+constexpr char kIncr[] = "return redis.call('INCR', KEYS[2])";
+// The job and its set membership appear together.
+constexpr char kPutJob[] =
+    "redis.call('SET', KEYS[2], ARGV[2]) redis.call('SADD', KEYS[3], ARGV[3]) return 1";
+constexpr char kPutTile[] = "return redis.call('HSET', KEYS[2], ARGV[2], ARGV[3])";
+constexpr char kAppend[] = "return redis.call('RPUSH', KEYS[2], ARGV[2])";
+// The job leaves the set together with its keys (a restart never sees half).
+constexpr char kDeleteJob[] =
+    "redis.call('SREM', KEYS[2], ARGV[2]) return redis.call('DEL', KEYS[3], KEYS[4], KEYS[5])";
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<RedisJobStore>> RedisJobStore::Connect(const std::string& address,
@@ -106,42 +122,57 @@ absl::Status RedisJobStore::EnsureConnected() {
   absl::StatusOr<std::unique_lock<std::timed_mutex>> lock = Lock(); \
   if (!lock.ok()) return lock.status();
 
-absl::StatusOr<uint64_t> RedisJobStore::NextJobNumber() {
+absl::StatusOr<long long> RedisJobStore::Write(const char* body,
+                                               const std::vector<std::string>& keys,
+                                               const std::vector<std::string>& args) {
+  const std::string script = std::string(kFenceCheck) + body;
+  const std::string num_keys = std::to_string(keys.size() + 1);
+  std::vector<const char*> argv = {"EVAL", script.data(), num_keys.data(),
+                                   options_.fence_key.data()};
+  std::vector<size_t> lengths = {4, script.size(), num_keys.size(), options_.fence_key.size()};
+  for (const std::string& k : keys) {
+    argv.push_back(k.data());
+    lengths.push_back(k.size());
+  }
+  argv.push_back(options_.fence_owner.data());
+  lengths.push_back(options_.fence_owner.size());
+  for (const std::string& a : args) {
+    argv.push_back(a.data());
+    lengths.push_back(a.size());
+  }
   IRFARM_REDIS_LOCK(lock);
-  const std::string key = prefix_ + "job_counter";
-  IRFARM_REDIS_CALL(r, options_.timeout, "INCR %b", key.data(), key.size());
-  return uint64_t(r->integer);
+  absl::Status conn = EnsureConnected();
+  if (!conn.ok()) return conn;
+  SetCommandTimeout(options_.timeout);
+  Reply r(static_cast<redisReply*>(
+      redisCommandArgv(ctx_, int(argv.size()), argv.data(), lengths.data())));
+  if (!r) {
+    const std::string why = ctx_->errstr;
+    Drop();
+    return absl::UnavailableError("redis: " + why);
+  }
+  if (r->type == REDIS_REPLY_ERROR) {
+    const std::string why(r->str, r->len);
+    if (why.rfind("FENCED", 0) == 0) return absl::FailedPreconditionError("redis: " + why);
+    // a key of the wrong type is damage, not an outage
+    if (why.find("WRONGTYPE") != std::string::npos) return absl::DataLossError("redis: " + why);
+    return absl::UnavailableError("redis: " + why);
+  }
+  if (r->type != REDIS_REPLY_INTEGER)
+    return absl::InternalError("redis: a write script returned type " + std::to_string(r->type));
+  return r->integer;
+}
+
+absl::StatusOr<uint64_t> RedisJobStore::NextJobNumber() {
+  absl::StatusOr<long long> n = Write(kIncr, {prefix_ + "job_counter"}, {});
+  if (!n.ok()) return n.status();
+  return uint64_t(*n);
 }
 
 absl::Status RedisJobStore::PutJob(const v1::StoredJob& job) {
-  const std::string bytes = job.SerializeAsString();
-  IRFARM_REDIS_LOCK(lock);
-  const std::string jobs = prefix_ + "jobs", key = prefix_ + "job:" + job.job().id();
-  absl::Status conn = EnsureConnected();
-  if (!conn.ok()) return conn;
-  // MULTI/EXEC: the job and its set membership appear together.
-  redisAppendCommand(ctx_, "MULTI");
-  redisAppendCommand(ctx_, "SET %b %b", key.data(), key.size(), bytes.data(), bytes.size());
-  redisAppendCommand(ctx_, "SADD %b %b", jobs.data(), jobs.size(), job.job().id().data(),
-                     job.job().id().size());
-  redisAppendCommand(ctx_, "EXEC");
-  for (int i = 0; i < 4; ++i) {
-    void* raw = nullptr;
-    if (redisGetReply(ctx_, &raw) != REDIS_OK) {
-      const std::string why = ctx_->errstr;
-      Drop();
-      return absl::UnavailableError("redis: " + why);
-    }
-    Reply r(static_cast<redisReply*>(raw));
-    if (r->type == REDIS_REPLY_ERROR) {
-      const std::string why(r->str, r->len);
-      Drop();  // the replies still due would be read by the next call
-      return absl::UnavailableError("redis: " + why);
-    }
-    if (i == 3 && r->type != REDIS_REPLY_ARRAY)
-      return absl::UnavailableError("redis: transaction aborted");
-  }
-  return absl::OkStatus();
+  return Write(kPutJob, {prefix_ + "job:" + job.job().id(), prefix_ + "jobs"},
+               {job.SerializeAsString(), job.job().id()})
+      .status();
 }
 
 absl::StatusOr<std::vector<v1::StoredJob>> RedisJobStore::LoadJobs() {
@@ -175,11 +206,8 @@ absl::StatusOr<std::vector<v1::StoredJob>> RedisJobStore::LoadJobs() {
 
 absl::Status RedisJobStore::PutTile(const std::string& job_id, int tile,
                                     const std::string& pixels) {
-  IRFARM_REDIS_LOCK(lock);
-  const std::string key = prefix_ + "job:" + job_id + ":tiles", field = std::to_string(tile);
-  IRFARM_REDIS_CALL(r, options_.timeout, "HSET %b %b %b", key.data(), key.size(), field.data(),
-                    field.size(), pixels.data(), pixels.size());
-  return absl::OkStatus();
+  return Write(kPutTile, {prefix_ + "job:" + job_id + ":tiles"}, {std::to_string(tile), pixels})
+      .status();
 }
 
 absl::StatusOr<std::map<int, std::string>> RedisJobStore::LoadTiles(const std::string& job_id) {
@@ -199,12 +227,8 @@ absl::Status RedisJobStore::AppendRecords(const std::string& job_id,
   if (records.empty()) return absl::OkStatus();
   v1::RecordBatch batch;
   PackRecords(records, 0, &batch);
-  const std::string bytes = batch.SerializeAsString();
-  IRFARM_REDIS_LOCK(lock);
-  const std::string key = prefix_ + "job:" + job_id + ":records";
-  IRFARM_REDIS_CALL(r, options_.timeout, "RPUSH %b %b", key.data(), key.size(), bytes.data(),
-                    bytes.size());
-  return absl::OkStatus();
+  return Write(kAppend, {prefix_ + "job:" + job_id + ":records"}, {batch.SerializeAsString()})
+      .status();
 }
 
 absl::StatusOr<std::vector<IrradianceRecord>> RedisJobStore::LoadRecords(
@@ -229,31 +253,9 @@ absl::StatusOr<std::vector<IrradianceRecord>> RedisJobStore::LoadRecords(
 }
 
 absl::Status RedisJobStore::DeleteJob(const std::string& job_id) {
-  IRFARM_REDIS_LOCK(lock);
-  const std::string jobs = prefix_ + "jobs", key = prefix_ + "job:" + job_id;
-  const std::string tiles = key + ":tiles", records = key + ":records";
-  absl::Status conn = EnsureConnected();
-  if (!conn.ok()) return conn;
-  // MULTI/EXEC: the job leaves the set together with its keys (a restart never sees half).
-  redisAppendCommand(ctx_, "MULTI");
-  redisAppendCommand(ctx_, "SREM %b %b", jobs.data(), jobs.size(), job_id.data(), job_id.size());
-  redisAppendCommand(ctx_, "DEL %b %b %b", key.data(), key.size(), tiles.data(), tiles.size(),
-                     records.data(), records.size());
-  redisAppendCommand(ctx_, "EXEC");
-  for (int i = 0; i < 4; ++i) {
-    void* raw = nullptr;
-    if (redisGetReply(ctx_, &raw) != REDIS_OK) {
-      const std::string why = ctx_->errstr;
-      Drop();
-      return absl::UnavailableError("redis: " + why);
-    }
-    Reply r(static_cast<redisReply*>(raw));
-    if (r->type == REDIS_REPLY_ERROR)
-      return absl::UnavailableError("redis: " + std::string(r->str, r->len));
-    if (i == 3 && r->type != REDIS_REPLY_ARRAY)
-      return absl::UnavailableError("redis: transaction aborted");
-  }
-  return absl::OkStatus();
+  const std::string key = prefix_ + "job:" + job_id;
+  return Write(kDeleteJob, {prefix_ + "jobs", key, key + ":tiles", key + ":records"}, {job_id})
+      .status();
 }
 
 }  // namespace irfarm

@@ -7,12 +7,14 @@
 //   PREFIX job:ID               STRING: serialized irfarm.v1.StoredJob (state, scene, settings)
 //   PREFIX job:ID:tiles         HASH tile index -> the tile's float RGB pixels (bytes)
 //   PREFIX job:ID:records       LIST of serialized irfarm.v1.RecordBatch, one per merged batch
-// What is atomic: PutJob writes the job and adds it to the set in one MULTI/EXEC; each PutTile is
-// one HSET and each AppendRecords one RPUSH, so a tile is stored whole or not at all and a batch
-// of records likewise. The coordinator marks a tile done only after its HSET succeeded, and fans
-// records out only after their RPUSH succeeded, so whatever clients and workers were told is
-// in Redis. Writes are not fsync'ed by us: durability across a Redis crash is Redis's own
-// persistence setting (appendonly); a coordinator crash loses nothing that was acknowledged.
+// What is atomic: every write is one Lua script (EVAL), which Redis runs whole with nothing in
+// between: PutJob writes the job and adds it to the set together; each PutTile is one HSET and
+// each AppendRecords one RPUSH, so a tile is stored whole or not at all and a batch of records
+// likewise. The coordinator marks a tile done only after its HSET succeeded, and fans records
+// out only after their RPUSH succeeded, so whatever clients and workers were told is in Redis.
+// Writes are not fsync'ed by us: durability across a Redis crash is Redis's own persistence
+// setting (appendonly); a coordinator crash loses nothing that was acknowledged.
+//
 // When Redis is down or hung (SIGSTOP, a stalled network): every call gives up after its
 // deadline (RedisOptions::timeout, 500 ms by default, for waiting for the connection plus as much
 // again for Redis's answer) and returns UNAVAILABLE (the coordinator refuses submits, requeues a
@@ -23,12 +25,20 @@
 // wait for at most `timeout`. The start-up reads (Load*) get the longer load_timeout, and report
 // and skip what they cannot read (a damaged job key, a damaged record batch) rather than keep
 // the coordinator from starting.
+//
+// Fencing (several coordinators on one Redis, `irfarm-coordinator --ha`, coordinator_lease.h):
+// with RedisOptions::fence_owner set, each write script first checks that the lease key holds
+// that owner and otherwise writes nothing and fails (FAILED_PRECONDITION). Check and write are
+// one script, so no write of a coordinator that lost its lease lands after a standby took over,
+// not even one already on the wire when the lease expired, and no clock is trusted for it. Reads
+// are not fenced: a standby does not serve before it holds the lease.
 #pragma once
 
 #include <chrono>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "coordinator/job_store.h"
 
@@ -44,6 +54,10 @@ struct RedisOptions {
   // The same for the start-up reads (LoadJobs/LoadTiles/LoadRecords), which may move hundreds
   // of MiB.
   std::chrono::milliseconds load_timeout{60000};
+  // Fencing: when fence_owner is not empty, a write lands only while GET fence_key ==
+  // fence_owner (the CoordinatorLease's key and owner id).
+  std::string fence_key;
+  std::string fence_owner;
 };
 
 class RedisJobStore : public JobStore {
@@ -72,6 +86,12 @@ class RedisJobStore : public JobStore {
   void Drop();                     // mu_ held: forget a broken connection
   // mu_ held, connected: sets the deadline of the commands that follow.
   void SetCommandTimeout(std::chrono::milliseconds t);
+  // Takes mu_ and runs a write script: `body` (Lua) sees the job keys from KEYS[2] and its
+  // arguments from ARGV[2] on, after the fence check on KEYS[1] / ARGV[1]. Returns the script's
+  // integer result. UNAVAILABLE when Redis fails, FAILED_PRECONDITION when fenced, DATA_LOSS for
+  // a key of the wrong type.
+  absl::StatusOr<long long> Write(const char* body, const std::vector<std::string>& keys,
+                                  const std::vector<std::string>& args);
 
   const std::string host_;
   const int port_;

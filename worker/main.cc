@@ -17,7 +17,9 @@ int main(int argc, char** argv) {
   irfarm::WorkerOptions options;
   int flush_ms = 50;
   std::string metrics_address;
-  app.add_option("--coordinator", options.coordinator, "coordinator address (127.0.0.1:50051)");
+  app.add_option("--coordinator", options.coordinator,
+                 "coordinator address (127.0.0.1:50051), or several separated by commas (an "
+                 "active and its standbys, --ha): the one accepting connections is used");
   app.add_option("--threads", options.threads, "render threads (default: all cores)");
   app.add_option("--name", options.name, "name shown in job stats (default: host:pid)");
   app.add_option("--flush-ms", flush_ms, "publish new records at least this often (50)");

@@ -9,6 +9,7 @@
 #include <optional>
 #include <thread>
 
+#include "service/coordinator_list.h"
 #include "service/record_codec.h"
 #include "worker/tile_region.h"
 
@@ -45,24 +46,30 @@ int Worker::Run() {
     spdlog::error("{}", (!token.ok() ? token.status() : credentials.status()).ToString());
     return 2;
   }
+  absl::StatusOr<std::vector<std::string>> addresses = CoordinatorList::Parse(options_.coordinator);
+  if (!addresses.ok()) {
+    spdlog::error("{}", addresses.status().ToString());
+    return 2;
+  }
   token_ = *token;
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(256 << 20);
-  // Reconnect quickly after a coordinator restart (gRPC's default starts at 1 s and grows 1.6x).
+  // Reconnect quickly after a coordinator restart or a standby's takeover (gRPC's default starts
+  // at 1 s and grows 1.6x to 120 s): a coordinator that starts listening is seen within 1 s.
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
   args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 100);
-  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
-  std::shared_ptr<grpc::Channel> channel =
-      grpc::CreateCustomChannel(options_.coordinator, *credentials, args);
-  std::unique_ptr<v1::WorkerService::Stub> stub = v1::WorkerService::NewStub(channel);
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
+  CoordinatorList coordinators(*addresses, *credentials, args);
   auto backoff = std::chrono::milliseconds(250);
   while (!stop_) {
     // Wait for a connection in short steps, so that a stop request is seen promptly.
-    if (!channel->WaitForConnected(std::chrono::system_clock::now() +
-                                   std::chrono::milliseconds(500)))
-      continue;
+    std::optional<size_t> i = coordinators.FindConnected(std::chrono::system_clock::now() +
+                                                         std::chrono::milliseconds(500));
+    if (!i) continue;
+    std::unique_ptr<v1::WorkerService::Stub> stub =
+        v1::WorkerService::NewStub(coordinators.channel(*i));
     const auto start = std::chrono::steady_clock::now();
-    RunSession(stub.get());
+    RunSession(stub.get(), coordinators.address(*i));
     if (stop_) break;
     if (std::chrono::steady_clock::now() - start > std::chrono::seconds(10))
       backoff = std::chrono::milliseconds(250);  // it was up for a while: retry soon
@@ -75,7 +82,7 @@ int Worker::Run() {
   return 0;
 }
 
-void Worker::RunSession(v1::WorkerService::Stub* stub) {
+void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& address) {
   grpc::ClientContext context;
   AddToken(&context, token_);
   std::unique_ptr<grpc::ClientReaderWriter<v1::WorkerMessage, v1::CoordinatorMessage>> stream =
@@ -101,7 +108,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub) {
       heartbeat = std::chrono::milliseconds(reply.registered().heartbeat_ms());
     else if (reply.registered().heartbeat_seconds() > 0)
       heartbeat = std::chrono::seconds(reply.registered().heartbeat_seconds());
-    spdlog::info("registered with {} as worker {}", options_.coordinator, s.worker_id);
+    spdlog::info("registered with {} as worker {}", address, s.worker_id);
   }
   const auto write = [&](const v1::WorkerMessage& m) {
     std::lock_guard<std::mutex> lock(s.write_mu);

@@ -5,7 +5,9 @@
 // backoff when the stream breaks. Stop() (SIGTERM) lets the current tile finish and be reported,
 // then drains and returns. It authenticates with a worker token and, optionally, TLS
 // (service/client_auth.h), and sends heartbeats at the period the coordinator asks for (a worker
-// silent for 3 periods loses its leases).
+// silent for 3 periods loses its leases). Given several coordinator addresses (active and
+// standbys, `irfarm-coordinator --ha`), it connects to whichever accepts connections, and after
+// a broken session to whichever does next (service/coordinator_list.h).
 #pragma once
 
 #include <atomic>
@@ -25,7 +27,7 @@
 namespace irfarm {
 
 struct WorkerOptions {
-  std::string coordinator = "127.0.0.1:50051";
+  std::string coordinator = "127.0.0.1:50051";  // or "host1:port,host2:port,..."
   std::string name;
   int threads = 0;  // 0 = all cores
   std::chrono::milliseconds flush_interval{50};
@@ -47,7 +49,7 @@ class Worker {
 
  private:
   // One connected session; returns when the stream breaks or the worker stops.
-  void RunSession(v1::WorkerService::Stub* stub);
+  void RunSession(v1::WorkerService::Stub* stub, const std::string& address);
 
   std::string token_;
   WorkerOptions options_;
