@@ -21,23 +21,9 @@
 #include <vector>
 
 #include "irfarm/v1/jobs.grpc.pb.h"
+#include "service/free_port.h"
 
 namespace irfarm {
-
-// A loopback TCP port that was free a moment ago (0 when none could be bound).
-inline int FreePort() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof a;
-  int port = 0;
-  if (bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
-      getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) == 0)
-    port = ntohs(a.sin_port);
-  close(fd);
-  return port;
-}
 
 // A child process (argv[0] is looked up on PATH when it has no '/') with its stdout and stderr
 // in `log`; stopped by Stop() or the destructor.

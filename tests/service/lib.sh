@@ -69,6 +69,15 @@ wait_job() {
   fail "job $2 did not finish in $3 s"
 }
 
+# wait_tiles ADDR JOB N: until at least N tiles are done.
+wait_tiles() {
+  for _ in $(seq 600); do
+    (($(job_field "$1" "$2" "j['tilesDone']") >= $3)) && return 0
+    sleep 0.05
+  done
+  fail "job $2 never reached $3 tiles"
+}
+
 relmse() { "$BIN/irfarm" compare "$1" "$2" | python3 -c 'import json,sys; print(json.load(sys.stdin)["relmse"])'; }
 computed() { python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["records"]["computed"])' "$1"; }
 # check "description" PYTHON_BOOL_EXPR

@@ -15,21 +15,10 @@
 #include <thread>
 
 #include "coordinator/redis_job_store.h"
+#include "service/free_port.h"
 #include "service/scene_bundle.h"
 
 namespace irfarm {
-
-inline int FreePort() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t len = sizeof a;
-  getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-  close(fd);
-  return ntohs(a.sin_port);
-}
 
 class RedisServer {
  public:

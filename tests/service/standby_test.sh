@@ -55,14 +55,6 @@ wait_serving() {
   done
   fail "$1 never served"
 }
-# wait_tiles ADDR JOB N: until at least N tiles are done.
-wait_tiles() {
-  for _ in $(seq 600); do
-    (($(job_field "$1" "$2" "j['tilesDone']") >= $3)) && return 0
-    sleep 0.05
-  done
-  fail "job $2 never reached $3 tiles"
-}
 # log_since FILE TEXT: seconds from $T0 to the (spdlog) timestamp of FILE's last line with TEXT.
 log_since() {
   python3 - "$1" "$2" "$T0" <<'PY'

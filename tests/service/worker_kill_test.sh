@@ -15,14 +15,6 @@ OPTS=(-Dresx=128 -Dresy=128)
 "$BIN/irfarm" downsample "$WORK/local.exr" "$WORK/local64.exr" --factor 2
 TOL=$(python3 -c "print(3 * $(relmse "$WORK/local64.exr" "$REF"))")
 
-# wait_tiles ADDR JOB N: until at least N tiles are done.
-wait_tiles() {
-  for _ in $(seq 600); do
-    (($(job_field "$1" "$2" "j['tilesDone']") >= $3)) && return 0
-    sleep 0.05
-  done
-  fail "job $2 never reached $3 tiles"
-}
 
 # --- 1. worker SIGKILL ---
 ADDR=127.0.0.1:$(free_port)
