@@ -102,7 +102,10 @@ int RunRender(const RenderArgs& args) {
   IrrcacheSettings& ic = s.irrcache;
   if (args.spp > 0) s.spp = args.spp;
   if (args.accuracy > 0) ic.accuracy = args.accuracy;
-  if (args.record_rays > 0) ic.record_rays = args.record_rays;
+  if (args.record_rays > 0) {
+    ic.record_rays = args.record_rays;
+    ic.balance_record_rays = false;  // the user's rays, as asked
+  }
   if (args.light_samples > 0) ic.light_samples = args.light_samples;
   if (args.cache_levels > 0) ic.cache_levels = args.cache_levels;
   if (args.min_spacing > 0) ic.min_spacing_px = args.min_spacing;

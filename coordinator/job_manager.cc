@@ -1314,6 +1314,8 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
     spec.mutable_job_spec()->set_job_id(id);
     *spec.mutable_job_spec()->mutable_scene() = job.stored.scene();
     *spec.mutable_job_spec()->mutable_settings() = job.stored.job().settings();
+    spec.mutable_job_spec()->set_warm_cache(job.stored.job().records_seeded() > 0 ||
+                                            job.stored.job().records_imported() > 0);
     out->push_back(std::move(spec));
     // Late join: the job's records so far (imported ones always, others' when sharing). With
     // filtered fan-out none yet: the worker's region is empty until its first TileRegion, whose

@@ -171,6 +171,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
                                                    RenderCounters& counters, Vec3* half_difference,
                                                    int level, float ray_fraction) const {
   const auto start = std::chrono::steady_clock::now();
+  ++counters.record_nesting;
   Vec3 s, t;
   MakeFrame(nf, &s, &t);
   // The geometric normal on the side of the facing normal: rays below it would pass through.
@@ -233,12 +234,11 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
     r.radius = std::max(1e-4f * std::max(hit.error_scale, MaxAbsComponent(hit.p)), 1e-30f);
   }
   ++counters.records_computed;
-  if (level > 0) {
-    ++counters.records_secondary;  // its time is part of the record that asked for it
-  } else {
+  if (level > 0) ++counters.records_secondary;
+  // A record made for another record's rays is part of that record's time.
+  if (--counters.record_nesting == 0)
     counters.record_seconds +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  }
   return r;
 }
 
@@ -541,6 +541,28 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
     e += (d * d - var) / (double(v[c]) * v[c] + 0.01);
   }
   *error = e / 3;
+  return true;
+}
+
+bool IrrcacheIntegrator::Pilot(const Ray& ray, Rng& rng, RenderCounters& counters,
+                               PilotRecord* out) const {
+  Vec3 beta(1, 1, 1);
+  SurfaceHit hit;
+  Vec3 nf;
+  int depth;
+  float distance;
+  if (!FindDiffuse(ray, rng, counters, &beta, &hit, &nf, &depth, &distance)) return false;
+  const int max_depth = settings_.path.max_depth;
+  if (!(max_depth < 0 || depth + 2 <= max_depth)) return false;
+  const float spread = scene_.camera().PixelSpread(distance);
+  Vec3 half_diff;
+  const IrradianceRecord r = ComputeRecord(hit, nf, depth, spread, rng, counters, &half_diff);
+  cache_->Insert(r);
+  const Bsdf& bsdf = scene_.material(hit.material);
+  out->weight = beta * bsdf.DiffuseAlbedo(hit.Context(), hit.Frame().ToLocal(-ray.dir)) * kInvPi;
+  // Var(E) = E[(E_even - E_odd)^2] / 4 for two independent halves (as CacheError).
+  out->irradiance_variance = half_diff * half_diff * 0.25f;
+  out->footprint_px = spread > 0 ? settings_.accuracy * r.radius / spread : 0;
   return true;
 }
 

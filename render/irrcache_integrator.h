@@ -57,6 +57,10 @@ struct IrrcacheSettings {
   // worse on sunlit-room, specular and veach-ajar (README, "Two cache levels").
   int cache_levels = 1;
   float secondary_ray_fraction = 0.25f;
+  // Default settings: lower record_rays where the pilot shows that records cost more than their
+  // noise is worth against the camera samples (render/record_balance.h). Off when the rays are
+  // given (scene, --record-rays, the job's settings) and with --target-error.
+  bool balance_record_rays = true;
   PathSettings path;
 };
 
@@ -124,6 +128,16 @@ class IrrcacheIntegrator {
   // Its mean over random pixels estimates the cache's share of the image's relMSE. False where
   // there is nothing to check (no diffuse hit, or the lookup fails).
   bool CacheError(const Ray& ray, Rng& rng, RenderCounters& counters, double* error) const;
+
+  // Pilot for balancing record rays (render/record_balance.h): computes and inserts a record at
+  // the first diffuse surface seen along `ray` with the settings' rays, and gives its weight in
+  // the pixel (throughput * albedo / pi), the variance of its irradiance (from its two halves)
+  // and its validity radius in pixel footprints. False where there is no diffuse hit.
+  struct PilotRecord {
+    Vec3 weight, irradiance_variance;
+    float footprint_px = 0;
+  };
+  bool Pilot(const Ray& ray, Rng& rng, RenderCounters& counters, PilotRecord* out) const;
 
   // Computes a new record at x (facing normal nf, geometric normal ng) and inserts it.
   // `level` 0: a record for what the camera sees (through delta lobes); 1: for what it sees

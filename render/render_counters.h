@@ -21,6 +21,9 @@ struct RenderCounters {
   uint64_t records_used = 0;         // records summed over successful queries
   uint64_t remote_records_used = 0;  // of records_used, those computed by another process
   double record_seconds = 0;         // thread time spent computing records
+  // Records being computed on this thread right now (a record's rays can make others): only the
+  // outermost one adds its time to record_seconds. Not summed.
+  int record_nesting = 0;
 
   void Add(const RenderCounters& o) {
     camera_rays += o.camera_rays;

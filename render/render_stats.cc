@@ -114,6 +114,13 @@ std::string RenderStats::ToJson() const {
     << ", \"sampling_relmse\": " << Num(estimated_sampling_relmse)
     << ", \"cache_relmse\": " << Num(estimated_cache_relmse)
     << ", \"target_error\": " << Num(target_error) << "},\n";
+  if (balanced)
+    o << "  \"record_balance\": {\"record_rays\": " << balance.record_rays
+      << ", \"record_noise_relmse\": " << Num(balance.record_noise)
+      << ", \"sampling_relmse\": " << Num(balance.sampling_error)
+      << ", \"expected_spp\": " << Num(balance.expected_spp)
+      << ", \"record_thread_seconds\": " << Num(balance.record_seconds)
+      << ", \"sampling_thread_seconds\": " << Num(balance.sampling_seconds) << "},\n";
   o << "  \"tiles\": {\"count\": " << tiles << ", \"size\": " << tile_size << "},\n";
   o << "  \"geometry\": {\"triangles\": " << triangles
     << ", \"degenerate_dropped\": " << degenerate_dropped << "},\n";

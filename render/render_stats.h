@@ -9,6 +9,7 @@
 
 #include "absl/status/status.h"
 #include "cache/math.h"
+#include "render/record_balance.h"
 #include "render/render_counters.h"
 
 namespace irfarm {
@@ -43,6 +44,9 @@ struct RenderStats {
   double estimated_sampling_relmse = 0;  // from the pixels' two half-images
   double estimated_cache_relmse = -1;    // cross-validated records (target-error mode), -1: none
   double target_error = 0;
+  // Default settings: the pilot's balance of record rays (record_balance.h), when it ran.
+  bool balanced = false;
+  BalanceResult balance;
   long triangles = 0, degenerate_dropped = 0;
   std::vector<std::string> warnings;
 

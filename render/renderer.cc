@@ -19,13 +19,14 @@
 #include "absl/strings/numbers.h"
 #include "render/path_tracer.h"
 #include "render/pixel_sampler.h"
+#include "render/record_balance.h"
 #include "render/sample_film.h"
 
 namespace irfarm {
 namespace {
 
 // Distinct random streams for the passes that touch a pixel.
-enum : uint64_t { kStreamFinal = 1, kStreamOverture = 2, kStreamCacheCheck = 3 };
+enum : uint64_t { kStreamFinal = 1, kStreamOverture = 2, kStreamCacheCheck = 3, kStreamPilot = 4 };
 
 class Progress {
  public:
@@ -130,6 +131,82 @@ double EstimateCacheError(const IrrcacheIntegrator& integrator, const Camera& ca
   }
   // Pixels with nothing to check (sky, lights, black) have no cache error: they count as 0.
   return std::max(0.0, sum / kCacheChecks) * (n > 0 ? 1.0 : 0.0);
+}
+
+// The pilot of record_balance.h: kPilotPixels random pixels of `rect`, each a record (inserted:
+// it is a real one) and kPilotSamples camera samples, timed apart.
+BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settings,
+                                const IrrcacheIntegrator& integrator, const PixelRect& rect,
+                                tbb::task_arena& arena,
+                                tbb::enumerable_thread_specific<RenderCounters>& counters) {
+  constexpr int kPilotPixels = 128, kPilotSamples = 16;
+  const Camera& cam = scene.camera();
+  const int light_samples = std::max(1, settings.irrcache.light_samples);
+  PilotFigures pilot;
+  pilot.samples = kPilotSamples;
+  pilot.pixels.resize(kPilotPixels);
+  SampleFilm film(kPilotPixels, integrator.ratio_slots());
+  std::vector<IrrcacheIntegrator::PilotRecord> records(kPilotPixels);
+  std::vector<double> record_seconds(kPilotPixels, 0), sample_seconds(kPilotPixels, 0);
+  using Clock = std::chrono::steady_clock;
+  arena.execute([&] {
+    tbb::parallel_for(0, kPilotPixels, [&](int i) {
+      RenderCounters& c = counters.local();
+      Rng rng(HashCombine(settings.seed, uint64_t(i)), kStreamPilot);
+      const int x = rect.x0 + std::min(rect.width() - 1, int(rng.Next() * float(rect.width())));
+      const int y = rect.y0 + std::min(rect.height() - 1, int(rng.Next() * float(rect.height())));
+      const auto t0 = Clock::now();
+      const Ray centre{cam.origin(), cam.Direction(x + 0.5f, y + 0.5f), INFINITY};
+      pilot.pixels[size_t(i)].has_record = integrator.Pilot(centre, rng, c, &records[size_t(i)]);
+      const auto t1 = Clock::now();
+      const double made_before = c.record_seconds;
+      PixelSampler film_points(kPilotSamples, rng),
+          light_points(kPilotSamples * light_samples, rng);
+      for (int s = 0; s < kPilotSamples; ++s) {
+        float fu, fv;
+        film_points.Get(s, &fu, &fv);
+        const Ray ray{cam.origin(), cam.SampleDirection(x, y, fu, fv), INFINITY};
+        IrrcacheShade shade;
+        DirectTerms terms;
+        Vec3 L = integrator.Li(ray, LightStrata{&light_points, s * light_samples}, rng, c, &shade,
+                               &terms);
+        if (!IsFinite(L)) L = Vec3();  // counted by the final pass, which renders it again
+        film.Add(size_t(i), s, L, &terms);
+      }
+      record_seconds[size_t(i)] = std::chrono::duration<double>(t1 - t0).count();
+      // Records the samples made (glossy paths reaching new surfaces) count as record time.
+      const double made = c.record_seconds - made_before;
+      sample_seconds[size_t(i)] =
+          std::max(0.0, std::chrono::duration<double>(Clock::now() - t1).count() - made);
+      record_seconds[size_t(i)] += made;
+    });
+  });
+  for (int i = 0; i < kPilotPixels; ++i) {
+    PilotPixel& px = pilot.pixels[size_t(i)];
+    px.sampling_error = film.RelativeError(size_t(i));
+    pilot.sample_seconds += sample_seconds[size_t(i)];
+    pilot.sample_count += kPilotSamples;
+    pilot.record_seconds += record_seconds[size_t(i)];
+    if (!px.has_record) continue;
+    ++pilot.records;
+    const IrrcacheIntegrator::PilotRecord& r = records[size_t(i)];
+    const Vec3 v = film.Value(size_t(i));
+    double n = 0;
+    for (int ch = 0; ch < 3; ++ch)
+      n += double(r.weight[ch]) * r.weight[ch] * r.irradiance_variance[ch] /
+           (double(v[ch]) * v[ch] + 0.01);
+    px.record_noise = n / 3;
+    const double fp = std::max(1e-3, double(r.footprint_px));
+    px.records_per_px = 1 / (kPi * fp * fp);
+  }
+  BalanceInputs in;
+  in.record_rays = settings.irrcache.record_rays;
+  in.image_pixels = double(rect.width()) * rect.height();
+  in.adaptive = settings.adaptive && settings.spp > 2;
+  in.min_spp = settings.min_spp;
+  in.max_spp = settings.spp;
+  in.sampling_goal = settings.sampling_error;
+  return ChooseRecordRays(pilot, in);
 }
 
 // Per-pixel random streams and sample points of the final pass, kept across adaptive rounds.
@@ -350,7 +427,10 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
       values[name] = v;
     }
     if (values.count("accuracy")) ic.accuracy = float(values["accuracy"]);
-    if (values.count("record_rays")) ic.record_rays = int(values["record_rays"]);
+    if (values.count("record_rays")) {
+      ic.record_rays = int(values["record_rays"]);
+      ic.balance_record_rays = false;  // the scene's rays, as asked
+    }
     if (values.count("light_samples")) ic.light_samples = int(values["light_samples"]);
     if (values.count("min_spacing_px")) ic.min_spacing_px = float(values["min_spacing_px"]);
     if (values.count("max_spacing_px")) ic.max_spacing_px = float(values["max_spacing_px"]);
@@ -371,6 +451,26 @@ CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& setting
   cs.max_accuracy = std::min(1.0f, a * std::max(1.0f, settings.irrcache.relaxed_factor));
   cs.neighbour_slope = settings.irrcache.neighbour_slope;
   return cs;
+}
+
+RenderSettings BalancedSettings(const Scene& scene, const RenderSettings& settings,
+                                IrradianceCache* cache, BalanceResult* result) {
+  RenderSettings out = settings;
+  if (settings.integrator != "irrcache" || settings.target_error > 0 ||
+      !settings.irrcache.balance_record_rays || cache == nullptr || cache->size() > 0)
+    return out;
+  const int threads = settings.threads > 0 ? settings.threads
+                                           : int(std::max(1u, std::thread::hardware_concurrency()));
+  tbb::task_arena arena(threads);
+  tbb::enumerable_thread_specific<RenderCounters> counters;
+  const IrrcacheIntegrator integrator(scene, cache, settings.irrcache);
+  const Camera& cam = scene.camera();
+  const BalanceResult b = BalanceRecordRays(
+      scene, settings, integrator, PixelRect{0, 0, cam.width(), cam.height()}, arena, counters);
+  out.irrcache.record_rays = b.record_rays;
+  out.irrcache.balance_record_rays = false;
+  if (result) *result = b;
+  return out;
 }
 
 RenderOutput Render(const Scene& scene, const RenderSettings& settings, IrradianceCache* cache) {
@@ -453,6 +553,16 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
   // cross-validated cache error is at most half of it; the samples take the rest.
   IrrcacheSettings ic = settings.irrcache;
   double cache_error = -1;
+  // A cache that already holds records (--cache-in, the service's) keeps the settings' rays: the
+  // pilot's records would mostly repeat what it has.
+  if (irrcache && settings.target_error <= 0 && ic.balance_record_rays && cache->size() == 0) {
+    PhaseTimer timer("pilot");
+    const BalanceResult b = BalanceRecordRays(scene, settings, integrator, rect, arena, counters);
+    ic.record_rays = b.record_rays;
+    out.stats.balance = b;
+    out.stats.balanced = true;
+    out.stats.phases.push_back(timer.Stop());
+  }
   if (irrcache) {
     PhaseTimer timer("overture");
     if (settings.target_error > 0) {
@@ -487,7 +597,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
         ic.record_rays = std::min(most_rays, int(std::lround(ic.record_rays / (f * f))));
       }
     } else if (settings.overture) {
-      overture(integrator, 0);
+      overture(IrrcacheIntegrator(scene, cache, ic), 0);
     }
     out.stats.phases.push_back(timer.Stop());
     for (const RenderCounters& c : counters) out.stats.records_overture += c.records_computed;

@@ -70,6 +70,14 @@ struct PixelRect {
   int height() const { return y1 - y0; }
 };
 
+// Default irrcache settings (irrcache.balance_record_rays, no target error): runs the pilot of
+// render/record_balance.h over the whole image, inserting its records into `cache`, and returns
+// `settings` with the rays it chose and the balance off (RenderRect balances by itself; the
+// service's workers call this once per job, so that all of its tiles use the same rays).
+// Other settings come back unchanged.
+RenderSettings BalancedSettings(const Scene& scene, const RenderSettings& settings,
+                                IrradianceCache* cache, BalanceResult* result = nullptr);
+
 // Renders the pixels of `rect` only (the overture too covers only `rect`); the output images
 // are rect-sized. A pixel's value does not depend on the rect it was rendered in (its random
 // stream is keyed by its position in the whole image), so tiles rendered on different machines

@@ -40,7 +40,10 @@ absl::StatusOr<RenderSettings> MakeRenderSettings(const SceneDesc& desc,
   if (!s.ok()) return s.status();
   if (settings.spp() > 0) s->spp = settings.spp();
   if (settings.accuracy() > 0) s->irrcache.accuracy = settings.accuracy();
-  if (settings.record_rays() > 0) s->irrcache.record_rays = settings.record_rays();
+  if (settings.record_rays() > 0) {
+    s->irrcache.record_rays = settings.record_rays();
+    s->irrcache.balance_record_rays = false;  // the job's rays, as asked
+  }
   s->seed = settings.seed();
   s->threads = threads;
   s->overture = !settings.no_overture();

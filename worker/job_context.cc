@@ -30,6 +30,12 @@ absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec
   if (!scene.ok()) return scene.status();
   c->scene_ = std::move(*scene);
   c->cache_ = std::make_unique<IrradianceCache>(CacheSettingsFor(*c->scene_, c->settings_));
+  // Default rays: balanced once per job over the whole image, so every tile uses the same; a
+  // seeded job keeps the settings' rays (its cache is mostly there already).
+  if (spec.warm_cache())
+    c->settings_.irrcache.balance_record_rays = false;
+  else
+    c->settings_ = BalancedSettings(*c->scene_, c->settings_, c->cache_.get());
   return c;
 }
 

@@ -1,0 +1,71 @@
+// Balancing the irradiance cache's record rays against the camera samples, at default settings.
+//
+// A default irrcache image has two errors: the cache's (interpolation, plus the noise of each
+// record's hemisphere estimate, which falls as 1 / rays) and the camera samples' (direct light,
+// glossy and specular paths, anti-aliasing). Where records dominate the time and the samples the
+// error - a real interior full of glass, metal and rough plastic - rays spent on records buy
+// nothing; in a diffuse room the records' noise is a visible part of the error. The renderer
+// therefore measures, before the overture, on a pilot of random pixels: the relative noise a
+// record made with the settings' rays leaves in the pixel, the sampling error of that pixel's
+// camera samples, and the time of each; and picks the rays that minimise error x time (the cost
+// at which a given error is reached).
+//
+// Model (per pixel of the image, relMSE units): error(R) = I + N R0 / R + S, time(R) = C R / R0 +
+// D, with N the record noise at R0 rays, I the interpolation error, S the sampling error at the
+// samples adaptive sampling is expected to take, C the records' time at R0 and D the samples'.
+// d(error x time)/dR = 0 gives R* = R0 sqrt(N / (I + S) * D / C). I is not measured by the pilot
+// (it needs a filled cache); it is taken equal to N at the default 1536 rays, as the ray sweep
+// measured on the shared scenes (cornell-box I = 1.9 N, room-a 0.8 N, room-b 0.8 N). R* is kept
+// within [R0 / 8, R0]: the balance only ever lowers the rays, and never below 192 at defaults.
+#pragma once
+
+#include <vector>
+
+namespace irfarm {
+
+// One pilot pixel: a record made at its first diffuse hit with R0 rays, and `samples` camera
+// samples of the pixel rendered with the cache (the record now in it).
+struct PilotPixel {
+  bool has_record = false;
+  double record_noise = 0;    // the record's noise in the pixel: w^2 Var(E) / (v^2 + 0.01)
+  double records_per_px = 0;  // 1 / (pi footprint^2): records per pixel its validity area implies
+  double sampling_error = 0;  // the pixel's estimated relMSE from its `samples` camera samples
+};
+
+struct PilotFigures {
+  std::vector<PilotPixel> pixels;
+  int samples = 0;            // camera samples per pilot pixel
+  double record_seconds = 0;  // thread time of the pilot records
+  int records = 0;            // pilot records made
+  double sample_seconds = 0;  // thread time of the pilot camera samples (records they made out)
+  long sample_count = 0;      // pilot camera samples
+};
+
+struct BalanceInputs {
+  int record_rays = 1536;  // R0: the settings' rays
+  double image_pixels = 0;
+  // Adaptive sampling as the final pass will run it.
+  bool adaptive = true;
+  int min_spp = 16, max_spp = 64;
+  double sampling_goal = 1e-4;
+};
+
+struct BalanceResult {
+  int record_rays = 0;          // the rays chosen
+  double record_noise = 0;      // N: the records' noise in the image at R0 (relMSE)
+  double sampling_error = 0;    // S: the final pass's expected sampling error (relMSE)
+  double expected_spp = 0;      // the final pass's expected mean samples per pixel
+  double record_seconds = 0;    // C: the records' expected thread time at R0
+  double sampling_seconds = 0;  // D: the camera samples' expected thread time
+};
+
+// Records per pixel for a cache whose records' validity areas, 1 / (pi footprint^2) each,
+// average `mean_inverse_area`: the overture's records overlap (a pixel needs a record whose
+// validity sphere reaches it, and neighbour clamping shrinks radii), so the count is this
+// factor times the plain tiling. Calibrated on the shared scenes' record counts at defaults.
+constexpr double kRecordOverlap = 4.0;
+
+// R* as the model above gives it, from the pilot's figures.
+BalanceResult ChooseRecordRays(const PilotFigures& pilot, const BalanceInputs& in);
+
+}  // namespace irfarm

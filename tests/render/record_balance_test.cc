@@ -1,0 +1,127 @@
+// Tests of render/record_balance.h: the rays the error x time model picks from pilot figures
+// (closed form, clamps, degenerate pilots), and the pilot in a real render: its records go into
+// the cache and the stats, a warm cache or explicit rays turn it off.
+#include "render/record_balance.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "tests/render/render_test_util.h"
+
+namespace irfarm {
+namespace {
+
+// 100 pilot pixels of which `with_record` have a record; each record's noise N (relMSE), a
+// validity area of 1/`per_px` pixels; each pixel's sampling error S1 at one sample.
+PilotFigures Pilot(int with_record, double noise, double per_px, double s1, double record_s,
+                   double sample_s) {
+  PilotFigures p;
+  p.samples = 16;
+  for (int i = 0; i < 100; ++i) {
+    PilotPixel px;
+    px.has_record = i < with_record;
+    px.record_noise = px.has_record ? noise : 0;
+    px.records_per_px = px.has_record ? per_px : 0;
+    px.sampling_error = s1 / p.samples;
+    p.pixels.push_back(px);
+  }
+  p.records = with_record;
+  p.record_seconds = record_s * with_record;
+  p.sample_count = 100L * p.samples;
+  p.sample_seconds = sample_s * double(p.sample_count);
+  return p;
+}
+
+TEST(RecordBalanceTest, ClosedFormWhenSamplesDominate) {
+  // Expensive records, small record noise, noisy samples: fewer rays.
+  const PilotFigures p = Pilot(100, 1e-4, 1e-3, 0.64, 4e-3, 5e-6);
+  BalanceInputs in;
+  in.image_pixels = 1e5;
+  in.max_spp = 64;
+  in.sampling_goal = 1e-4;
+  const BalanceResult r = ChooseRecordRays(p, in);
+  // S1 = 0.64 needs 6400 spp for the goal: max_spp, S = 0.01.
+  EXPECT_DOUBLE_EQ(r.expected_spp, 64);
+  EXPECT_NEAR(r.sampling_error, 0.01, 1e-12);
+  const double c = kRecordOverlap * 1e-3 * 1e5 * 4e-3, d = 64 * 1e5 * 5e-6;
+  EXPECT_NEAR(r.record_seconds, c, 1e-9);
+  EXPECT_NEAR(r.sampling_seconds, d, 1e-9);
+  const double expect = 1536 * std::sqrt(1e-4 / (1e-4 + 0.01) * d / c);
+  ASSERT_GT(expect, 1536 / 8.0);  // inside the clamp, so the closed form is what comes out
+  EXPECT_EQ(r.record_rays, int(std::lround(expect)));
+}
+
+TEST(RecordBalanceTest, KeepsTheRaysWhenRecordsDominate) {
+  // Cheap records whose noise is most of the error: the model wants more than R0; R0 it stays.
+  const PilotFigures p = Pilot(100, 1e-3, 1e-4, 1e-4, 1e-4, 1e-4);
+  BalanceInputs in;
+  in.image_pixels = 1e5;
+  EXPECT_EQ(ChooseRecordRays(p, in).record_rays, 1536);
+}
+
+TEST(RecordBalanceTest, NeverBelowAnEighth) {
+  const PilotFigures p = Pilot(100, 1e-8, 1.0, 10.0, 1.0, 1e-9);
+  BalanceInputs in;
+  in.image_pixels = 1e5;
+  EXPECT_EQ(ChooseRecordRays(p, in).record_rays, 192);
+}
+
+TEST(RecordBalanceTest, FewerRaysAsRecordsGetDearer) {
+  BalanceInputs in;
+  in.image_pixels = 1e5;
+  int last = 1 << 30;
+  for (double record_s : {1e-4, 1e-3, 3e-3, 1e-2}) {
+    const int rays = ChooseRecordRays(Pilot(100, 1e-4, 1e-3, 0.64, record_s, 5e-6), in).record_rays;
+    EXPECT_LE(rays, last) << record_s;
+    last = rays;
+  }
+  EXPECT_LT(last, 1536);
+}
+
+TEST(RecordBalanceTest, NothingToBalance) {
+  BalanceInputs in;
+  in.image_pixels = 1e5;
+  EXPECT_EQ(ChooseRecordRays(PilotFigures{}, in).record_rays, 1536);  // no pilot
+  // No diffuse surface in sight: no record, nothing to trade.
+  EXPECT_EQ(ChooseRecordRays(Pilot(0, 0, 0, 0.5, 0, 1e-6), in).record_rays, 1536);
+}
+
+TEST(RecordBalanceTest, PilotInARealRender) {
+  const LoadedScene s = LoadQuarter("cornell-box");
+  RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
+  settings.seed = 3;
+  ASSERT_TRUE(settings.irrcache.balance_record_rays);
+  const RenderOutput out = Render(*s.scene, settings);
+  ASSERT_TRUE(out.stats.balanced);
+  // The stats give the rays the strata make (T x P) for the count chosen.
+  IrrcacheSettings chosen = settings.irrcache;
+  chosen.record_rays = out.stats.balance.record_rays;
+  IrradianceCache scratch(CacheSettingsFor(*s.scene, settings));
+  const IrrcacheIntegrator strata(*s.scene, &scratch, chosen);
+  EXPECT_EQ(out.stats.record_rays, strata.strata_theta() * strata.strata_phi());
+  EXPECT_GE(out.stats.record_rays, 192);
+  EXPECT_LE(out.stats.record_rays, 1536);
+  EXPECT_GT(out.stats.balance.record_noise, 0);
+  EXPECT_GT(out.stats.balance.sampling_seconds, 0);
+  EXPECT_GT(out.stats.PhaseWall("pilot"), 0);
+
+  // BalancedSettings puts the pilot's records into the cache and turns the balance off; a cache
+  // that holds records already (a snapshot, the service's) keeps the settings as they are.
+  IrradianceCache cache(CacheSettingsFor(*s.scene, settings));
+  BalanceResult b;
+  const RenderSettings balanced = BalancedSettings(*s.scene, settings, &cache, &b);
+  EXPECT_FALSE(balanced.irrcache.balance_record_rays);
+  EXPECT_EQ(balanced.irrcache.record_rays, b.record_rays);
+  EXPECT_GT(cache.size(), 64u);  // most of the 128 pilot pixels see a diffuse wall
+  const RenderSettings again = BalancedSettings(*s.scene, settings, &cache);
+  EXPECT_TRUE(again.irrcache.balance_record_rays);
+  EXPECT_EQ(again.irrcache.record_rays, settings.irrcache.record_rays);
+  const RenderOutput warm = Render(*s.scene, settings, &cache);
+  EXPECT_FALSE(warm.stats.balanced);
+  const IrrcacheIntegrator full(*s.scene, &scratch, settings.irrcache);
+  EXPECT_EQ(warm.stats.record_rays, full.strata_theta() * full.strata_phi());
+}
+
+}  // namespace
+}  // namespace irfarm
