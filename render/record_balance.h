@@ -14,9 +14,12 @@
 // D, with N the record noise at R0 rays, I the interpolation error, S the sampling error at the
 // samples adaptive sampling is expected to take, C the records' time at R0 and D the samples'.
 // d(error x time)/dR = 0 gives R* = R0 sqrt(N / (I + S) * D / C). I is not measured by the pilot
-// (it needs a filled cache); it is taken equal to N at the default 1536 rays, as the ray sweep
-// measured on the shared scenes (cornell-box I = 1.9 N, room-a 0.8 N, room-b 0.8 N). R* is kept
-// within [R0 / 8, R0]: the balance only ever lowers the rays, and never below 192 at defaults.
+// (it needs a filled cache) and is taken as 0, which can only raise R*: the ray sweep on the
+// shared scenes measured I from 0.3 N (veach-ajar, whose error is the records' noise at the door
+// gap) to 1.9 N (cornell-box), and taking I = N there made veach-ajar 2.9x worse at 449 rays. N
+// from the pilot's single records is itself 1.5-1.9x the noise the interpolated image shows
+// (several records are averaged). R* is kept within [R0 / 8, R0]: the balance only ever lowers
+// the rays.
 #pragma once
 
 #include <vector>
@@ -64,6 +67,9 @@ struct BalanceResult {
 // validity sphere reaches it, and neighbour clamping shrinks radii), so the count is this
 // factor times the plain tiling. Calibrated on the shared scenes' record counts at defaults.
 constexpr double kRecordOverlap = 4.0;
+
+// Share of the pilot's pixels with the largest sampling error left out of S (fireflies).
+constexpr double kTrimmed = 0.02;
 
 // R* as the model above gives it, from the pilot's figures.
 BalanceResult ChooseRecordRays(const PilotFigures& pilot, const BalanceInputs& in);

@@ -139,7 +139,7 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
                                 const IrrcacheIntegrator& integrator, const PixelRect& rect,
                                 tbb::task_arena& arena,
                                 tbb::enumerable_thread_specific<RenderCounters>& counters) {
-  constexpr int kPilotPixels = 128, kPilotSamples = 16;
+  constexpr int kPilotPixels = 256, kPilotSamples = 16;
   const Camera& cam = scene.camera();
   const int light_samples = std::max(1, settings.irrcache.light_samples);
   PilotFigures pilot;
