@@ -67,7 +67,7 @@ def run_irfarm(args, scene, ref_path, label, extra, outdir):
     subprocess.run(cmd, check=True)
     with open(stats) as f:
         st = json.load(f)["seconds"]
-    seconds = st.get("overture", 0) + st["render"]
+    seconds = st.get("pilot", 0) + st.get("overture", 0) + st["render"]
     points = [{"renderer": "irfarm", "setting": label, "denoise": "none",
                "seconds": seconds, "relmse": irfarm_relmse(args.irfarm, base + ".exr", ref_path)}]
     for mode in DENOISE_MODES:

@@ -83,7 +83,8 @@ int main(int argc, char** argv) {
       s.threads = threads;
       s.seed = 7;
       RenderOutput out = Render(**scene, s);
-      const double secs = out.stats.PhaseWall("overture") + out.stats.PhaseWall("render");
+      const double secs = out.stats.PhaseWall("pilot") + out.stats.PhaseWall("overture") +
+                          out.stats.PhaseWall("render");
       runs.push_back(Run{integrator, s.spp, secs, CompareImages(out.image, *ref).relmse,
                          out.stats.counters.records_computed});
       std::printf("  %-9s spp %5d  %8.2f s  relMSE %.3e  records %llu\n", integrator.c_str(), s.spp,

@@ -44,7 +44,8 @@ def render(irfarm, scene_dir, args, tmp, tag):
         st = json.load(f)
     cmp = json.loads(run([irfarm, "compare", out, os.path.join(scene_dir, "reference.exr")])
                      .stdout)
-    secs = st["seconds"].get("overture", 0) + st["seconds"].get("render", 0)
+    secs = (st["seconds"].get("pilot", 0) + st["seconds"].get("overture", 0) +
+            st["seconds"].get("render", 0))
     est = st.get("error_estimate", {}).get("relmse")
     spp = st.get("sampling", {}).get("spp_mean", st.get("spp"))
     return {"seconds": secs, "relmse": cmp["relmse"], "estimate": est, "spp_mean": spp,

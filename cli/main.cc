@@ -190,7 +190,8 @@ int RunRender(const RenderArgs& args) {
   if (!args.quiet)
     std::fprintf(stderr, "%s: %dx%d %s spp=%d in %.2fs (render %.2fs), records %llu\n",
                  args.output.c_str(), st.width, st.height, st.integrator.c_str(), st.spp,
-                 st.PhaseWall("overture") + st.PhaseWall("render"), st.PhaseWall("render"),
+                 st.PhaseWall("pilot") + st.PhaseWall("overture") + st.PhaseWall("render"),
+                 st.PhaseWall("render"),
                  static_cast<unsigned long long>(st.counters.records_computed));
   return 0;
 }

@@ -557,7 +557,7 @@ bool IrrcacheIntegrator::Pilot(const Ray& ray, Rng& rng, RenderCounters& counter
   const float spread = scene_.camera().PixelSpread(distance);
   Vec3 half_diff;
   const IrradianceRecord r = ComputeRecord(hit, nf, depth, spread, rng, counters, &half_diff);
-  cache_->Insert(r);
+  out->record = r;
   const Bsdf& bsdf = scene_.material(hit.material);
   out->weight = beta * bsdf.DiffuseAlbedo(hit.Context(), hit.Frame().ToLocal(-ray.dir)) * kInvPi;
   // Var(E) = E[(E_even - E_odd)^2] / 4 for two independent halves (as CacheError).

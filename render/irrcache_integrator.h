@@ -129,11 +129,12 @@ class IrrcacheIntegrator {
   // there is nothing to check (no diffuse hit, or the lookup fails).
   bool CacheError(const Ray& ray, Rng& rng, RenderCounters& counters, double* error) const;
 
-  // Pilot for balancing record rays (render/record_balance.h): computes and inserts a record at
-  // the first diffuse surface seen along `ray` with the settings' rays, and gives its weight in
-  // the pixel (throughput * albedo / pi), the variance of its irradiance (from its two halves)
-  // and its validity radius in pixel footprints. False where there is no diffuse hit.
+  // Pilot for balancing record rays (render/record_balance.h): computes (does not insert) a
+  // record at the first diffuse surface seen along `ray` with the settings' rays, and gives its
+  // weight in the pixel (throughput * albedo / pi), the variance of its irradiance (from its two
+  // halves) and its validity radius in pixel footprints. False where there is no diffuse hit.
   struct PilotRecord {
+    IrradianceRecord record;
     Vec3 weight, irradiance_variance;
     float footprint_px = 0;
   };

@@ -60,6 +60,7 @@ struct BalanceResult {
   double expected_spp = 0;      // the final pass's expected mean samples per pixel
   double record_seconds = 0;    // C: the records' expected thread time at R0
   double sampling_seconds = 0;  // D: the camera samples' expected thread time
+  long pilot_records = 0;       // records the pilot made (set by the renderer; not kept)
 };
 
 // Records per pixel for a cache whose records' validity areas, 1 / (pi footprint^2) each,

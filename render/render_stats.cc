@@ -120,7 +120,8 @@ std::string RenderStats::ToJson() const {
       << ", \"sampling_relmse\": " << Num(balance.sampling_error)
       << ", \"expected_spp\": " << Num(balance.expected_spp)
       << ", \"record_thread_seconds\": " << Num(balance.record_seconds)
-      << ", \"sampling_thread_seconds\": " << Num(balance.sampling_seconds) << "},\n";
+      << ", \"sampling_thread_seconds\": " << Num(balance.sampling_seconds)
+      << ", \"pilot_records\": " << balance.pilot_records << "},\n";
   o << "  \"tiles\": {\"count\": " << tiles << ", \"size\": " << tile_size << "},\n";
   o << "  \"geometry\": {\"triangles\": " << triangles
     << ", \"degenerate_dropped\": " << degenerate_dropped << "},\n";

@@ -70,11 +70,11 @@ struct PixelRect {
   int height() const { return y1 - y0; }
 };
 
-// Default irrcache settings (irrcache.balance_record_rays, no target error): runs the pilot of
-// render/record_balance.h over the whole image, inserting its records into `cache`, and returns
-// `settings` with the rays it chose and the balance off (RenderRect balances by itself; the
-// service's workers call this once per job, so that all of its tiles use the same rays).
-// Other settings come back unchanged.
+// Default irrcache settings (irrcache.balance_record_rays, no target error) and an empty
+// `cache`: runs the pilot of render/record_balance.h over the whole image (on a scratch cache)
+// and returns `settings` with the rays it chose and the balance off (RenderRect balances by
+// itself; the service's workers call this once per job, so that all of its tiles use the same
+// rays). Otherwise, or for a cache that already holds records, `settings` come back unchanged.
 RenderSettings BalancedSettings(const Scene& scene, const RenderSettings& settings,
                                 IrradianceCache* cache, BalanceResult* result = nullptr);
 

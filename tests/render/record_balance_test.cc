@@ -1,6 +1,6 @@
 // Tests of render/record_balance.h: the rays the error x time model picks from pilot figures
-// (closed form, clamps, degenerate pilots), and the pilot in a real render: its records go into
-// the cache and the stats, a warm cache or explicit rays turn it off.
+// (closed form, clamps, degenerate pilots), and the pilot in a real render: its figures reach
+// the stats, its records stay out of the render's cache, a warm cache turns it off.
 #include "render/record_balance.h"
 
 #include <gtest/gtest.h>
@@ -105,15 +105,23 @@ TEST(RecordBalanceTest, PilotInARealRender) {
   EXPECT_GT(out.stats.balance.record_noise, 0);
   EXPECT_GT(out.stats.balance.sampling_seconds, 0);
   EXPECT_GT(out.stats.PhaseWall("pilot"), 0);
+  EXPECT_GT(out.stats.balance.pilot_records, 64);  // most pilot pixels see a diffuse wall
+  EXPECT_EQ(out.stats.records_in_cache, out.stats.counters.records_computed);  // none kept
 
-  // BalancedSettings puts the pilot's records into the cache and turns the balance off; a cache
-  // that holds records already (a snapshot, the service's) keeps the settings as they are.
+  // BalancedSettings keeps the pilot apart from `cache` (its records stay out of the render's
+  // cache) and turns the balance off; a cache that holds records already (a snapshot, the
+  // service's) keeps the settings as they are.
   IrradianceCache cache(CacheSettingsFor(*s.scene, settings));
   BalanceResult b;
   const RenderSettings balanced = BalancedSettings(*s.scene, settings, &cache, &b);
   EXPECT_FALSE(balanced.irrcache.balance_record_rays);
   EXPECT_EQ(balanced.irrcache.record_rays, b.record_rays);
-  EXPECT_GT(cache.size(), 64u);  // most of the 128 pilot pixels see a diffuse wall
+  EXPECT_EQ(cache.size(), 0u);
+  RenderSettings fixed = settings;
+  fixed.irrcache.balance_record_rays = false;
+  const RenderOutput first = Render(*s.scene, fixed, &cache);
+  EXPECT_FALSE(first.stats.balanced);
+  ASSERT_GT(cache.size(), 0u);
   const RenderSettings again = BalancedSettings(*s.scene, settings, &cache);
   EXPECT_TRUE(again.irrcache.balance_record_rays);
   EXPECT_EQ(again.irrcache.record_rays, settings.irrcache.record_rays);
