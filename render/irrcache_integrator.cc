@@ -512,26 +512,29 @@ Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, con
   return L;
 }
 
+bool IrrcacheIntegrator::FirstDiffuse(const Ray& ray, Rng& rng, RenderCounters& counters,
+                                      DiffuseVertex* v) const {
+  if (!FindDiffuse(ray, rng, counters, &v->beta, &v->hit, &v->nf, &v->depth, &v->distance))
+    return false;
+  const int max_depth = settings_.path.max_depth;
+  return max_depth < 0 || v->depth + 2 <= max_depth;
+}
+
 bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& counters,
                                     double* error) const {
-  Vec3 beta(1, 1, 1);
-  SurfaceHit hit;
-  Vec3 nf;
-  int depth;
-  float distance;
-  if (!FindDiffuse(ray, rng, counters, &beta, &hit, &nf, &depth, &distance)) return false;
-  const int max_depth = settings_.path.max_depth;
-  if (!(max_depth < 0 || depth + 2 <= max_depth)) return false;
+  DiffuseVertex dv;
+  if (!FirstDiffuse(ray, rng, counters, &dv)) return false;
   Vec3 interp;
   LookupInfo info;
-  if (!cache_->Lookup(hit.p, nf, settings_.accuracy, &interp, &info, 0)) return false;
+  if (!cache_->Lookup(dv.hit.p, dv.nf, settings_.accuracy, &interp, &info, 0)) return false;
   Vec3 half_diff;
   const IrradianceRecord fresh = ComputeRecord(
-      hit, nf, depth, scene_.camera().PixelSpread(distance), rng, counters, &half_diff);
-  const Bsdf& bsdf = scene_.material(hit.material);
-  const ShadingFrame frame = hit.Frame();
-  const Vec3 w = beta * bsdf.DiffuseAlbedo(hit.Context(), frame.ToLocal(-ray.dir)) * kInvPi;
-  const Vec3 direct = DirectLight(hit, nf, -ray.dir, w, LightStrata{}, rng, counters, nullptr);
+      dv.hit, dv.nf, dv.depth, scene_.camera().PixelSpread(dv.distance), rng, counters, &half_diff);
+  const Bsdf& bsdf = scene_.material(dv.hit.material);
+  const ShadingFrame frame = dv.hit.Frame();
+  const Vec3 w = dv.beta * bsdf.DiffuseAlbedo(dv.hit.Context(), frame.ToLocal(-ray.dir)) * kInvPi;
+  const Vec3 direct =
+      DirectLight(dv.hit, dv.nf, -ray.dir, w, LightStrata{}, rng, counters, nullptr);
   const Vec3 v = direct + w * interp;  // the point's radiance (emission on the way left out)
   double e = 0;
   for (int c = 0; c < 3; ++c) {
@@ -546,20 +549,16 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
 
 bool IrrcacheIntegrator::Pilot(const Ray& ray, Rng& rng, RenderCounters& counters,
                                PilotRecord* out) const {
-  Vec3 beta(1, 1, 1);
-  SurfaceHit hit;
-  Vec3 nf;
-  int depth;
-  float distance;
-  if (!FindDiffuse(ray, rng, counters, &beta, &hit, &nf, &depth, &distance)) return false;
-  const int max_depth = settings_.path.max_depth;
-  if (!(max_depth < 0 || depth + 2 <= max_depth)) return false;
-  const float spread = scene_.camera().PixelSpread(distance);
+  DiffuseVertex dv;
+  if (!FirstDiffuse(ray, rng, counters, &dv)) return false;
+  const float spread = scene_.camera().PixelSpread(dv.distance);
   Vec3 half_diff;
-  const IrradianceRecord r = ComputeRecord(hit, nf, depth, spread, rng, counters, &half_diff);
+  const IrradianceRecord r =
+      ComputeRecord(dv.hit, dv.nf, dv.depth, spread, rng, counters, &half_diff);
   out->record = r;
-  const Bsdf& bsdf = scene_.material(hit.material);
-  out->weight = beta * bsdf.DiffuseAlbedo(hit.Context(), hit.Frame().ToLocal(-ray.dir)) * kInvPi;
+  const Bsdf& bsdf = scene_.material(dv.hit.material);
+  out->weight =
+      dv.beta * bsdf.DiffuseAlbedo(dv.hit.Context(), dv.hit.Frame().ToLocal(-ray.dir)) * kInvPi;
   // Var(E) = E[(E_even - E_odd)^2] / 4 for two independent halves (as CacheError).
   out->irradiance_variance = half_diff * half_diff * 0.25f;
   out->footprint_px = spread > 0 ? settings_.accuracy * r.radius / spread : 0;
@@ -567,16 +566,10 @@ bool IrrcacheIntegrator::Pilot(const Ray& ray, Rng& rng, RenderCounters& counter
 }
 
 bool IrrcacheIntegrator::Prime(const Ray& ray, Rng& rng, RenderCounters& counters) const {
-  Vec3 beta(1, 1, 1);
-  SurfaceHit hit;
-  Vec3 nf;
-  int depth;
-  float distance;
-  if (!FindDiffuse(ray, rng, counters, &beta, &hit, &nf, &depth, &distance)) return false;
-  const int max_depth = settings_.path.max_depth;
-  if (!(max_depth < 0 || depth + 2 <= max_depth)) return false;
+  DiffuseVertex dv;
+  if (!FirstDiffuse(ray, rng, counters, &dv)) return false;
   bool made = false;
-  Irradiance(hit, nf, depth, distance, false, rng, counters, &made);
+  Irradiance(dv.hit, dv.nf, dv.depth, dv.distance, false, rng, counters, &made);
   return made;
 }
 

@@ -158,6 +158,16 @@ class IrrcacheIntegrator {
   static constexpr int kMinRecordRays = 96;
   // T x P strata for ray_fraction of record_rays.
   void Strata(float ray_fraction, int* T, int* P) const;
+  // The first diffuse vertex along a camera ray (FindDiffuse's results), for the overture, the
+  // cache check and the pilot; false also when max_depth leaves no room for its indirect light.
+  struct DiffuseVertex {
+    Vec3 beta{1, 1, 1};
+    SurfaceHit hit;
+    Vec3 nf;
+    int depth = 0;
+    float distance = 0;
+  };
+  bool FirstDiffuse(const Ray& ray, Rng& rng, RenderCounters& counters, DiffuseVertex* v) const;
   // Follows `ray` through non-diffuse lobes (one sample each) to the first hit with a diffuse
   // lobe. Returns false when the path ends before that.
   bool FindDiffuse(Ray ray, Rng& rng, RenderCounters& counters, Vec3* beta, SurfaceHit* hit,
