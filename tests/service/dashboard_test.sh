@@ -7,7 +7,10 @@
 #                              alice's job nor its image, a POST without X-Irfarm-Request is 403,
 #                              cancel and priority over HTTP change the job as `irfarm status`
 #                              sees it.
-#   dashboard_test.sh browser  headless Chromium driven by Selenium (dashboard_browser_test.py):
+#                              /api/record_map.png: the film's size, black but for pixels in
+#                              w1's colour (worker 1: record_map.cc's first colour), at most
+#                              one per record w1 computed; bob gets 404.
+#   dashboard_test.sh browser  a second worker w2 too; headless Chromium driven by Selenium (dashboard_browser_test.py):
 #                              exit 77 (skipped) when chromium, chromedriver or python3-selenium
 #                              are not installed (Debian: chromium chromium-driver
 #                              python3-selenium). SCREENSHOT=path keeps the mid-job screenshot.
@@ -36,6 +39,10 @@ export IRFARM_TOKEN=$ALICE
 start_coordinator "$ADDR" --client-token-file "$WORK/client-tokens" --http "$HTTP"
 start_worker "$ADDR" w1
 WORKER=$LAST_WORKER_PID
+if [[ $MODE == browser ]]; then
+  start_worker "$ADDR" w2  # the record map shows two workers' colours
+  WORKER=$WORKER,$LAST_WORKER_PID
+fi
 # The dashboard starts listening just after the gRPC port.
 for _ in $(seq 50); do curl -sf "http://$HTTP/" >/dev/null && break; sleep 0.1; done
 submit() { "$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" --tile-size 16 -q "$@"; }
@@ -93,6 +100,22 @@ assert w['threads'] == 1 and int(w['recordsComputed']) == $COMPUTED > 0, w
 print('ok: /api/workers: w1 has 1 thread and computed %s records (the job says $COMPUTED)' % w['recordsComputed'])" ||
   fail "worker threads / records"
 a "http://$HTTP/api/image.png?job=$JOB" >"$WORK/final.png"
+# The record map: black, and w1's records in its colour (worker id 1, the palette's first).
+a "http://$HTTP/api/workers" | python3 -c "
+import json, sys; assert json.load(sys.stdin)['workers'][0]['id'] == 1" || fail "w1 is not worker 1"
+a "http://$HTTP/api/record_map.png?job=$JOB" >"$WORK/map.png"
+python3 "$(dirname "$0")/png_colours.py" "$WORK/map.png" | python3 -c "
+import json, sys
+m = json.load(sys.stdin)
+assert (m['width'], m['height']) == (160, 96), m
+c = m['colours']
+w1 = c.pop('230,25,75', 0)
+black = c.pop('0,0,0', 0)
+print('MEASURED record map: %d pixels in w1\'s colour, %d black, other colours %s' % (w1, black, c))
+assert c == {}, c
+assert 0 < w1 <= $COMPUTED, (w1, $COMPUTED)
+print('ok: /api/record_map.png shows w1\'s records in its colour')" || fail "record map"
+check "bob gets 404 for alice's record map" "$(code -H "Authorization: Bearer $BOB" "http://$HTTP/api/record_map.png?job=$JOB") == 404"
 "$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$WORK/final.exr"
 # The finished preview covers the whole film (no black row: the Cornell box has no black row),
 # the mid-job one only the tiles done by then.
