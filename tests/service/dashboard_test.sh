@@ -119,36 +119,13 @@ check "bob gets 404 for alice's record map" "$(code -H "Authorization: Bearer $B
 "$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$WORK/final.exr"
 # The finished preview covers the whole film (no black row: the Cornell box has no black row),
 # the mid-job one only the tiles done by then.
-python3 - "$WORK/mid.png" "$WORK/final.png" <<'PY' || fail "final PNG"
-import sys, zlib, struct
+python3 - "$WORK/mid.png" "$WORK/final.png" "$(dirname "$0")" <<'PY' || fail "final PNG"
+import sys
+sys.path.insert(0, sys.argv[3])
+from png_colours import decode
 def pixels(path):
-    d = open(path, "rb").read()
-    w, h = struct.unpack(">II", d[16:24])
-    i, idat = 8, b""
-    while i < len(d):
-        n, t = struct.unpack(">I4s", d[i:i + 8])
-        if t == b"IDAT":
-            idat += d[i + 8:i + 8 + n]
-        i += 12 + n
-    raw = zlib.decompress(idat)
-    # Undo the per-scanline filters (PNG spec 9: None, Sub, Up, Average, Paeth; 3 bytes a pixel).
-    stride, prev, rows = 3 * w, bytearray(3 * w), []
-    for y in range(h):
-        f, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-        for x in range(stride):
-            a = line[x - 3] if x >= 3 else 0
-            b, c = prev[x], prev[x - 3] if x >= 3 else 0
-            if f == 1: line[x] = (line[x] + a) & 255
-            elif f == 2: line[x] = (line[x] + b) & 255
-            elif f == 3: line[x] = (line[x] + (a + b) // 2) & 255
-            elif f == 4:
-                p = a + b - c
-                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
-                line[x] = (line[x] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
-        rows.append(line)
-        prev = line
-    nonzero_rows = sum(1 for r in rows if any(r))
-    return w, h, nonzero_rows
+    w, h, rows = decode(open(path, "rb").read())
+    return w, h, sum(1 for r in rows if any(r))
 _, h, mid = pixels(sys.argv[1])
 _, _, final = pixels(sys.argv[2])
 print("MEASURED non-black rows: mid-job %d, final %d of %d" % (mid, final, h))
