@@ -90,6 +90,15 @@ std::vector<HttpRoute> DashboardRoutes(JobManager* manager, Authenticator* auth)
          return HttpResponse{200, "image/png", std::move(*png)};
        })});
   routes.push_back(
+      {"GET", "/api/record_map.png", api(false, [manager](const HttpRequest& r, const Caller& c) {
+         absl::StatusOr<Image> map = manager->RecordMap(Param(r, "job"), c);
+         if (!map.ok()) return Error(map.status());
+         // Exposure 1: the palette's bytes come out exactly (record_map.h).
+         absl::StatusOr<std::string> png = EncodePng(*map, 1.0f);
+         if (!png.ok()) return Error(png.status());
+         return HttpResponse{200, "image/png", std::move(*png)};
+       })});
+  routes.push_back(
       {"POST", "/api/cancel", api(true, [manager](const HttpRequest& r, const Caller& c) {
          absl::StatusOr<v1::Job> job = manager->Cancel(Param(r, "job"), c);
          return job.ok() ? Json(*job) : Error(job.status());

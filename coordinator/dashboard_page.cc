@@ -1,5 +1,7 @@
 // The dashboard page (see dashboard.h): one HTML document with its style and script. It polls
-// /api/jobs and /api/workers every second and, for the selected job, /api/image.png; every
+// /api/jobs and /api/workers every second and, for the selected job, /api/image.png and
+// /api/record_map.png (shown side by side; the workers table shows each worker's map colour, from
+// a copy of record_map.cc's palette); every
 // string from the server goes into the page as text (textContent), never as HTML, since job and
 // worker names come from clients and workers.
 #include "coordinator/dashboard.h"
@@ -22,8 +24,11 @@ const char kDashboardHtml[] = R"HTML(<!doctype html>
   progress { width: 160px; vertical-align: middle; }
   .muted { color: #888; }
   #error { color: #b00; }
-  #image { image-rendering: pixelated; border: 1px solid #ccc; min-width: 64px; min-height: 64px;
-           background: #111; }
+  #image, #record-map { image-rendering: pixelated; border: 1px solid #ccc; min-width: 64px;
+           min-height: 64px; background: #111; vertical-align: top; }
+  #record-map { margin-left: 12px; }
+  .swatch { display: inline-block; width: 10px; height: 10px; margin-right: 5px;
+            border: 1px solid #888; }
   input.prio { width: 4em; }
 </style>
 </head>
@@ -49,13 +54,20 @@ const char kDashboardHtml[] = R"HTML(<!doctype html>
 </table>
 
 <h2 id="image-title">Image <span class="muted">(click a job)</span></h2>
-<img id="image" alt="">
+<div><img id="image" alt=""><img id="record-map" alt="" title="record map: where records were
+  computed, coloured by worker (see the workers table)"></div>
+<div class="muted" id="record-map-title">Left: the image so far. Right: its record map.</div>
 
 <script>
 "use strict";
 let token = sessionStorage.getItem("irfarm-token") || "";
 let selected = null;      // job id whose image is shown
-let imageUrl = null;
+let imageUrl = null, mapUrl = null;
+// record_map.cc's palette (8-bit sRGB): worker id w gets PALETTE[(w - 1) % 12].
+const PALETTE = [[230, 25, 75], [60, 180, 75], [255, 225, 25], [0, 130, 200], [245, 130, 48],
+                 [145, 30, 180], [70, 240, 240], [240, 50, 230], [210, 245, 60],
+                 [250, 190, 212], [0, 128, 128], [220, 190, 255]];
+function workerColor(id) { const c = PALETTE[(id - 1) % PALETTE.length]; return "rgb(" + c.join(",") + ")"; }
 const FINAL = ["SUCCEEDED", "FAILED", "CANCELLED"];
 
 document.getElementById("token").value = token;
@@ -179,7 +191,12 @@ function renderWorkers(cluster) {
     const tr = document.createElement("tr");
     tr.id = "worker-" + w.id;
     cell(tr, String(w.id));
-    cell(tr, w.name);
+    const name = cell(tr, w.name, "name");
+    const sw = document.createElement("span");
+    sw.className = "swatch";
+    sw.style.background = workerColor(w.id);
+    sw.dataset.rgb = PALETTE[(w.id - 1) % PALETTE.length].join(",");
+    name.prepend(sw);
     cell(tr, w.peer);
     cell(tr, w.threads > 0 ? String(w.threads) : "all");
     cell(tr, w.quarantined ? "quarantined" : w.silent ? "silent" : w.hasLease ? "rendering" : "idle");
@@ -192,19 +209,32 @@ function renderWorkers(cluster) {
   }
 }
 
+// Loads `path` into <img id=id> through a blob URL (fetched with the token; same origin, so its
+// pixels can be read back); the previous blob URL is released once the new one shows.
+async function loadPng(id, path, prev, set) {
+  const img = document.getElementById(id);
+  const blob = await (await api(path + "?job=" + encodeURIComponent(selected))).blob();
+  const url = URL.createObjectURL(blob);
+  img.onload = () => { if (prev() && prev() !== url) URL.revokeObjectURL(prev()); set(url); };
+  img.dataset.job = selected;
+  img.src = url;
+}
 async function refreshImage() {
-  const img = document.getElementById("image");
   const title = document.getElementById("image-title");
+  const mapTitle = document.getElementById("record-map-title");
   if (!selected) return;
   title.textContent = "Image of " + selected;
   try {
-    const blob = await (await api("/api/image.png?job=" + encodeURIComponent(selected))).blob();
-    const url = URL.createObjectURL(blob);
-    img.onload = () => { if (imageUrl && imageUrl !== url) URL.revokeObjectURL(imageUrl); imageUrl = url; };
-    img.dataset.job = selected;
-    img.src = url;
+    await loadPng("image", "/api/image.png", () => imageUrl, (u) => { imageUrl = u; });
   } catch (e) {
     title.textContent = "Image of " + selected + ": " + e.message;
+  }
+  try {
+    await loadPng("record-map", "/api/record_map.png", () => mapUrl, (u) => { mapUrl = u; });
+    mapTitle.textContent = "Left: the image so far. Right: where its records were computed, " +
+                           "coloured by worker (swatches in the workers table).";
+  } catch (e) {
+    mapTitle.textContent = "Record map: " + e.message;
   }
 }
 

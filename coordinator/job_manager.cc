@@ -19,6 +19,7 @@
 #include "cache/snapshot.h"
 #include "coordinator/cache_seed.h"
 #include "coordinator/fanout_region.h"
+#include "coordinator/record_map.h"
 #include "render/image.h"
 #include "service/job_settings.h"
 #include "service/record_codec.h"
@@ -82,6 +83,42 @@ int64_t UnixMs() {
 
 absl::Status Unavailable(const absl::Status& st) {
   return absl::UnavailableError("job store: " + std::string(st.message()));
+}
+
+void StoreCamera(const CameraDesc& d, v1::StoredCamera* out) {
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) out->add_to_world(d.to_world.m[r][c]);
+  out->set_fov_x_deg(d.fov_x_deg);
+  out->set_width(d.width);
+  out->set_height(d.height);
+  out->set_film_width(d.film_width);
+  out->set_film_height(d.film_height);
+  out->set_crop_x(d.crop_x);
+  out->set_crop_y(d.crop_y);
+}
+
+// The record map's camera of a stored job, checked as anything read back from the store is
+// (null when absent or not sane: the job then has no record map).
+std::unique_ptr<Camera> CameraOf(const v1::StoredJob& s) {
+  const v1::StoredCamera& c = s.camera();
+  if (c.to_world_size() != 16 || c.width() != s.job().width() || c.height() != s.job().height())
+    return nullptr;
+  if (!(c.fov_x_deg() > 0 && c.fov_x_deg() < 180) || c.film_width() < 0 || c.film_height() < 0 ||
+      c.crop_x() < 0 || c.crop_y() < 0)
+    return nullptr;
+  CameraDesc d;
+  for (int i = 0; i < 16; ++i) {
+    if (!std::isfinite(c.to_world(i))) return nullptr;
+    d.to_world.m[i / 4][i % 4] = c.to_world(i);
+  }
+  d.fov_x_deg = c.fov_x_deg();
+  d.width = c.width();
+  d.height = c.height();
+  d.film_width = c.film_width();
+  d.film_height = c.film_height();
+  d.crop_x = c.crop_x();
+  d.crop_y = c.crop_y();
+  return std::make_unique<Camera>(d);
 }
 
 }  // namespace
@@ -202,6 +239,7 @@ absl::Status JobManager::Resume() {
     job->tiles = std::make_unique<TileScheduler>(j.width(), j.height(), JobTileSize(j.settings()),
                                                  options_.tile_retry);
     job->cache = std::make_unique<GlobalCache>(CacheSettingsOf(s), RecordBoundsOf(s));
+    job->camera = CameraOf(s);
     absl::StatusOr<std::map<int, std::string>> tiles = store_->LoadTiles(j.id());
     // A damaged key (DATA_LOSS) is reported and skipped: the job renders those tiles again.
     if (!tiles.ok() && !absl::IsDataLoss(tiles.status())) return Unavailable(tiles.status());
@@ -245,7 +283,13 @@ v1::Job JobManager::View(const Job& job) const {
   j.set_tiles_done(job.tiles->num_done());
   j.set_records_merged(job.cache->size());
   j.set_records_rejected(job.cache->rejected());
-  for (const auto& [id, stats] : job.worker_stats) *j.add_workers() = stats;
+  for (const auto& [id, stats] : job.worker_stats) {
+    v1::WorkerJobStats* ws = j.add_workers();
+    *ws = stats;
+    auto t = job.tallies.find(id);
+    if (t != job.tallies.end())
+      ws->set_records_withheld(ws->records_withheld() + Unsettled(job, t->second));
+  }
   if (job.has_started) {
     const SteadyTime end = IsFinal(job) ? job.finished : std::chrono::steady_clock::now();
     j.set_elapsed_seconds(std::chrono::duration<double>(end - job.started).count());
@@ -432,6 +476,8 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   s.set_record_max_irradiance(record_bounds.max_irradiance);
   job->tiles = std::make_unique<TileScheduler>(w, h, int(tile), options_.tile_retry);
   job->cache = std::make_unique<GlobalCache>(CacheSettingsOf(s), RecordBoundsOf(s));
+  StoreCamera(desc->camera, s.mutable_camera());
+  job->camera = CameraOf(s);
   absl::Status st = store_->PutJob(s);
   if (!st.ok()) return Unavailable(st);
   if (!imported.empty()) {
@@ -529,6 +575,8 @@ void JobManager::FinishJob(Job& job, v1::JobState state, const std::string& erro
     it->second.outbox.push_back(std::move(m));
     it->second.jobs.erase(j->id());
   }
+  SettleWithheld(job);
+  job.tallies.clear();
   for (const auto& [w, stats] : job.worker_stats)
     if (stats.records_delivered() + stats.records_withheld() > 0)
       spdlog::info("job {}: worker {} was sent {} records ({} from its backlog), withheld {}",
@@ -536,6 +584,9 @@ void JobManager::FinishJob(Job& job, v1::JobState state, const std::string& erro
                    stats.records_withheld() - stats.records_backlog());
   job.workers.clear();
   job.regions.clear();
+  job.index_stale = true;
+  job.index.Build(Bounds3(), {});  // releases the grid
+  job.unfiltered.clear();
   Changed();
 }
 
@@ -551,6 +602,64 @@ void JobManager::CountFanout(Job& job, uint32_t worker_id, Worker& worker, size_
   worker.records_withheld += withheld;
   metrics_.records_withheld->Add(double(withheld));
   metrics_.records_backlog->Add(double(backlog));
+}
+
+void JobManager::RebuildIndex(Job& job) {
+  std::vector<FanoutIndex::Entry> entries;
+  job.unfiltered.clear();
+  for (uint32_t id : job.workers) {
+    auto wit = workers_.find(id);
+    if (wit == workers_.end()) continue;
+    if (!Filtered(wit->second)) {
+      job.unfiltered.push_back(id);
+      continue;
+    }
+    auto r = job.regions.find(id);
+    entries.push_back({id, r == job.regions.end() ? Bounds3() : r->second.box});
+  }
+  job.index.Build(job.cache->bounds().box, std::move(entries));
+  job.index_stale = false;
+}
+
+size_t JobManager::Deliver(Job& job, uint32_t other, const std::vector<IrradianceRecord>& records) {
+  auto owit = workers_.find(other);
+  if (owit == workers_.end() || records.empty()) return 0;
+  Worker& ow = owit->second;
+  const size_t n = records.size();
+  // A worker that does not keep up (or does not read) gets no more fan-out past the bound: the
+  // records are an optimisation, it computes its own instead.
+  if (ow.outbox_bytes + n * (kFloatsPerRecord + 1) * sizeof(float) >
+      options_.limits.max_outbox_bytes) {
+    ++ow.batches_dropped;
+    metrics_.fanout_batches_dropped->Add();
+    return n;
+  }
+  const size_t bytes = QueueRecords(ow, job.stored.job().id(), records);
+  metrics_.records_sent->Add(n);
+  metrics_.record_bytes_sent->Add(bytes);
+  v1::WorkerJobStats& os = job.worker_stats[other];
+  os.set_worker_id(other);
+  os.set_bytes_received(os.bytes_received() + bytes);
+  CountFanout(job, other, ow, n, 0, 0);
+  return n;
+}
+
+void JobManager::SettleWithheld(Job& job) {
+  for (auto& [id, tally] : job.tallies) SettleWithheld(job, id, /*erase=*/false);
+}
+
+void JobManager::SettleWithheld(Job& job, uint32_t worker_id, bool erase) {
+  auto t = job.tallies.find(worker_id);
+  if (t == job.tallies.end()) return;
+  const uint64_t withheld = Unsettled(job, t->second);
+  auto wit = workers_.find(worker_id);
+  if (withheld > 0 && wit != workers_.end())
+    CountFanout(job, worker_id, wit->second, 0, withheld, 0);
+  if (erase) {
+    job.tallies.erase(t);
+  } else {
+    t->second = Job::Tally{job.offered_total, 0, 0};
+  }
 }
 
 absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion& region) {
@@ -583,6 +692,7 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
     return u.x == v.x && u.y == v.y && u.z == v.z;
   };
   if (!old.Empty() && same(old.lo, r.box.lo) && same(old.hi, r.box.hi)) return absl::OkStatus();
+  job.index_stale = true;
   // Backlog: records that reach the grown region but not the old one were withheld (every
   // record reaching the old region was sent, by fan-out or backlog). O(records of the job) per
   // growth, at most once per lease.
@@ -723,6 +833,26 @@ absl::StatusOr<Image> JobManager::Preview(const std::string& id, const Caller& c
   return image;
 }
 
+absl::StatusOr<Image> JobManager::RecordMap(const std::string& id, const Caller& caller) const {
+  std::vector<RecordMapPoint> points;
+  std::unique_lock<std::mutex> lock(mu_);
+  absl::StatusOr<Job*> found = Find(id, caller);
+  if (!found.ok()) return found.status();
+  const Job& job = **found;
+  if (job.camera == nullptr)
+    return absl::FailedPreconditionError("job '" + id + "' was stored without its camera");
+  const Camera camera = *job.camera;  // the job may be removed once the lock is released
+  // Copied under the lock (the record list grows under it), drawn without it. Beyond
+  // kMaxRecordMapPoints an even stride through the records, so the copy stays bounded.
+  const std::vector<IrradianceRecord>& all = job.cache->records();
+  const size_t stride = (all.size() + kMaxRecordMapPoints - 1) / kMaxRecordMapPoints;
+  points.reserve(std::min(all.size(), kMaxRecordMapPoints));
+  for (size_t i = 0; i < all.size(); i += std::max<size_t>(stride, 1))
+    if (all[i].level == 0) points.push_back({all[i].position, all[i].origin});
+  lock.unlock();
+  return DrawRecordMap(camera, points);
+}
+
 absl::StatusOr<v1::Job> JobManager::SetPriority(const std::string& id, int priority,
                                                 const Caller& caller) {
   std::lock_guard<std::mutex> lock(mu_);
@@ -844,7 +974,8 @@ void JobManager::WorkerGone(uint32_t worker, const std::string& reason) {
   auto wit = workers_.find(worker);
   if (wit == workers_.end()) return;
   for (auto& [id, job] : jobs_) {
-    job->workers.erase(worker);
+    SettleWithheld(*job, worker, /*erase=*/true);
+    if (job->workers.erase(worker)) job->index_stale = true;
     if (IsFinal(*job)) continue;
     const std::vector<uint32_t> holders = job->tiles->LeaseHolders();
     metrics_.lease_lost_disconnect->Add(
@@ -1024,42 +1155,34 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
   Job& job2 = *it->second;
   if (job2.stored.job().settings().share_records()) {
     // Each receiver's records are appended to its outbox's last records message (QueueRecords):
-    // no message per sender and receiver, and no copy of a shared message per receiver.
+    // no message per sender and receiver, and no copy of a shared message per receiver. The
+    // filtered receivers come from the job's grid of regions: per record the workers it
+    // reaches, not every worker (fanout_index.h).
+    if (job2.index_stale) RebuildIndex(job2);
+    job2.offered_total += accepted.size();
+    auto own = job2.tallies.find(worker);
+    if (own != job2.tallies.end()) own->second.own += accepted.size();
+    for (uint32_t other : job2.unfiltered)
+      if (other != worker) Deliver(job2, other, accepted);
     const float max_accuracy = job2.cache->max_accuracy();
+    job2.deliveries.clear();
+    for (size_t i = 0; i < accepted.size(); ++i) {
+      job2.index.Query(accepted[i], max_accuracy, &job2.slots);
+      for (uint32_t slot : job2.slots)
+        if (job2.index.worker(slot) != worker) job2.deliveries.emplace_back(slot, uint32_t(i));
+    }
+    // Grouped by receiver, each receiver's records in batch order.
+    std::sort(job2.deliveries.begin(), job2.deliveries.end());
     std::vector<IrradianceRecord> near;
-    for (uint32_t other : job2.workers) {
-      if (other == worker) continue;
-      auto owit = workers_.find(other);
-      if (owit == workers_.end()) continue;
-      Worker& ow = owit->second;
-      const std::vector<IrradianceRecord>* send = &accepted;
-      if (Filtered(ow)) {
-        const Bounds3& box = job2.regions[other].box;
-        near.clear();
-        for (const IrradianceRecord& r : accepted)
-          if (RecordReachesBox(r, box, max_accuracy)) near.push_back(r);
-        if (near.size() < accepted.size()) {
-          CountFanout(job2, other, ow, 0, accepted.size() - near.size(), 0);
-          if (near.empty()) continue;
-          send = &near;
-        }
-      }
-      const size_t n = send->size();
-      // A worker that does not keep up (or does not read) gets no more fan-out past the bound:
-      // the records are an optimisation, it computes its own instead.
-      if (ow.outbox_bytes + n * (kFloatsPerRecord + 1) * sizeof(float) >
-          options_.limits.max_outbox_bytes) {
-        ++ow.batches_dropped;
-        metrics_.fanout_batches_dropped->Add();
-        continue;
-      }
-      const size_t bytes = QueueRecords(ow, records.job_id(), *send);
-      metrics_.records_sent->Add(n);
-      metrics_.record_bytes_sent->Add(bytes);
-      v1::WorkerJobStats& os = job2.worker_stats[other];
-      os.set_worker_id(other);
-      os.set_bytes_received(os.bytes_received() + bytes);
-      CountFanout(job2, other, ow, n, 0, 0);
+    for (size_t k = 0; k < job2.deliveries.size();) {
+      const uint32_t slot = job2.deliveries[k].first;
+      near.clear();
+      for (; k < job2.deliveries.size() && job2.deliveries[k].first == slot; ++k)
+        near.push_back(accepted[job2.deliveries[k].second]);
+      const uint32_t other = job2.index.worker(slot);
+      const size_t handled = Deliver(job2, other, near);
+      auto t = job2.tallies.find(other);
+      if (t != job2.tallies.end()) t->second.handled += handled;
     }
   }
   Touched(nullptr);  // job views (records merged); receivers were woken by QueueRecords
@@ -1351,6 +1474,11 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
     }
     if (withheld > 0) CountFanout(job, worker_id, worker, 0, withheld, 0);
     job.workers.insert(worker_id);
+    job.index_stale = true;
+    if (filtered) {
+      job.tallies[worker_id] = Job::Tally{job.offered_total, 0, 0};
+      CountFanout(job, worker_id, worker, 0, 0, 0);  // its stats entry, where View adds the tally
+    }
     worker.jobs.insert(id);
   }
   if (!job.has_started) {
@@ -1423,6 +1551,7 @@ std::vector<v1::CoordinatorMessage> JobManager::Poll(uint32_t worker,
 void JobManager::ExpireLeases() {
   std::lock_guard<std::mutex> lock(mu_);
   const SteadyTime now = std::chrono::steady_clock::now();
+  for (auto& [id, job] : jobs_) SettleWithheld(*job);  // Prometheus's withheld counters
   // A worker silent for 3 heartbeat periods (hung, SIGSTOPped, cut off) loses its leases now
   // rather than at the lease deadline. Not a failure of the tile: the tile did nothing wrong.
   for (auto& [wid, w] : workers_) {

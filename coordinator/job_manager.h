@@ -22,7 +22,10 @@
 // is empty), and whenever its region grows it gets the job's records that reach the grown region
 // but not the old one (the backlog of records withheld from it). Per worker and job the records
 // delivered, withheld and sent from the backlog are counted (WorkerJobStats, Prometheus, and a
-// log line when the job ends).
+// log line when the job ends). A record batch looks up its receivers in a grid over the
+// filtered workers' regions (fanout_index.h): its cost grows with the workers it reaches, not
+// with the job's workers; the withheld counts are settled lazily (Job::Tally), Prometheus's
+// withheld counters by ExpireLeases (they lag by at most one of its periods).
 //
 // Nothing a worker sends is trusted (issue 10): a tile result or TileFailed counts only from the
 // session holding that (random) lease; pixels must be finite and non-negative and stats sane;
@@ -50,6 +53,7 @@
 
 #include "absl/status/statusor.h"
 #include "coordinator/coordinator_metrics.h"
+#include "coordinator/fanout_index.h"
 #include "coordinator/global_cache.h"
 #include "coordinator/job_store.h"
 #include "coordinator/lease_token.h"
@@ -58,6 +62,7 @@
 #include "coordinator/tile_scheduler.h"
 #include "irfarm/v1/jobs.pb.h"
 #include "irfarm/v1/worker.pb.h"
+#include "render/camera.h"
 #include "render/denoiser.h"
 #include "render/image.h"
 
@@ -152,6 +157,10 @@ class JobManager {
   // running and succeeded jobs (a failed or cancelled job's pixels are released:
   // FAILED_PRECONDITION).
   absl::StatusOr<Image> Preview(const std::string& id, const Caller& caller = Caller()) const;
+  // The job's record map so far (the dashboard; record_map.h): where its level-0 records were
+  // computed, coloured by the worker session that sent them. FAILED_PRECONDITION for a job stored
+  // before jobs kept their camera.
+  absl::StatusOr<Image> RecordMap(const std::string& id, const Caller& caller = Caller()) const;
   // Changes the priority of a queued or running job (FAILED_PRECONDITION once it ended).
   absl::StatusOr<v1::Job> SetPriority(const std::string& id, int priority,
                                       const Caller& caller = Caller());
@@ -214,6 +223,26 @@ class JobManager {
       LeaseToken lease;
     };
     std::map<uint32_t, Region> regions;
+    // The fan-out receivers of the job: the filtered workers' regions in a grid (fanout_index.h)
+    // and the workers that get every record. Rebuilt at the next record batch after a region
+    // grew or a worker joined or left (index_stale), so a batch costs the workers it reaches,
+    // not all of them.
+    FanoutIndex index;
+    std::vector<uint32_t> unfiltered;
+    bool index_stale = true;
+    // Withheld records are counted lazily, for the same reason: per filtered worker of the job,
+    // the records offered since its tally was settled are offered_total - total_mark minus its
+    // own (it is not sent its own) and those it was sent or dropped for (handled); the rest were
+    // withheld. Settled (CountFanout) when it leaves the job, when the job ends and by
+    // ExpireLeases; View adds the unsettled part.
+    struct Tally {
+      uint64_t total_mark = 0, own = 0, handled = 0;
+    };
+    uint64_t offered_total = 0;
+    std::map<uint32_t, Tally> tallies;
+    std::vector<std::pair<uint32_t, uint32_t>> deliveries;  // scratch: (slot, record index)
+    std::vector<uint32_t> slots;                            // scratch
+    std::unique_ptr<Camera> camera;  // for RecordMap (null: stored without one)
     SteadyTime started, finished;
     bool has_started = false;
   };
@@ -316,6 +345,19 @@ class JobManager {
   bool Filtered(const Worker& worker) const {
     return options_.filter_fanout && worker.reports_regions;
   }
+  // Rebuilds job.index and job.unfiltered from job.workers and job.regions.
+  void RebuildIndex(Job& job);
+  // Queues a fan-out batch of `records` (sent by another worker) for `other`, or drops it when
+  // its outbox is over max_outbox_bytes; counts it. Returns the records delivered or dropped.
+  size_t Deliver(Job& job, uint32_t other, const std::vector<IrradianceRecord>& records);
+  // Records withheld from `worker_id` in `job` since its tally was settled (Job::Tally).
+  static uint64_t Unsettled(const Job& job, const Job::Tally& t) {
+    return job.offered_total - t.total_mark - t.own - t.handled;
+  }
+  // Counts what was withheld from each filtered worker of `job` (or only `worker_id`, with
+  // `erase` its tally removed: it left the job) since the last settlement.
+  void SettleWithheld(Job& job);
+  void SettleWithheld(Job& job, uint32_t worker_id, bool erase);
   // Counts records delivered to / withheld from `worker_id` for `job` (backlog: delivered ones
   // that had been withheld).
   void CountFanout(Job& job, uint32_t worker_id, Worker& worker, size_t delivered, size_t withheld,

@@ -44,6 +44,23 @@ class Camera {
     filter_.FilmPoint(px, py, u, v, &x, &y);
     return Direction(x, y);
   }
+  // The inverse of Direction: the image point (x, y) in pixels (of the crop window) whose ray
+  // passes through world point `p`. False when p is not in front of the camera (or the camera
+  // basis is degenerate); x, y may then be anything and may lie outside the image otherwise.
+  // Solves p - origin = t (forward + a right + b up) in the camera basis (Cramer's rule, so a
+  // to_world with scale or shear inverts exactly too); used by the dashboard's record map.
+  bool Project(const Vec3& p, float* x, float* y) const {
+    const Vec3 d = p - origin_;
+    const float det = Dot(forward_, Cross(right_, up_));
+    if (!(std::fabs(det) > 1e-12f)) return false;
+    const float t = Dot(d, Cross(right_, up_)) / det;
+    if (!(t > 0)) return false;
+    const float a = Dot(forward_, Cross(d, up_)) / det / t;
+    const float b = Dot(forward_, Cross(right_, d)) / det / t;
+    *x = (a / tan_x_ + 1) * 0.5f * film_w_ - crop_x_;
+    *y = (1 - b / tan_y_) * 0.5f * film_h_ - crop_y_;
+    return std::isfinite(*x) && std::isfinite(*y);
+  }
   const PixelFilter& filter() const { return filter_; }
   const Vec3& origin() const { return origin_; }
   int width() const { return width_; }

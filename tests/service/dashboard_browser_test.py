@@ -7,10 +7,14 @@ by Selenium (python3-selenium), against the real coordinator and worker dashboar
   reaches 100% with state SUCCEEDED; a screenshot is taken mid-job (partial image shown);
 - the job's image is shown: an <img> of the film's size whose pixels (read back through a canvas)
   are not black;
+- its record map is shown beside it: an <img> of the film's size, black but for pixels in the
+  two workers' colours (the swatches of the workers table), both present, more of them at the
+  end than mid-job (it refreshes as the job runs);
 - with the worker stopped, a second job's priority is set and the job cancelled with the page's
   buttons; `irfarm status --json` then shows the new priority and JOB_STATE_CANCELLED.
 
-Usage: dashboard_browser_test.py URL TOKEN BIN COORDINATOR SCENE WORKER_PID CHROME DRIVER SHOT
+Usage: dashboard_browser_test.py URL TOKEN BIN COORDINATOR SCENE WORKER_PIDS CHROME DRIVER SHOT
+(WORKER_PIDS: the two workers' process ids, comma-separated)
 """
 import json
 import os
@@ -24,7 +28,7 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
 URL, TOKEN, BIN, COORD, SCENE, WORKER, CHROME, DRIVER, SHOT = sys.argv[1:10]
-WORKER = int(WORKER)
+WORKERS = [int(p) for p in WORKER.split(",")]
 env = dict(os.environ, IRFARM_TOKEN=TOKEN)
 
 
@@ -44,6 +48,36 @@ def wait_for(what, fn, timeout=120):
             pass
         time.sleep(0.1)
     raise AssertionError("timed out waiting for " + what)
+
+
+# Pixel colours of <img id=ID> read back through a canvas (blob URL: same origin, so the canvas
+# is not tainted): [width, height, {"r,g,b": count}], or None until it shows `job`.
+COLOURS_JS = """
+    const img = document.getElementById(arguments[0]);
+    if (!img.complete || img.naturalWidth == 0 || img.dataset.job != arguments[1]) return null;
+    const c = document.createElement('canvas');
+    c.width = img.naturalWidth; c.height = img.naturalHeight;
+    const g = c.getContext('2d'); g.drawImage(img, 0, 0);
+    const d = g.getImageData(0, 0, c.width, c.height).data;
+    const n = {};
+    for (let i = 0; i < d.length; i += 4) {
+      const k = d[i] + ',' + d[i + 1] + ',' + d[i + 2];
+      n[k] = (n[k] || 0) + 1;
+    }
+    return [img.naturalWidth, img.naturalHeight, n];
+"""
+
+
+def map_colours(driver, job):
+    """The record map's colour counts and the workers' swatch colours {name: "r,g,b"}."""
+    m = wait_for("record map", lambda: driver.execute_script(COLOURS_JS, "record-map", job),
+                 timeout=10)
+    swatches = {}
+    for tr in driver.find_elements(By.CSS_SELECTOR, "#workers tbody tr"):
+        name = tr.find_element(By.CSS_SELECTOR, "td.name")
+        swatches[name.text.strip()] = name.find_element(By.CSS_SELECTOR, ".swatch").get_attribute(
+            "data-rgb")
+    return m, swatches
 
 
 def row_text(driver, job, cls):
@@ -82,6 +116,7 @@ try:
         if not shot and 30 <= pct <= 70 and state == "RUNNING":
             time.sleep(1.1)  # one more poll: the image of these tiles
             driver.save_screenshot(SHOT)
+            mid_map, _ = map_colours(driver, job)
             shot = True
             print("ok: mid-job screenshot at %d%% saved to %s" % (pct, SHOT))
         if state == "SUCCEEDED" and pct == 100:
@@ -118,8 +153,24 @@ try:
     assert mean > 20 and black < 0.2, info
     print("ok: the job's image is shown")
 
+    # The record map: the film's size, black but for the two workers' colours, both present.
+    (mw, mh, colours), swatches = map_colours(driver, job)
+    print("MEASURED record map %dx%d, colours %s; workers' swatches %s; mid-job %s" %
+          (mw, mh, colours, swatches, mid_map[2]))
+    assert (mw, mh) == (160, 160), (mw, mh)
+    assert sorted(swatches) == ["w1", "w2"] and swatches["w1"] != swatches["w2"], swatches
+    counts = {name: colours.get(rgb, 0) for name, rgb in swatches.items()}
+    others = {k: v for k, v in colours.items() if k != "0,0,0" and k not in swatches.values()}
+    assert others == {}, others
+    assert counts["w1"] > 0 and counts["w2"] > 0, counts
+    mid = sum(v for k, v in mid_map[2].items() if k != "0,0,0")
+    assert 0 < mid < sum(counts.values()), (mid, counts)
+    print("ok: the record map shows records of both workers in their colours (%s), %d mid-job" %
+          (counts, mid))
+
     # Priority and cancel from the page, with the worker stopped so the job stays queued.
-    os.kill(WORKER, signal.SIGSTOP)
+    for w in WORKERS:
+        os.kill(w, signal.SIGSTOP)
     try:
         j2 = irfarm("submit", SCENE, "-Dresx=64", "-Dresy=64", "-q").strip()
         wait_for("second job row", lambda: driver.find_element(By.ID, "job-" + j2))
@@ -142,7 +193,8 @@ try:
         assert st == "JOB_STATE_CANCELLED", st
         print("ok: cancel from the page: %s is %s" % (j2, st))
     finally:
-        os.kill(WORKER, signal.SIGCONT)
+        for w in WORKERS:
+            os.kill(w, signal.SIGCONT)
 finally:
     driver.quit()
 print("PASS")

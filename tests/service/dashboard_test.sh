@@ -7,7 +7,10 @@
 #                              alice's job nor its image, a POST without X-Irfarm-Request is 403,
 #                              cancel and priority over HTTP change the job as `irfarm status`
 #                              sees it.
-#   dashboard_test.sh browser  headless Chromium driven by Selenium (dashboard_browser_test.py):
+#                              /api/record_map.png: the film's size, black but for pixels in
+#                              w1's colour (worker 1: record_map.cc's first colour), at most
+#                              one per record w1 computed; bob gets 404.
+#   dashboard_test.sh browser  a second worker w2 too; headless Chromium driven by Selenium (dashboard_browser_test.py):
 #                              exit 77 (skipped) when chromium, chromedriver or python3-selenium
 #                              are not installed (Debian: chromium chromium-driver
 #                              python3-selenium). SCREENSHOT=path keeps the mid-job screenshot.
@@ -36,6 +39,10 @@ export IRFARM_TOKEN=$ALICE
 start_coordinator "$ADDR" --client-token-file "$WORK/client-tokens" --http "$HTTP"
 start_worker "$ADDR" w1
 WORKER=$LAST_WORKER_PID
+if [[ $MODE == browser ]]; then
+  start_worker "$ADDR" w2  # the record map shows two workers' colours
+  WORKER=$WORKER,$LAST_WORKER_PID
+fi
 # The dashboard starts listening just after the gRPC port.
 for _ in $(seq 50); do curl -sf "http://$HTTP/" >/dev/null && break; sleep 0.1; done
 submit() { "$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" --tile-size 16 -q "$@"; }
@@ -93,39 +100,32 @@ assert w['threads'] == 1 and int(w['recordsComputed']) == $COMPUTED > 0, w
 print('ok: /api/workers: w1 has 1 thread and computed %s records (the job says $COMPUTED)' % w['recordsComputed'])" ||
   fail "worker threads / records"
 a "http://$HTTP/api/image.png?job=$JOB" >"$WORK/final.png"
+# The record map: black, and w1's records in its colour (worker id 1, the palette's first).
+a "http://$HTTP/api/workers" | python3 -c "
+import json, sys; assert json.load(sys.stdin)['workers'][0]['id'] == 1" || fail "w1 is not worker 1"
+a "http://$HTTP/api/record_map.png?job=$JOB" >"$WORK/map.png"
+python3 "$(dirname "$0")/png_colours.py" "$WORK/map.png" | python3 -c "
+import json, sys
+m = json.load(sys.stdin)
+assert (m['width'], m['height']) == (160, 96), m
+c = m['colours']
+w1 = c.pop('230,25,75', 0)
+black = c.pop('0,0,0', 0)
+print('MEASURED record map: %d pixels in w1\'s colour, %d black, other colours %s' % (w1, black, c))
+assert c == {}, c
+assert 0 < w1 <= $COMPUTED, (w1, $COMPUTED)
+print('ok: /api/record_map.png shows w1\'s records in its colour')" || fail "record map"
+check "bob gets 404 for alice's record map" "$(code -H "Authorization: Bearer $BOB" "http://$HTTP/api/record_map.png?job=$JOB") == 404"
 "$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$WORK/final.exr"
 # The finished preview covers the whole film (no black row: the Cornell box has no black row),
 # the mid-job one only the tiles done by then.
-python3 - "$WORK/mid.png" "$WORK/final.png" <<'PY' || fail "final PNG"
-import sys, zlib, struct
+python3 - "$WORK/mid.png" "$WORK/final.png" "$(dirname "$0")" <<'PY' || fail "final PNG"
+import sys
+sys.path.insert(0, sys.argv[3])
+from png_colours import decode
 def pixels(path):
-    d = open(path, "rb").read()
-    w, h = struct.unpack(">II", d[16:24])
-    i, idat = 8, b""
-    while i < len(d):
-        n, t = struct.unpack(">I4s", d[i:i + 8])
-        if t == b"IDAT":
-            idat += d[i + 8:i + 8 + n]
-        i += 12 + n
-    raw = zlib.decompress(idat)
-    # Undo the per-scanline filters (PNG spec 9: None, Sub, Up, Average, Paeth; 3 bytes a pixel).
-    stride, prev, rows = 3 * w, bytearray(3 * w), []
-    for y in range(h):
-        f, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-        for x in range(stride):
-            a = line[x - 3] if x >= 3 else 0
-            b, c = prev[x], prev[x - 3] if x >= 3 else 0
-            if f == 1: line[x] = (line[x] + a) & 255
-            elif f == 2: line[x] = (line[x] + b) & 255
-            elif f == 3: line[x] = (line[x] + (a + b) // 2) & 255
-            elif f == 4:
-                p = a + b - c
-                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
-                line[x] = (line[x] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
-        rows.append(line)
-        prev = line
-    nonzero_rows = sum(1 for r in rows if any(r))
-    return w, h, nonzero_rows
+    w, h, rows = decode(open(path, "rb").read())
+    return w, h, sum(1 for r in rows if any(r))
 _, h, mid = pixels(sys.argv[1])
 _, _, final = pixels(sys.argv[2])
 print("MEASURED non-black rows: mid-job %d, final %d of %d" % (mid, final, h))
