@@ -6,15 +6,15 @@
 #  - filtered (default --fanout=region), seed 2: each worker is sent at most half as many records
 #    as in the unfiltered seed-0 run (coordinator's count, recordsDelivered), some are withheld;
 #  - every image, filtered or not, has a relMSE against Mitsuba's reference at these settings
-#    (tests/data/scenes/two-rooms/reference.exr, max_depth 4) within Mitsuba's own at 256 spp
-#    (the largest of 8 seeds, 1.39e-3, reference.json there: a bound that does not come from
-#    irfarm), so filtering leaves a correct image. relMSE(filtered, unfiltered seed 0) and
-#    relMSE(unfiltered seed 1, seed 0) are printed for comparison.
+#    (tests/data/scenes/two-rooms/reference-depth4.exr, max_depth 4) within Mitsuba's own at
+#    256 spp (the largest of 8 seeds, 1.39e-3, reference-depth4.json there: a bound that does not
+#    come from irfarm), so filtering leaves a correct image. relMSE(filtered, unfiltered seed 0)
+#    and relMSE(unfiltered seed 1, seed 0) are printed for comparison.
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/two-rooms/scene.xml
-REF=$DATA/scenes/two-rooms/reference.exr
+REF=$DATA/scenes/two-rooms/reference-depth4.exr
 TOL=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["mitsuba"]["256spp"]["relmse_vs_ref_max"])' \
-  "$DATA/scenes/two-rooms/reference.json")
+  "$DATA/scenes/two-rooms/reference-depth4.json")
 OPTS=(-Dmax_depth=4 --spp 32 --record-rays 256 --tile-size 48)
 start_redis
 

@@ -1,6 +1,7 @@
 """Makes this scene's Mitsuba 3 reference at the settings of tests/service/fanout_test.sh (96x48,
-max_depth 4) and Mitsuba's own error against it (reference.exr, reference.json): the independent
-tolerance of that test. Mitsuba is not needed to run the test, only these files.
+max_depth 4) and Mitsuba's own error against it (reference-depth4.exr, reference-depth4.json; not
+reference.exr, as the scene's own default is max_depth -1): the independent tolerance of that
+test. Mitsuba is not needed to run the test, only these files.
 
 Run from this folder:
     DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so python3 make_reference.py
@@ -35,7 +36,8 @@ t0 = time.time()
 chunks = [render(CHUNK, 1000 + i) for i in range(16)]
 ref = np.mean(chunks, axis=0)
 even, odd = np.mean(chunks[0::2], axis=0), np.mean(chunks[1::2], axis=0)
-mi.Bitmap(ref.astype(np.float32), pixel_format=mi.Bitmap.PixelFormat.RGB).write("reference.exr")
+mi.Bitmap(ref.astype(np.float32),
+          pixel_format=mi.Bitmap.PixelFormat.RGB).write("reference-depth4.exr")
 h, w, _ = ref.shape
 out = {"renderer": "mitsuba " + mi.__version__, "variant": "llvm_ad_rgb", "integrator": "path",
        "max_depth": MAX_DEPTH, "rfilter": "box", "width": w, "height": h,
@@ -52,4 +54,4 @@ for spp in SPPS:
                                      "relmse_vs_ref_max": max(errs)}
     print(spp, float(np.mean(errs)), max(errs), flush=True)
 out["seconds"] = round(time.time() - t0, 1)
-json.dump(out, open("reference.json", "w"), indent=2)
+json.dump(out, open("reference-depth4.json", "w"), indent=2)
