@@ -264,16 +264,11 @@ int main(int argc, char** argv) {
       "irfarm_coordinator_active",
       "1 while this coordinator serves; 0 while it waits as a standby (--ha) or shuts down");
   // Served from the start, so that a standby is scraped (and probed for liveness) too.
-  std::unique_ptr<irfarm::HttpServer> metrics_server;
-  if (!metrics_address.empty()) {
-    absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> http =
-        irfarm::ServeMetrics(metrics_address, &metrics);
-    if (!http.ok()) {
-      spdlog::error("--metrics: {}", http.status().ToString());
-      return 1;
-    }
-    metrics_server = std::move(*http);
-    spdlog::info("metrics on http://{}/metrics", metrics_address);
+  absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> metrics_server =
+      irfarm::StartMetricsServer(metrics_address, &metrics);
+  if (!metrics_server.ok()) {
+    spdlog::error("{}", metrics_server.status().ToString());
+    return 1;
   }
 
   std::unique_ptr<irfarm::CoordinatorLease> lease;
@@ -390,7 +385,7 @@ int main(int argc, char** argv) {
   server->Wait();
   stop = true;
   expiry.join();
-  metrics_server.reset();
+  metrics_server->reset();
   dashboard.reset();
   manager->reset();  // lands the job states still queued (StoreWriter) while the lease is held
   if (lease && exit_code != kLeaseLost) {

@@ -1,6 +1,7 @@
 // Metrics registry and the Prometheus text format (see metrics.h).
 #include "service/metrics.h"
 
+#include <spdlog/spdlog.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -190,6 +191,18 @@ absl::StatusOr<std::unique_ptr<HttpServer>> ServeMetrics(const std::string& addr
       {{"GET", "/metrics", [metrics](const HttpRequest&) {
           return HttpResponse{200, "text/plain; version=0.0.4; charset=utf-8", metrics->Render()};
         }}});
+}
+
+absl::StatusOr<std::unique_ptr<HttpServer>> StartMetricsServer(const std::string& address,
+                                                               const MetricsRegistry* metrics) {
+  if (address.empty()) return nullptr;
+  absl::StatusOr<std::unique_ptr<HttpServer>> server = ServeMetrics(address, metrics);
+  if (!server.ok()) {
+    return absl::Status(server.status().code(),
+                        "--metrics: " + std::string(server.status().message()));
+  }
+  spdlog::info("metrics on http://{}/metrics", address);
+  return server;
 }
 
 }  // namespace irfarm

@@ -141,6 +141,12 @@ class MetricsRegistry {
 absl::StatusOr<std::unique_ptr<HttpServer>> ServeMetrics(const std::string& address,
                                                          const MetricsRegistry* metrics);
 
+// What `--metrics ADDR` does in irfarm-coordinator and irfarm-worker: nothing (nullptr) when
+// `address` is empty (the flag's default, metrics off), else ServeMetrics and an info log line
+// with the URL. The error names the flag ("--metrics: ..."), for the binaries to print and exit.
+absl::StatusOr<std::unique_ptr<HttpServer>> StartMetricsServer(const std::string& address,
+                                                               const MetricsRegistry* metrics);
+
 // The process's resident memory and CPU time (process_resident_memory_bytes,
 // process_cpu_seconds_total), read from /proc and getrusage at scrape time.
 void AddProcessMetrics(MetricsRegistry* registry);

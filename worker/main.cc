@@ -47,16 +47,11 @@ int main(int argc, char** argv) {
   irfarm::MetricsRegistry metrics;
   irfarm::AddProcessMetrics(&metrics);
   irfarm::Worker worker(options, &metrics);
-  std::unique_ptr<irfarm::HttpServer> metrics_server;
-  if (!metrics_address.empty()) {
-    absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> http =
-        irfarm::ServeMetrics(metrics_address, &metrics);
-    if (!http.ok()) {
-      spdlog::error("--metrics: {}", http.status().ToString());
-      return 1;
-    }
-    metrics_server = std::move(*http);
-    spdlog::info("metrics on http://{}/metrics", metrics_address);
+  absl::StatusOr<std::unique_ptr<irfarm::HttpServer>> metrics_server =
+      irfarm::StartMetricsServer(metrics_address, &metrics);
+  if (!metrics_server.ok()) {
+    spdlog::error("{}", metrics_server.status().ToString());
+    return 1;
   }
   std::thread signal_thread([&] {
     int sig = 0;
@@ -66,6 +61,6 @@ int main(int argc, char** argv) {
   });
   const int code = worker.Run();
   signal_thread.detach();
-  metrics_server.reset();
+  metrics_server->reset();
   return code;
 }

@@ -4,8 +4,10 @@
 // streams, clients with no, wrong and other clients' tokens, and TLS / mutual TLS with
 // certificates made by openssl at test time. An honest irfarm worker (the real Worker class, in
 // this process) renders what the attacks leave. Each case asserts the status code, that the job
-// list did not change, and that the image is within noise of the reference: relMSE at most 3x
-// that of a clean job of the same scene on the same coordinator (64x64 Cornell box, 16 tiles).
+// list did not change, and that the image is within noise of the reference (64x64 Cornell box,
+// 16 tiles): relMSE at most Mitsuba 3's own at 256 spp on that grid (the largest of 8 seeds,
+// 1.28e-3, tests/data/scenes/cornell-box/mitsuba-x4-noise.json: a bound that does not come from
+// irfarm), as is a clean job of the same scene on the same coordinator.
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -37,6 +39,21 @@ namespace {
 const std::string kData = IRFARM_TEST_DATA;
 const std::string kScene = kData + "/scenes/cornell-box/scene.xml";
 const std::string kReference = kData + "/scenes/cornell-box/reference-x4.exr";  // 64x64
+
+// The image tolerance: Mitsuba 3's relMSE against kReference at 64x64 and 256 spp, the largest of
+// 8 seeds, from mitsuba-x4-noise.json (make_x4_noise.py next to it); 0 (every check fails) when
+// the file or the figure is missing.
+double MitsubaTolerance() {
+  std::ifstream f(kData + "/scenes/cornell-box/mitsuba-x4-noise.json");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  const std::string s = ss.str();
+  const std::string key = "\"relmse_vs_ref_max\":";
+  const size_t run = s.find("\"64x64 256spp\"");
+  const size_t at = run == std::string::npos ? run : s.find(key, run);
+  EXPECT_NE(at, std::string::npos) << "no 64x64 256spp figure in mitsuba-x4-noise.json";
+  return at == std::string::npos ? 0 : std::atof(s.c_str() + at + key.size());
+}
 
 const std::string kAlice = "alice-token-0123456789abcdef";
 const std::string kBob = "bob-token-0123456789abcdef";
@@ -319,16 +336,20 @@ class AttackTest : public ::testing::Test {
     if (!image.ok() || !ref.ok()) return ImageError{1e30, 1e30, {}, {}, 1};
     return CompareImages(*image, *ref);
   }
-  // The noise tolerance: 3x the relMSE of a clean job rendered by the honest worker alone.
-  double CleanTolerance() {
+  // Renders a clean job with the honest worker alone (the attacked jobs are seeded from its
+  // records), checks its image against the tolerance and returns the tolerance.
+  double CleanJobThenTolerance() {
+    const double tol = MitsubaTolerance();
     std::string id;
     EXPECT_TRUE(Submit(kBob, Request(), &id).ok());
     StartHonestWorker();
     EXPECT_EQ(WaitFinal(id).state(), v1::JOB_STATE_SUCCEEDED);
     StopHonestWorker();
     const ImageError e = ImageOf(kBob, id);
+    std::printf("MEASURED clean job relMSE %g (tolerance %g)\n", e.relmse, tol);
     EXPECT_EQ(e.nonfinite, 0);
-    return 3 * e.relmse;
+    EXPECT_LE(e.relmse, tol);
+    return tol;
   }
 
   std::string dir_, worker_token_file_;
@@ -349,7 +370,7 @@ class AttackTest : public ::testing::Test {
 // no lease of, and for a finished job; then a later job of the same scene from another client.
 TEST_F(AttackTest, PoisonedRecordsAreRefusedAndDoNotSpread) {
   StartServer();
-  const double tol = CleanTolerance();
+  const double tol = CleanJobThenTolerance();
   std::string a;
   ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
   FakeWorker f(channel_, kWorker, "mallory");
@@ -448,7 +469,7 @@ TEST_F(AttackTest, PoisonedSnapshotIsRefused) {
 // stats under its own lease; the session ends after kMaxViolations.
 TEST_F(AttackTest, HijackedLeasesNanPixelsAndForgedStatsAreRefused) {
   StartServer();
-  const double tol = CleanTolerance();
+  const double tol = CleanJobThenTolerance();
   std::string a;
   ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
   FakeWorker f(channel_, kWorker, "mallory");
@@ -523,7 +544,7 @@ TEST_F(AttackTest, HijackedLeasesNanPixelsAndForgedStatsAreRefused) {
 // holder is not charged with a failure, and the job finishes within noise.
 TEST_F(AttackTest, ForgedLeaseTokensAreRefusedAndTheLeaseIsUnaffected) {
   StartServer();
-  const double tol = CleanTolerance();
+  const double tol = CleanJobThenTolerance();
   std::string a;
   ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
   FakeWorker victim(channel_, kWorker, "victim");

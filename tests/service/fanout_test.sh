@@ -3,26 +3,27 @@
 # coordinator and two workers render tests/data/scenes/two-rooms (two rooms side by side, the
 # camera looking into both) at 96x48 in two 48x48 tiles, so each worker renders one room.
 #  - unfiltered (--fanout=all), seeds 0 and 1: each worker is sent every record of the other;
-#    the relMSE between the two runs is the noise;
 #  - filtered (default --fanout=region), seed 2: each worker is sent at most half as many records
-#    as in the unfiltered seed-0 run (coordinator's count, recordsDelivered), some are withheld,
-#    and relMSE(filtered, unfiltered seed 0) <= 1.5 x relMSE(unfiltered seed 1, seed 0): the image
-#    is unchanged within the noise (1.5x: the relMSE of one pair of irradiance-cache renders
-#    varies from pair to pair; measured ratios are printed).
+#    as in the unfiltered seed-0 run (coordinator's count, recordsDelivered), some are withheld;
+#  - every image, filtered or not, has a relMSE against Mitsuba's reference at these settings
+#    (tests/data/scenes/two-rooms/reference-depth4.exr, max_depth 4) within Mitsuba's own at
+#    256 spp (the largest of 8 seeds, 1.39e-3, reference-depth4.json there: a bound that does not
+#    come from irfarm), so filtering leaves a correct image. relMSE(filtered, unfiltered seed 0)
+#    and relMSE(unfiltered seed 1, seed 0) are printed for comparison.
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/two-rooms/scene.xml
+REF=$DATA/scenes/two-rooms/reference-depth4.exr
+TOL=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["mitsuba"]["256spp"]["relmse_vs_ref_max"])' \
+  "$DATA/scenes/two-rooms/reference-depth4.json")
 OPTS=(-Dmax_depth=4 --spp 32 --record-rays 256 --tile-size 48)
 start_redis
 
 # cluster MODE PREFIX: a coordinator with --fanout=MODE and two workers, both registered (counted
 # in the coordinator log, which all clusters append to: WANT_CONNECTED lines).
 cluster() {
-  ADDR=127.0.0.1:$(free_port)
-  start_coordinator "$ADDR" --redis "127.0.0.1:$RPORT" --fanout "$1"
-  start_worker "$ADDR" "$2-a"
-  WORKER_A=$LAST_WORKER_PID
-  start_worker "$ADDR" "$2-b"
-  WORKER_B=$LAST_WORKER_PID
+  start_cluster "$2-a $2-b" --redis "127.0.0.1:$RPORT" --fanout "$1"
+  WORKER_A=${WORKER_PIDS[0]}
+  WORKER_B=${WORKER_PIDS[1]}
   for _ in $(seq 100); do
     (($(grep -c "connected from" "$WORK/coordinator.log" || true) >= WANT_CONNECTED)) && return 0
     sleep 0.1
@@ -59,7 +60,7 @@ done
 NOISE=$(relmse "$WORK/all1.exr" "$WORK/all0.exr")
 FILT=$(relmse "$WORK/region2.exr" "$WORK/all0.exr")
 echo "MEASURED relMSE unfiltered seed1 vs seed0 (noise): $NOISE; filtered seed2 vs unfiltered seed0: $FILT ($(python3 -c "print('%.2fx' % ($FILT / $NOISE))") the noise)"
-check "filtered image within the noise of unfiltered runs" "$FILT <= 1.5 * $NOISE"
+for name in all0 all1 region2; do within_tolerance "$name image" "$WORK/$name.exr"; done
 python3 - "$WORK/all0.json" "$WORK/region2.json" <<'PY' || fail "records delivered"
 import json, sys
 def workers(path):

@@ -13,14 +13,8 @@ OPTS=(--integrator path --spp 256 --seed 5)
 
 "$BIN/irfarm" render "$SCENE" "${OPTS[@]}" --threads 2 -q -o "$WORK/local.exr"
 
-ADDR=127.0.0.1:$(free_port)
-start_coordinator "$ADDR"
-start_worker "$ADDR" w1
-start_worker "$ADDR" w2
-JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" "${OPTS[@]}" --tile-size 16 -q)
-STATE=$(wait_job "$ADDR" "$JOB" 120)
-check "job succeeded" "'$STATE' == 'JOB_STATE_SUCCEEDED'"
-"$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$WORK/dist.exr"
+start_cluster "w1 w2"
+render_job "$WORK/dist.exr" "$SCENE" "${OPTS[@]}" --tile-size 16
 SAME=$(relmse "$WORK/dist.exr" "$WORK/local.exr")
 ERR=$(relmse "$WORK/dist.exr" "$REF")
 echo "MEASURED two-worker vs single-process relMSE $SAME; vs Mitsuba's gaussian reference $ERR"

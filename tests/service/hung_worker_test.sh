@@ -7,10 +7,7 @@
 # worker is continued afterwards: its stale result is refused without failing anything.
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/cornell-box/scene.xml
-ADDR=127.0.0.1:$(free_port)
-start_coordinator "$ADDR" --heartbeat-seconds 1
-start_worker "$ADDR" healthy
-start_worker "$ADDR" victim
+start_cluster "healthy victim" --heartbeat-seconds 1
 VICTIM=$LAST_WORKER_PID
 
 # victim_leased: true when the worker named victim holds a lease now.

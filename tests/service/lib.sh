@@ -53,6 +53,36 @@ start_worker() {
   PIDS+=("$LAST_WORKER_PID")
 }
 
+# start_cluster [--redis] WORKERS [COORDINATOR_ARGS...]: a local cluster. With --redis, first a
+# redis-server (start_redis) that the coordinator uses; then a coordinator on a free loopback port
+# (ADDR, COORD_PID; waits until it answers) and one worker per name in the space-separated list
+# WORKERS (WORKER_PIDS in that order; LAST_WORKER_PID is the last one's).
+start_cluster() {
+  local redis_args=()
+  if [[ $1 == --redis ]]; then
+    shift
+    start_redis
+    redis_args=(--redis "127.0.0.1:$RPORT")
+  fi
+  local names=$1 name; shift
+  ADDR=127.0.0.1:$(free_port)
+  start_coordinator "$ADDR" "${redis_args[@]}" "$@"
+  WORKER_PIDS=()
+  for name in $names; do
+    start_worker "$ADDR" "$name"
+    WORKER_PIDS+=("$LAST_WORKER_PID")
+  done
+}
+
+# render_job OUT SUBMIT_ARGS...: `irfarm submit SUBMIT_ARGS` to $ADDR; waits for the job (120 s),
+# checks that it succeeded and fetches its image to OUT. Sets JOB.
+render_job() {
+  local out=$1; shift
+  JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$@" -q)
+  check "job $JOB succeeded" "'$(wait_job "$ADDR" "$JOB" 120)' == 'JOB_STATE_SUCCEEDED'"
+  "$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$out"
+}
+
 # job_field ADDR JOB PYEXPR: evaluates PYEXPR with j = the job's JSON (irfarm status --json).
 job_field() {
   "$BIN/irfarm" status --coordinator "$1" "$2" --json | python3 -c "import json,sys; j=json.load(sys.stdin); print($3)"
@@ -76,6 +106,29 @@ wait_tiles() {
     sleep 0.05
   done
   fail "job $2 never reached $3 tiles"
+}
+
+# mitsuba_x4_error SCENE "WxH Nspp": the largest relMSE against SCENE's reference-x4.exr (64x64)
+# of 8 Mitsuba 3 renders (different seeds) at WxH and N spp, box-filtered to 64x64, from
+# $DATA/scenes/SCENE/mitsuba-x4-noise.json (made by make_x4_noise.py there). The tolerance of a
+# service image compared with reference-x4.exr: an error bound that does not come from irfarm.
+mitsuba_x4_error() {
+  python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["renders"][sys.argv[2]]["relmse_vs_ref_max"])' \
+    "$DATA/scenes/$1/mitsuba-x4-noise.json" "$2" || fail "no Mitsuba error for $1 at '$2'"
+}
+
+# within_tolerance LABEL EXR [FACTOR]: EXR, box-filtered FACTORxFACTOR first when FACTOR is given,
+# against the script's $REF: prints its relMSE and checks that it is at most the script's $TOL.
+within_tolerance() {
+  local img=$2
+  if (($# > 2)); then
+    img=${2%.exr}-down$3.exr
+    "$BIN/irfarm" downsample "$2" "$img" --factor "$3"
+  fi
+  local err
+  err=$(relmse "$img" "$REF")
+  echo "MEASURED $1 relMSE vs reference: $err (tolerance $TOL)"
+  check "$1 within the tolerance" "$err <= $TOL"
 }
 
 relmse() { "$BIN/irfarm" compare "$1" "$2" | python3 -c 'import json,sys; print(json.load(sys.stdin)["relmse"])'; }

@@ -11,9 +11,7 @@
 #    then NOT_FOUND), and a second delete is NOT_FOUND; `irfarm watch` of a cancelled job exits 1.
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/cornell-box/scene.xml
-ADDR=127.0.0.1:$(free_port)
-start_coordinator "$ADDR"
-start_worker "$ADDR" w1
+start_cluster w1
 JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" -Dresx=128 -Dresy=128 --tile-size 16 -q)
 "$BIN/irfarm" watch --coordinator "$ADDR" "$JOB" >"$WORK/watch.txt" 2>&1 &
 WATCH_PID=$!

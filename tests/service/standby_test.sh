@@ -11,8 +11,10 @@
 #     exactly the records A reported (the workers stay paused until B's counts are read, so
 #     nothing can change in between; a tile stored as its lease ended may add one to B's count);
 #  3. the workers resumed re-register with B, B finishes the job, `irfarm watch` (following A,B) ends
-#     with success, and the image is within noise of the reference (3x a single-process render's
-#     relMSE at the same settings, as worker_kill_test.sh);
+#     with success, and the image, box-filtered to 64x64, is within Mitsuba's own relMSE against
+#     the 64x64 reference at the job's 128x128 and 256 spp, box-filtered the same way (3.3e-4,
+#     tests/data/scenes/cornell-box/mitsuba-x4-noise.json, as worker_kill_test.sh: a bound that
+#     does not come from irfarm);
 #  4. A restarted waits as a standby; B stopped with SIGTERM releases the lease and A serves the
 #     finished job at once (time printed);
 #  5. fencing: A frozen (SIGSTOP) past its lease time loses the lease to a restarted B; resumed,
@@ -22,10 +24,7 @@ SCENE=$DATA/scenes/cornell-box/scene.xml
 REF=$DATA/scenes/cornell-box/reference-x4.exr
 OPTS=(-Dresx=128 -Dresy=128)
 LEASE_MS=3000
-
-"$BIN/irfarm" render "$SCENE" "${OPTS[@]}" --threads 2 -q -o "$WORK/local.exr"
-"$BIN/irfarm" downsample "$WORK/local.exr" "$WORK/local64.exr" --factor 2
-TOL=$(python3 -c "print(3 * $(relmse "$WORK/local64.exr" "$REF"))")
+TOL=$(mitsuba_x4_error cornell-box "128x128 256spp")
 
 start_redis
 REDIS=127.0.0.1:$RPORT
@@ -129,10 +128,7 @@ grep -q "following job $JOB on the next one" "$WORK/watch.log" ||
   fail "irfarm watch did not follow the job to B: $(tail -3 "$WORK/watch.log")"
 echo "ok: irfarm watch followed the job from A to B and ended with success"
 "$BIN/irfarm" fetch --coordinator "$BOTH" "$JOB" -o "$WORK/failover.exr"
-"$BIN/irfarm" downsample "$WORK/failover.exr" "$WORK/failover64.exr" --factor 2
-R=$(relmse "$WORK/failover64.exr" "$REF")
-echo "MEASURED failover image relMSE vs reference: $R (tolerance $TOL)"
-check "image within noise after the failover" "$R <= $TOL"
+within_tolerance "failover image (64x64)" "$WORK/failover.exr" 2
 
 # --- A back as a standby; B stopped gracefully hands over at once ---
 start_ha a2 "$A"

@@ -1,38 +1,32 @@
 #!/usr/bin/env bash
 # Two-process integration test: a real coordinator and two real workers on 127.0.0.1 render the
-# Cornell box at 64x64 (16 tiles of 16 px). Checks against single-process `irfarm render` runs:
-#  - the image matches within measured noise (tolerance = 3x the relMSE of two single-process
-#    renders with different seeds, both against the 64x64 reference);
+# Cornell box at 64x64 (16 tiles of 16 px). Checks, also against a single-process `irfarm render`:
+#  - the image's relMSE against the 64x64 reference (reference-x4.exr) is within Mitsuba's own at
+#    256 spp on that grid (the largest of 8 seeds, 1.28e-3, tests/data/scenes/cornell-box/
+#    mitsuba-x4-noise.json: a bound that does not come from irfarm; irrcache at its defaults is
+#    claimed to beat Mitsuba at 256 spp);
 #  - each worker received the other's records and used them in lookups;
 #  - records computed by both workers <= 1.15x the single-process render's;
 #  - with sharing off, prints how many more records are computed;
-#  - snapshot export then import: the warm job computes <= 10% of the first job's records, and a
-#    snapshot of another scene is refused (submit and local render).
+#  - snapshot export then import: the warm job computes <= 10% of the first job's records, its
+#    image is within the same bound, and a snapshot of another scene is refused (submit and local
+#    render).
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/cornell-box/scene.xml
 REF=$DATA/scenes/cornell-box/reference-x4.exr
 OPTS=(-Dresx=64 -Dresy=64)
+TOL=$(mitsuba_x4_error cornell-box "64x64 256spp")
 
 "$BIN/irfarm" render "$SCENE" "${OPTS[@]}" --threads 2 -q -o "$WORK/local0.exr" --stats "$WORK/local0.json"
-"$BIN/irfarm" render "$SCENE" "${OPTS[@]}" --threads 2 -q --seed 1 -o "$WORK/local1.exr" --stats "$WORK/local1.json"
-L0=$(relmse "$WORK/local0.exr" "$REF"); L1=$(relmse "$WORK/local1.exr" "$REF")
+L0=$(relmse "$WORK/local0.exr" "$REF")
 LOCAL_REC=$(computed "$WORK/local0.json")
-TOL=$(python3 -c "print(3 * max($L0, $L1))")
-echo "single-process relMSE vs reference: seed0 $L0 seed1 $L1 -> tolerance $TOL; records $LOCAL_REC"
+echo "single-process relMSE vs reference: $L0; records $LOCAL_REC; tolerance (Mitsuba 256 spp) $TOL"
 
-ADDR=127.0.0.1:$(free_port)
-start_coordinator "$ADDR"
-start_worker "$ADDR" w1
-start_worker "$ADDR" w2
+start_cluster "w1 w2"
 
 # Shared records.
-JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" "${OPTS[@]}" --tile-size 16 -q)
-STATE=$(wait_job "$ADDR" "$JOB" 120)
-check "shared job succeeded" "'$STATE' == 'JOB_STATE_SUCCEEDED'"
-"$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$WORK/dist.exr"
-D=$(relmse "$WORK/dist.exr" "$REF")
-echo "MEASURED two-worker relMSE vs reference: $D (single-process $L0 / $L1)"
-check "two-worker image within noise" "$D <= $TOL"
+render_job "$WORK/dist.exr" "$SCENE" "${OPTS[@]}" --tile-size 16
+within_tolerance "two-worker image" "$WORK/dist.exr"
 "$BIN/irfarm" status --coordinator "$ADDR" "$JOB" --json > "$WORK/job.json"
 python3 - "$WORK/job.json" "$LOCAL_REC" <<'PY' || fail "worker stats"
 import json, sys
@@ -66,8 +60,7 @@ WARM_TOTAL=$(job_field "$ADDR" "$JOB3" "sum(int(w['recordsComputed']) for w in j
 echo "MEASURED warm-start records computed: $WARM_TOTAL vs $SHARED_TOTAL cold ($(python3 -c "print('%.3f' % ($WARM_TOTAL / $SHARED_TOTAL))"))"
 check "warm start computes <= 10%" "$WARM_TOTAL <= 0.10 * $SHARED_TOTAL"
 "$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB3" -o "$WORK/warm.exr"
-W=$(relmse "$WORK/warm.exr" "$REF")
-check "warm-start image within noise ($W)" "$W <= $TOL"
+within_tolerance "warm-start image" "$WORK/warm.exr"
 "$BIN/irfarm" render "$SCENE" "${OPTS[@]}" --threads 2 -q --cache-in "$WORK/cache.snap" -o "$WORK/local-warm.exr" --stats "$WORK/local-warm.json"
 check "local render --cache-in computes <= 10%" "$(computed "$WORK/local-warm.json") <= 0.10 * $LOCAL_REC"
 OTHER=$DATA/scenes/specular/scene.xml

@@ -1,47 +1,40 @@
 #!/usr/bin/env bash
 # Failure tests with real processes on 127.0.0.1, Cornell box at 128x128 (64 tiles of 16 px):
-#  1. a worker killed with SIGKILL mid-job: the job still completes with every tile and its image
-#     (box-filtered to 64x64) is within noise of the reference (3x a single-process render's
-#     relMSE at the same settings);
+#  1. a worker killed with SIGKILL mid-job: the job still completes with every tile and its image,
+#     box-filtered to 64x64, has a relMSE against the 64x64 reference (reference-x4.exr) within
+#     Mitsuba's own at the job's 128x128 and 256 spp, box-filtered the same way (the largest of 8
+#     seeds, 3.3e-4, tests/data/scenes/cornell-box/mitsuba-x4-noise.json: a bound that does not
+#     come from irfarm; irrcache at its defaults is claimed to beat Mitsuba at 256 spp);
 #  2. on a real redis-server: the coordinator killed with SIGKILL mid-job and restarted on the
 #     same Redis: every tile finished and every record merged before the kill is still there,
-#     and the job completes.
+#     and the job completes with its image within the same bound.
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/cornell-box/scene.xml
 REF=$DATA/scenes/cornell-box/reference-x4.exr
 OPTS=(-Dresx=128 -Dresy=128)
+TOL=$(mitsuba_x4_error cornell-box "128x128 256spp")
 
-"$BIN/irfarm" render "$SCENE" "${OPTS[@]}" --threads 2 -q -o "$WORK/local.exr"
-"$BIN/irfarm" downsample "$WORK/local.exr" "$WORK/local64.exr" --factor 2
-TOL=$(python3 -c "print(3 * $(relmse "$WORK/local64.exr" "$REF"))")
-
+# job_completes WHAT NAME: $JOB succeeds (180 s) with all 64 tiles; its image ($WORK/NAME.exr),
+# box-filtered to 64x64, is within the tolerance.
+job_completes() {
+  check "job completed $1" "'$(wait_job "$ADDR" "$JOB" 180)' == 'JOB_STATE_SUCCEEDED'"
+  check "every tile done" "$(job_field "$ADDR" "$JOB" "j['tilesDone']") == 64"
+  "$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$WORK/$2.exr"
+  within_tolerance "image $1 (64x64)" "$WORK/$2.exr" 2
+}
 
 # --- 1. worker SIGKILL ---
-ADDR=127.0.0.1:$(free_port)
-start_coordinator "$ADDR"
-start_worker "$ADDR" k1
-start_worker "$ADDR" k2
+start_cluster "k1 k2"
 VICTIM=$LAST_WORKER_PID
 JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" "${OPTS[@]}" --tile-size 16 -q)
 wait_tiles "$ADDR" "$JOB" 12
 kill -9 "$VICTIM"
 echo "killed worker k2 at $(job_field "$ADDR" "$JOB" "j['tilesDone']")/64 tiles"
-STATE=$(wait_job "$ADDR" "$JOB" 180)
-check "job survived the worker kill" "'$STATE' == 'JOB_STATE_SUCCEEDED'"
-check "every tile done" "$(job_field "$ADDR" "$JOB" "j['tilesDone']") == 64"
-"$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$WORK/killed.exr"
-"$BIN/irfarm" downsample "$WORK/killed.exr" "$WORK/killed64.exr" --factor 2
-K=$(relmse "$WORK/killed64.exr" "$REF")
-echo "MEASURED worker-kill image relMSE vs reference: $K (tolerance $TOL)"
-check "image within noise after worker kill" "$K <= $TOL"
+job_completes "after the worker kill" killed
 kill -9 "$COORD_PID"
 
 # --- 2. coordinator SIGKILL on Redis ---
-start_redis
-ADDR=127.0.0.1:$(free_port)
-start_coordinator "$ADDR" --redis "127.0.0.1:$RPORT"
-start_worker "$ADDR" r1
-start_worker "$ADDR" r2
+start_cluster --redis "r1 r2"
 JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" "${OPTS[@]}" --tile-size 16 -q)
 wait_tiles "$ADDR" "$JOB" 16
 # What the coordinator has reported finished and merged; it can only grow until the kill.
@@ -55,12 +48,5 @@ AFTER_RECORDS=$(job_field "$ADDR" "$JOB" "j['recordsMerged']")
 check "tiles finished before the kill are still done" "$AFTER_TILES >= $TILES_BEFORE"
 echo "MEASURED after restart: $AFTER_TILES tiles, $AFTER_RECORDS records"
 check "records merged before the kill are still there" "$AFTER_RECORDS >= $RECORDS_BEFORE > 0"
-STATE=$(wait_job "$ADDR" "$JOB" 180)
-check "job completed after the coordinator restart" "'$STATE' == 'JOB_STATE_SUCCEEDED'"
-check "every tile done" "$(job_field "$ADDR" "$JOB" "j['tilesDone']") == 64"
-"$BIN/irfarm" fetch --coordinator "$ADDR" "$JOB" -o "$WORK/restarted.exr"
-"$BIN/irfarm" downsample "$WORK/restarted.exr" "$WORK/restarted64.exr" --factor 2
-R=$(relmse "$WORK/restarted64.exr" "$REF")
-echo "MEASURED coordinator-restart image relMSE vs reference: $R (tolerance $TOL)"
-check "image within noise after coordinator restart" "$R <= $TOL"
+job_completes "after the coordinator restart" restarted
 echo PASS
