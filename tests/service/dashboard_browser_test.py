@@ -113,7 +113,8 @@ try:
             continue
         if not seen or seen[-1] != pct:
             seen.append(pct)
-        if not shot and 30 <= pct <= 70 and state == "RUNNING":
+        # Mid-job: between 30% and 70%, or later if a poll jumped past 70% (a loaded machine).
+        if not shot and 30 <= pct < 100 and state == "RUNNING":
             time.sleep(1.1)  # one more poll: the image of these tiles
             driver.save_screenshot(SHOT)
             mid_map, _ = map_colours(driver, job)
