@@ -72,11 +72,15 @@ def map_colours(driver, job):
     """The record map's colour counts and the workers' swatch colours {name: "r,g,b"}."""
     m = wait_for("record map", lambda: driver.execute_script(COLOURS_JS, "record-map", job),
                  timeout=10)
-    swatches = {}
-    for tr in driver.find_elements(By.CSS_SELECTOR, "#workers tbody tr"):
-        name = tr.find_element(By.CSS_SELECTOR, "td.name")
-        swatches[name.text.strip()] = name.find_element(By.CSS_SELECTOR, ".swatch").get_attribute(
-            "data-rgb")
+    # Read in one script: the page rebuilds the workers table at every poll, so elements found
+    # one call earlier can be gone (StaleElementReferenceException, seen in a loaded run).
+    swatches = driver.execute_script("""
+        const out = {};
+        for (const td of document.querySelectorAll('#workers tbody tr td.name')) {
+          const sw = td.querySelector('.swatch');
+          if (sw) out[td.textContent.trim()] = sw.getAttribute('data-rgb');
+        }
+        return out;""")
     return m, swatches
 
 
@@ -97,7 +101,10 @@ try:
     driver.find_element(By.ID, "token").send_keys(TOKEN)
     driver.find_element(By.ID, "use-token").click()
 
-    job = irfarm("submit", SCENE, "-Dresx=160", "-Dresy=160", "--tile-size", "16", "-q").strip()
+    # Fixed record rays: the default balance may pick fewer, and then the job can finish between
+    # two polls with no mid-job state to see.
+    job = irfarm("submit", SCENE, "-Dresx=160", "-Dresy=160", "--tile-size", "16",
+                 "--record-rays", "1536", "-q").strip()
     wait_for("job row", lambda: driver.find_element(By.ID, "job-" + job))
     print("ok: submitted %s appears in the jobs table" % job)
     driver.find_element(By.ID, "job-" + job).click()  # show its image
@@ -113,8 +120,7 @@ try:
             continue
         if not seen or seen[-1] != pct:
             seen.append(pct)
-        # Mid-job: between 30% and 70%, or later if a poll jumped past 70% (a loaded machine).
-        if not shot and 30 <= pct < 100 and state == "RUNNING":
+        if not shot and 30 <= pct <= 70 and state == "RUNNING":
             time.sleep(1.1)  # one more poll: the image of these tiles
             driver.save_screenshot(SHOT)
             mid_map, _ = map_colours(driver, job)
