@@ -373,7 +373,7 @@ absl::StatusOr<Mat4> Parser::ParseTransform(pugi::xml_node t) const {
       }
     } else if (tag == "lookat") {
       LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"origin", "target", "up"}));
-      Vec3 p[3];
+      std::array<double, 3> p[3] = {};  // double: origin and target may be far from the origin
       const char* names[3] = {"origin", "target", "up"};
       for (int i = 0; i < 3; ++i) {
         if (i == 2 && !c.attribute("up")) break;
@@ -381,18 +381,26 @@ absl::StatusOr<Mat4> Parser::ParseTransform(pugi::xml_node t) const {
         if (v.size() != 3) {
           return Error(c, absl::StrCat("<lookat> ", names[i], " needs 3 numbers, got ", v.size()));
         }
-        p[i] = Vec3(float(v[0]), float(v[1]), float(v[2]));
+        p[i] = {v[0], v[1], v[2]};
       }
-      const Vec3 dir = p[1] - p[0];
-      if (LengthSquared(dir) == 0) return Error(c, "<lookat> origin and target coincide");
+      // The view direction subtracted and normalised in double: a camera far from the origin
+      // (1e6, where float steps are 0.06) looking at something near it keeps its direction.
+      const double d[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
+      const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      if (!(len > 0)) return Error(c, "<lookat> origin and target coincide");
+      const Vec3 dir(static_cast<float>(d[0] / len), static_cast<float>(d[1] / len),
+                     static_cast<float>(d[2] / len));
+      Vec3 up(static_cast<float>(p[2][0]), static_cast<float>(p[2][1]),
+              static_cast<float>(p[2][2]));
       if (!c.attribute("up")) {
         Vec3 s;
-        MakeFrame(Normalize(dir), &s, &p[2]);  // Mitsuba picks any perpendicular up as well
+        MakeFrame(dir, &s, &up);  // Mitsuba picks any perpendicular up as well
       }
-      if (!(Length(Cross(Normalize(p[2]), Normalize(dir))) > 1e-6f)) {
+      if (!(Length(Cross(Normalize(up), dir)) > 1e-6f)) {
         return Error(c, "<lookat> up is zero or parallel to the view direction");
       }
-      step = Mat4::LookAt(p[0], p[1], p[2]);
+      step = Mat4::LookAt(Vec3(0.0f), dir, up);
+      for (int i = 0; i < 3; ++i) step.m[i][3] = p[0][i];  // the camera's position in double
     } else {
       return Error(c, absl::StrCat("unknown transform <", tag,
                                    "> (supported: translate, rotate, scale, matrix, lookat)"));
