@@ -41,8 +41,8 @@ constexpr int kSplitAfter = 8;
 constexpr double kReachSlack = 1e-4;
 
 // Deepest recursion of a lookup: kMaxDepth + 1 levels, each pushing at most 8 children, plus
-// the roots of the other trees waiting underneath.
-constexpr int kLookupStack = 8 * (20 + 1) + 2;
+// the roots of the other trees and classes waiting underneath.
+constexpr int kLookupStack = 8 * (20 + 1) + 2 * 6;
 
 }  // namespace
 
@@ -166,8 +166,9 @@ IrradianceCache::IrradianceCache(const CacheSettings& settings)
       neighbour_slope_(settings.neighbour_slope > 0 && std::isfinite(settings.neighbour_slope)
                            ? settings.neighbour_slope
                            : 0.0f),
-      roots_{new Node, new Node} {
-  static_assert(kTrees == 2, "one root per tree above");
+      roots_{} {
+  for (auto& tree : roots_)
+    for (Node*& root : tree) root = new Node;
   const Bounds3& b = settings.bounds;
   double center[3] = {0, 0, 0};
   double edge = 0;
@@ -186,10 +187,40 @@ IrradianceCache::IrradianceCache(const CacheSettings& settings)
 }
 
 IrradianceCache::~IrradianceCache() {
-  for (Node* root : roots_) {
-    DeleteTree(root);
-    delete root;
-  }
+  for (auto& tree : roots_)
+    for (Node* root : tree) {
+      DeleteTree(root);
+      delete root;
+    }
+}
+
+int IrradianceCache::ClassOf(const Vec3& n) {
+  int k = 0;
+  if (std::fabs(n.y) > std::fabs(n[k])) k = 1;
+  if (std::fabs(n.z) > std::fabs(n[k])) k = 2;
+  return 2 * k + (n[k] < 0 ? 1 : 0);
+}
+
+unsigned IrradianceCache::ClassesNear(const Vec3& n, float a) {
+  // Class (k, s) is the cone s v_k >= |v_j| (j != k), an intersection of four half-spaces
+  // (s e_k -+ e_j) . v >= 0. A unit vector within angle t of that cone is within t of each
+  // half-space: (s n_k -+ n_j) / sqrt(2) >= -sin t. With cos t = 1 - a^2, sin t = a sqrt(2 - a^2).
+  // The margin covers float rounding in this test and in Ward's rule (n is unit up to ~1e-6);
+  // NaN in n fails no comparison below, so every class is walked.
+  const float aa = std::min(a, 1.0f);
+  const float bound = -(std::sqrt(2.0f) * aa * std::sqrt(2.0f - aa * aa) + 1e-3f);
+  unsigned mask = 0;
+  for (int k = 0; k < 3; ++k)
+    for (int sign = 0; sign < 2; ++sign) {
+      const float nk = sign ? -n[k] : n[k];
+      bool near = true;
+      for (int j = 0; j < 3; ++j) {
+        if (j == k) continue;
+        near &= !(nk - n[j] < bound) && !(nk + n[j] < bound);
+      }
+      if (near) mask |= 1u << (2 * k + sign);
+    }
+  return mask;
 }
 
 // Deletes node's children and blocks (not node itself: children come in groups of 8).
@@ -301,7 +332,7 @@ void IrradianceCache::ForEachNeighbour(int tree, const Vec3& x, float radius, F 
   };
   Item stack[kLookupStack];
   int top = 0;
-  stack[top++] = Item{roots_[tree], {0, 0, 0}, 0};
+  for (const Node* root : roots_[tree]) stack[top++] = Item{root, {0, 0, 0}, 0};
   while (top > 0) {
     const Item item = stack[--top];
     for (const Block* b = item.node->head.load(std::memory_order_acquire); b != nullptr;
@@ -360,7 +391,7 @@ void IrradianceCache::Insert(const IrradianceRecord& in) {
 }
 
 void IrradianceCache::InsertUnclamped(const IrradianceRecord& r) {
-  Node* node = roots_[TreeOf(r.level)];
+  Node* node = roots_[TreeOf(r.level)][ClassOf(r.normal)];
   uint32_t cell[3];
   if (CellOf(r.position, cell)) {
     // Deepest level whose cells (2^shift grid units) are at least kCellPerReach reaches wide.
@@ -419,8 +450,10 @@ bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradi
   };
   Item stack[kLookupStack];
   int top = 0;
+  const unsigned classes = ClassesNear(n, acc.a);
   for (int t = TreeOf(std::max(0, max_level)); t >= 0; --t)
-    stack[top++] = Item{roots_[t], {0, 0, 0}, INFINITY, 0};
+    for (unsigned c = classes; c != 0; c &= c - 1)
+      stack[top++] = Item{roots_[t][__builtin_ctz(c)], {0, 0, 0}, INFINITY, 0};
   // The walk only collects the record blocks of the nodes it enters, prefetching each, and scans
   // them afterwards: the cache misses on blocks then overlap each other and the walk instead of
   // stalling it one by one. More than kHeads heads (rare) are scanned as they come.
@@ -506,9 +539,10 @@ void IrradianceCache::AddMemory(const Node* node, CacheMemory* m) {
 CacheMemory IrradianceCache::MemoryUse() const {
   CacheMemory m;
   m.bytes_per_record = kRecordBytes;
-  m.nodes = kTrees;
-  m.octree_bytes = kTrees * sizeof(Node);
-  for (const Node* root : roots_) AddMemory(root, &m);
+  m.nodes = kTrees * kClasses;
+  m.octree_bytes = m.nodes * sizeof(Node);
+  for (const auto& tree : roots_)
+    for (const Node* root : tree) AddMemory(root, &m);
   return m;
 }
 

@@ -392,6 +392,59 @@ TEST(IrradianceCacheTest, OctreeMatchesBruteForceAtEveryScale) {
   }
 }
 
+// The octree keeps one tree per signed dominant axis of the records' normals and a lookup walks
+// only the classes its normal can reach (IrradianceCache::ClassesNear). Records whose normals lie
+// on and next to the class boundaries (cube edges and corners), looked up with normals just inside
+// and just outside the angle Ward's rule tolerates, must give exactly the brute-force answer.
+TEST(IrradianceCacheTest, NormalClassesNeverHideARecord) {
+  std::mt19937 rng(99);
+  std::uniform_real_distribution<float> u(0, 1);
+  std::vector<Vec3> normals;
+  for (int sx = -1; sx <= 1; ++sx)
+    for (int sy = -1; sy <= 1; ++sy)
+      for (int sz = -1; sz <= 1; ++sz)
+        if (sx != 0 || sy != 0 || sz != 0) normals.push_back(Normalize(Vec3(sx, sy, sz)));
+  for (int i = 0; i < 200; ++i) normals.push_back(RandomUnit(rng));
+  for (float a : {0.05f, 0.1f, 0.2f, 0.5f, 1.0f}) {
+    SCOPED_TRACE(a);
+    IrradianceCache cache(UnitSettings(1.0f));
+    // Every normal (and a jittered copy) at two points, radii large enough that distance never
+    // decides: only the normal term and facing do.
+    for (const Vec3& n : normals)
+      for (const Vec3& p : {Vec3(0.1f, 0.2f, 0.3f), Vec3(-0.4f, 0.5f, -0.2f)}) {
+        cache.Insert(MakeRecord(p, n, 5.0f, Vec3(u(rng), 1, 1)));
+        cache.Insert(MakeRecord(p, Jitter(n, 0.02f, rng), 5.0f, Vec3(u(rng), 1, 1)));
+      }
+    const float limit = std::acos(1 - a * a);  // largest angle the rule tolerates
+    int found = 0, compared = 0;
+    for (int i = 0; i < 4000; ++i) {
+      const Vec3& base = normals[size_t(rng()) % normals.size()];
+      // Just inside or just outside the limit, so classes at the edge of reach decide.
+      const float angle = limit * (0.97f + 0.06f * u(rng));
+      Vec3 s, t;
+      MakeFrame(base, &s, &t);
+      const float phi = 2 * kPi * u(rng);
+      const Vec3 n = Normalize(base * std::cos(angle) +
+                               (s * std::cos(phi) + t * std::sin(phi)) * std::sin(angle));
+      const Vec3 x = i % 2 ? Vec3(0.1f, 0.2f, 0.3f) : Vec3(-0.4f, 0.5f, -0.2f);
+      Vec3 e_fast, e_slow;
+      LookupInfo fast, slow;
+      const bool f = cache.Lookup(x, n, a, &e_fast, &fast);
+      const bool b = cache.LookupBruteForce(x, n, a, &e_slow, &slow);
+      ASSERT_EQ(f, b) << "query " << i;
+      ASSERT_EQ(fast.records_used, slow.records_used) << "query " << i;
+      ++compared;
+      found += b;
+    }
+    // Meaningful only if the limit is actually straddled: many queries find records and, where the
+    // normals are sparse for the angle (a <= 0.2), some find none.
+    EXPECT_GT(found, compared / 10);
+    if (a <= 0.2f) {
+      EXPECT_LT(found, compared);
+    }
+  }
+}
+
 // Scaling by a power of two is exact in float, so every quantity of the rule (eps, weights, the
 // in-front tolerance) and the octree's grid mapping scale exactly: results must be bit-identical.
 TEST(IrradianceCacheTest, ScaleInvariantExactlyForPowerOfTwoScales) {
