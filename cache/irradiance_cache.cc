@@ -141,6 +141,7 @@ struct IrradianceCache::Accumulator {
       info->records_used = count;
       info->weight_sum = float(weight);
       info->remote_records_used = remote;
+      info->from_region = false;
     }
     if (count == 0) return false;
     *irradiance = Vec3(float(e[0] / weight), float(e[1] / weight), float(e[2] / weight));
@@ -208,7 +209,17 @@ unsigned IrradianceCache::ClassesNear(const Vec3& n, float a) {
   // The margin covers float rounding in this test and in Ward's rule (n is unit up to ~1e-6);
   // NaN in n fails no comparison below, so every class is walked.
   const float aa = std::min(a, 1.0f);
-  const float bound = -(std::sqrt(2.0f) * aa * std::sqrt(2.0f - aa * aa) + 1e-3f);
+  return ClassesWithinSin(n, std::sqrt(2.0f) * aa * std::sqrt(2.0f - aa * aa) + 1e-3f);
+}
+
+unsigned IrradianceCache::ClassesWithin(const Vec3& n, float angle) {
+  if (!(angle < 0.5f * kPi)) return (1u << kClasses) - 1;
+  return ClassesWithinSin(n, std::sqrt(2.0f) * std::sin(angle) + 1e-3f);
+}
+
+// The test of ClassesNear with (s n_k -+ n_j) >= -margin, margin = sqrt(2) sin t (+ rounding).
+unsigned IrradianceCache::ClassesWithinSin(const Vec3& n, float margin) {
+  const float bound = -margin;
   unsigned mask = 0;
   for (int k = 0; k < 3; ++k)
     for (int sign = 0; sign < 2; ++sign) {
@@ -430,36 +441,28 @@ void IrradianceCache::InsertUnclamped(const IrradianceRecord& r) {
   size_.fetch_add(1, std::memory_order_relaxed);
 }
 
-bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradiance,
-                             LookupInfo* info, int max_level) const {
-  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level};
+template <typename F>
+void IrradianceCache::WalkNodes(const Vec3& x, unsigned classes, int max_level, float reach_scale,
+                                float extra, F visit) const {
   // x on the grid; may lie outside [0, 2^20) (records inside the root cube can reach points
-  // outside it) or be NaN (then no child test passes and only the root is scanned).
+  // outside it) or be NaN (then no child test passes and only the roots are visited).
   const double g[3] = {ToGrid(x.x, 0), ToGrid(x.y, 1), ToGrid(x.z, 2)};
   // The child test runs in float, so it is made conservative by a margin above float rounding of
   // grid coordinates (< 2^20, so within 2^-4 units) and of the product below: visiting a node
   // too many costs time only, since every candidate is tested by the exact rule.
   const float gx[3] = {float(g[0]), float(g[1]), float(g[2])};
-  const float reach_scale = float(double(acc.a) * grid_scale_ * (1 + kReachSlack));
-  constexpr float kGridMargin = 1.0f;  // grid units
+  const float margin = 1.0f + extra;  // grid units
   struct Item {
     const Node* node;
     float lo[3];  // cell's low corner, grid units (exact: integers < 2^24)
-    float grow;   // a * (largest R_i in the subtree) + kGridMargin, grid units
+    float grow;   // reach_scale * (largest R_i in the subtree) + margin, grid units
     int depth;
   };
   Item stack[kLookupStack];
   int top = 0;
-  const unsigned classes = ClassesNear(n, acc.a);
   for (int t = TreeOf(std::max(0, max_level)); t >= 0; --t)
     for (unsigned c = classes; c != 0; c &= c - 1)
       stack[top++] = Item{roots_[t][__builtin_ctz(c)], {0, 0, 0}, INFINITY, 0};
-  // The walk only collects the record blocks of the nodes it enters, prefetching each, and scans
-  // them afterwards: the cache misses on blocks then overlap each other and the walk instead of
-  // stalling it one by one. More than kHeads heads (rare) are scanned as they come.
-  constexpr int kHeads = 64;
-  const Block* heads[kHeads];
-  int num_heads = 0;
   while (top > 0) {
     // Copied field by field, with the widths they were stored with: a whole-struct copy right
     // after the field stores below fails store-to-load forwarding and stalls.
@@ -469,14 +472,7 @@ bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradi
     for (int k = 0; k < 3; ++k) item.lo[k] = stack[top].lo[k];
     item.grow = stack[top].grow;
     item.depth = stack[top].depth;
-    if (const Block* head = item.node->head.load(std::memory_order_acquire)) {
-      if (num_heads < kHeads) {
-        __builtin_prefetch(head);
-        heads[num_heads++] = head;
-      } else {
-        acc.Scan(head);
-      }
-    }
+    if (const Block* head = item.node->head.load(std::memory_order_acquire)) visit(head);
     if (item.depth == kMaxDepth) continue;
     const Node* children = item.node->children.load(std::memory_order_acquire);
     if (children == nullptr) continue;
@@ -497,7 +493,7 @@ bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradi
     for (; maybe != 0; maybe &= maybe - 1) {
       const int i = __builtin_ctz(maybe);
       const float radius = item.node->child_radius[i].load(std::memory_order_acquire);
-      const float grow = radius * reach_scale + kGridMargin;
+      const float grow = radius * reach_scale + margin;
       Item& next = stack[top];
       next.node = &children[i];
       next.grow = grow;
@@ -510,8 +506,97 @@ bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradi
       top += enter;
     }
   }
+}
+
+bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradiance,
+                             LookupInfo* info, int max_level) const {
+  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level};
+  const float reach_scale = float(double(acc.a) * grid_scale_ * (1 + kReachSlack));
+  // The walk only collects the record blocks of the nodes it enters, prefetching each, and scans
+  // them afterwards: the cache misses on blocks then overlap each other and the walk instead of
+  // stalling it one by one. More than kHeads heads (rare) are scanned as they come.
+  constexpr int kHeads = 64;
+  const Block* heads[kHeads];
+  int num_heads = 0;
+  WalkNodes(x, ClassesNear(n, acc.a), max_level, reach_scale, 0.0f, [&](const Block* head) {
+    if (num_heads < kHeads) {
+      __builtin_prefetch(head);
+      heads[num_heads++] = head;
+    } else {
+      acc.Scan(head);
+    }
+  });
   for (int i = 0; i < num_heads; ++i) acc.Scan(heads[i]);
   return acc.Finish(irradiance, info);
+}
+
+void IrradianceCache::Gather(const Vec3& x, const Vec3& n, float a, float radius, float angle,
+                             int max_level, LookupRegion* region) const {
+  region->center = x;
+  region->normal = n;
+  region->radius = radius;
+  region->cos_angle = std::cos(angle);
+  region->a = a;
+  region->max_level = max_level;
+  region->cache = this;
+  region->generation = size_.load(std::memory_order_acquire);
+  region->count = 0;
+  // A record can count at (x', n') with |x' - x| <= radius and angle(n', n) <= angle only if
+  // |x - x_i| < a R_i + radius and angle(n, n_i) < acos(1 - a^2) + angle (triangle inequalities;
+  // the slack covers float rounding here and in the rule).
+  const float limit = std::acos(std::max(-1.0f, 1 - a * a)) + angle + 1e-3f;
+  const float min_dot = limit < kPi ? std::cos(limit) : -1.0f;
+  const float slack = 1 + 1e-4f;
+  const float reach_scale = float(double(a) * grid_scale_ * (1 + kReachSlack));
+  const float extra = float(double(radius) * grid_scale_ * (1 + kReachSlack));
+  WalkNodes(x, ClassesWithin(n, limit), max_level, reach_scale, extra, [&](const Block* head) {
+    if (region->count < 0) return;
+    for (const Block* b = head; b != nullptr; b = b->next) {
+      const uint64_t ready = b->ready.load(std::memory_order_acquire);
+      for (uint64_t bits = ready; bits != 0; bits &= bits - 1) {
+        const int i = __builtin_ctzll(bits);
+        const float dx = x.x - b->x()[i], dy = x.y - b->y()[i], dz = x.z - b->z()[i];
+        const float reach = (a * b->radius()[i] + radius) * slack;
+        if (!(dx * dx + dy * dy + dz * dz < reach * reach)) continue;
+        const Cold& c = b->cold()[i];
+        if (c.level > max_level || !(Dot(n, c.normal) > min_dot)) continue;
+        if (region->count == LookupRegion::kMaxRecords) {
+          region->count = -1;
+          return;
+        }
+        region->refs[region->count++] = RefOf(b, i);
+      }
+    }
+  });
+}
+
+bool IrradianceCache::LookupNear(const Vec3& x, const Vec3& n, float a, float radius, float angle,
+                                 LookupRegion* region, Vec3* irradiance, LookupInfo* info,
+                                 int max_level) const {
+  a = std::min(a, max_accuracy_);
+  const auto covers = [&] {
+    return region->cache == this && region->a == a && region->max_level == max_level &&
+           region->generation == size_.load(std::memory_order_acquire) &&
+           LengthSquared(x - region->center) <= region->radius * region->radius &&
+           Dot(n, region->normal) >= region->cos_angle;
+  };
+  const bool reused = covers();
+  if (!reused) {
+    if (!(radius >= 0) || !(angle >= 0) || !IsFinite(x) || !IsFinite(n)) {
+      region->cos_angle = 2;  // nothing to gather around: an empty region
+      return Lookup(x, n, a, irradiance, info, max_level);
+    }
+    Gather(x, n, a, radius, angle, max_level, region);
+  }
+  if (region->count < 0) return Lookup(x, n, a, irradiance, info, max_level);
+  Accumulator acc{x, n, a, max_level};
+  for (int k = 0; k < region->count; ++k) {
+    const uint64_t ref = region->refs[k];
+    acc.Add(BlockOf(ref)->Record(SlotOf(ref)));
+  }
+  const bool found = acc.Finish(irradiance, info);
+  if (info != nullptr) info->from_region = reused;
+  return found;
 }
 
 bool IrradianceCache::LookupBruteForce(const Vec3& x, const Vec3& n, float a, Vec3* irradiance,

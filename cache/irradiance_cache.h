@@ -66,6 +66,24 @@ struct LookupInfo {
   int records_used = 0;         // records that counted
   float weight_sum = 0;         // sum of their weights w_i
   int remote_records_used = 0;  // of records_used, those with origin != 0 (made elsewhere)
+  bool from_region = false;     // LookupNear: answered from the region's records, no walk
+};
+
+// The records that may count at any point within `radius` of `center` with a normal within
+// `angle` of `normal` (at accuracy a, levels <= max_level): the camera samples of one pixel land on
+// the same surface close together, and a lookup among these few candidates gives the same answer
+// as a walk of the octree (IrradianceCache::LookupNear). Plain data, no allocation: one per
+// render thread (or pixel), kept across its lookups.
+struct LookupRegion {
+  static constexpr int kMaxRecords = 48;
+  Vec3 center, normal;
+  float radius = 0, cos_angle = 2;  // cos_angle 2: covers nothing (empty region)
+  float a = 0;
+  int max_level = 0;
+  const void* cache = nullptr;  // the cache gathered from (refs point into it)
+  size_t generation = 0;        // its insert count when gathered
+  int count = -1;  // records in refs; -1 = more than kMaxRecords (lookups walk the octree)
+  uint64_t refs[kMaxRecords];
 };
 
 // Bytes held by a cache (IrradianceCache::MemoryUse). record_bytes counts the filled record
@@ -98,6 +116,15 @@ class IrradianceCache {
   // Only records with level <= max_level count.
   bool Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradiance, LookupInfo* info,
               int max_level = kAnyLevel) const;
+
+  // Same rule and result as Lookup (up to summation order), for a run of lookups close together
+  // (the samples of a pixel). When `region` covers (x, n) at (a, max_level) and nothing was
+  // inserted since it was gathered, only its records are weighed (info->from_region); otherwise
+  // it is first gathered anew around (x, n) with `radius` and `angle` (radians). Regions with too
+  // many candidates are not kept: lookups they cover walk the octree. Allocation-free.
+  bool LookupNear(const Vec3& x, const Vec3& n, float a, float radius, float angle,
+                  LookupRegion* region, Vec3* irradiance, LookupInfo* info,
+                  int max_level = kAnyLevel) const;
 
   // Same rule and result as Lookup (up to summation order) by scanning every record; for tests.
   bool LookupBruteForce(const Vec3& x, const Vec3& n, float a, Vec3* irradiance, LookupInfo* info,
@@ -230,6 +257,16 @@ class IrradianceCache {
   // Bit c set: class c may hold a record that counts at normal n with accuracy a (conservative:
   // a necessary condition, so a class may be walked in vain but never skipped wrongly).
   static unsigned ClassesNear(const Vec3& n, float a);
+  // Bit c set: class c may hold a normal within `angle` (radians) of n.
+  static unsigned ClassesWithin(const Vec3& n, float angle);
+  static unsigned ClassesWithinSin(const Vec3& n, float margin);
+  // Calls visit(head) for the record-block list of every node of trees 0..TreeOf(max_level),
+  // classes `classes`, whose records may lie within reach_scale * R_i + extra grid units of x.
+  template <typename F>
+  void WalkNodes(const Vec3& x, unsigned classes, int max_level, float reach_scale, float extra,
+                 F visit) const;
+  void Gather(const Vec3& x, const Vec3& n, float a, float radius, float angle, int max_level,
+              LookupRegion* region) const;
 
   float max_accuracy_;
   float neighbour_slope_;

@@ -244,14 +244,24 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
 
 Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth,
                                     float distance, bool relax, Rng& rng, RenderCounters& counters,
-                                    bool* made, int level, float ray_fraction) const {
+                                    bool* made, int level, float ray_fraction,
+                                    LookupRegion* region) const {
   Vec3 E;
   LookupInfo info;
   ++counters.lookups;
   const float a = settings_.accuracy;
-  if (cache_->Lookup(hit.p, nf, a, &E, &info, level) ||
-      (relax &&
-       cache_->Lookup(hit.p, nf, std::min(1.0f, a * settings_.relaxed_factor), &E, &info, level))) {
+  // A pixel's samples land within about a pixel of each other: the region reaches kRegionPixels
+  // pixel footprints (grazing surfaces and edges just gather anew) and kRegionAngle of normal
+  // (curved surfaces).
+  constexpr float kRegionPixels = 2.0f, kRegionAngle = 0.1f;
+  const bool found =
+      region != nullptr
+          ? cache_->LookupNear(hit.p, nf, a, kRegionPixels * scene_.camera().PixelSpread(distance),
+                               kRegionAngle, region, &E, &info, level)
+          : cache_->Lookup(hit.p, nf, a, &E, &info, level);
+  counters.region_lookups += uint64_t(info.from_region);
+  if (found || (relax && cache_->Lookup(hit.p, nf, std::min(1.0f, a * settings_.relaxed_factor), &E,
+                                        &info, level))) {
     ++counters.lookup_hits;
     counters.records_used += uint64_t(info.records_used);
     counters.remote_records_used += uint64_t(info.remote_records_used);
@@ -503,8 +513,8 @@ Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, con
   // Indirect irradiance from the cache.
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;
-    const Vec3 E =
-        Irradiance(hit, nf, depth, distance, true, rng, counters, &made, level, ray_fraction);
+    const Vec3 E = Irradiance(hit, nf, depth, distance, true, rng, counters, &made, level,
+                              ray_fraction, level == 0 && shade ? shade->region : nullptr);
     if (shade) shade->made_record = shade->made_record || made;
     *cached = beta * albedo * E * kInvPi;
     L += *cached;

@@ -18,6 +18,7 @@ struct RenderCounters {
   uint64_t records_secondary = 0;    // of records_computed, level 1 (see IrradianceRecord)
   uint64_t lookups = 0;              // irradiance-cache queries
   uint64_t lookup_hits = 0;          // queries answered by interpolation
+  uint64_t region_lookups = 0;       // of lookups, answered from a pixel's gathered region
   uint64_t records_used = 0;         // records summed over successful queries
   uint64_t remote_records_used = 0;  // of records_used, those computed by another process
   double record_seconds = 0;         // thread time spent computing records
@@ -37,6 +38,7 @@ struct RenderCounters {
     records_secondary += o.records_secondary;
     lookups += o.lookups;
     lookup_hits += o.lookup_hits;
+    region_lookups += o.region_lookups;
     records_used += o.records_used;
     remote_records_used += o.remote_records_used;
     record_seconds += o.record_seconds;

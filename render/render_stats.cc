@@ -101,6 +101,7 @@ std::string RenderStats::ToJson() const {
     << ", \"used_remote\": " << c.remote_records_used
     << ", \"compute_thread_seconds\": " << Num(c.record_seconds) << "},\n";
   o << "  \"cache\": {\"lookups\": " << c.lookups << ", \"hits\": " << c.lookup_hits
+    << ", \"region_lookups\": " << c.region_lookups
     << ", \"hit_rate\": " << Num(c.lookups ? double(c.lookup_hits) / double(c.lookups) : 0)
     << ", \"records_per_hit\": "
     << Num(c.lookup_hits ? double(c.records_used) / double(c.lookup_hits) : 0)

@@ -176,11 +176,13 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
       const double made_before = c.record_seconds;
       PixelSampler film_points(kPilotSamples, rng),
           light_points(kPilotSamples * light_samples, rng);
+      LookupRegion region;  // as the final pass's samples have it
       for (int s = 0; s < kPilotSamples; ++s) {
         float fu, fv;
         film_points.Get(s, &fu, &fv);
         const Ray ray{cam.origin(), cam.SampleDirection(x, y, fu, fv), INFINITY};
         IrrcacheShade shade;
+        shade.region = &region;
         DirectTerms terms;
         Vec3 L = integrator.Li(ray, LightStrata{&light_points, s * light_samples}, rng, c, &shade,
                                &terms);
@@ -262,7 +264,8 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   std::vector<PixelAovSum> aov_sums(settings.aovs ? npix : 0);
 
   // Samples [from, to) of pixel p.
-  auto render_pixel = [&](size_t p, int from, int to, RenderCounters& c) {
+  // Samples [from, to) of pixel p; `region` is the calling thread's (see IrrcacheShade).
+  auto render_pixel = [&](size_t p, int from, int to, RenderCounters& c, LookupRegion* region) {
     const int x = rect.x0 + int(p % size_t(rw)), y = rect.y0 + int(p / size_t(rw));
     PixelStreams& ps = streams[p];
     bool made = false;
@@ -277,6 +280,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       DirectTerms terms;
       if (irrcache) {
         IrrcacheShade shade;
+        shade.region = region;
         L = integrator.Li(ray, LightStrata{&ps.lights, s * light_samples}, ps.rng, c, &shade,
                           &terms, aov);
         made |= shade.made_record;
@@ -303,9 +307,10 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       tbb::parallel_for(size_t(0), tiles.size(), [&](size_t ti) {
         const Tile& tile = tiles[ti];
         RenderCounters& c = counters.local();
+        LookupRegion region;
         for (int y = tile.y0; y < tile.y1; ++y)
           for (int x = tile.x0; x < tile.x1; ++x)
-            render_pixel(size_t(y - rect.y0) * rw + size_t(x - rect.x0), 0, min_spp, c);
+            render_pixel(size_t(y - rect.y0) * rw + size_t(x - rect.x0), 0, min_spp, c, &region);
         progress.Tick();
       });
     });
@@ -362,10 +367,11 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates.size(), 16),
                         [&](const tbb::blocked_range<size_t>& r) {
                           RenderCounters& c = counters.local();
+                          LookupRegion region;
                           for (size_t i = r.begin(); i < r.end(); ++i) {
                             const size_t p = candidates[i];
                             const int n = film.count(p);
-                            render_pixel(p, n, std::min(2 * n, max_spp), c);
+                            render_pixel(p, n, std::min(2 * n, max_spp), c, &region);
                           }
                         });
     });

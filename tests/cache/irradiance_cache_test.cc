@@ -445,6 +445,56 @@ TEST(IrradianceCacheTest, NormalClassesNeverHideARecord) {
   }
 }
 
+// LookupNear (a pixel's samples reusing one gathered region) must answer exactly as Lookup: runs
+// of queries scattered around a point (inside and just outside the region's radius and angle),
+// with records inserted in the middle of runs, and a region with more candidates than it holds.
+TEST(IrradianceCacheTest, LookupNearMatchesLookup) {
+  const RandomScene scene(4000, 600, 77);
+  IrradianceCache cache(UnitSettings(0.3f));
+  for (size_t i = 0; i + 200 < scene.records.size(); ++i) cache.Insert(scene.records[i]);
+  // 60 records at one point with normals within the angle: more than a region keeps.
+  for (int i = 0; i < 60; ++i)
+    cache.Insert(MakeRecord(Vec3(0.5f, 0.5f, 0.5f), Vec3(0, 0, 1), 1.0f, Vec3(1, 1, 1)));
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0, 1);
+  LookupRegion region;
+  int reused = 0, total = 0, found = 0;
+  size_t next_insert = scene.records.size() - 200;
+  for (size_t q = 0; q <= scene.queries.size(); ++q) {
+    const bool crowd = q == scene.queries.size();
+    const Query base =
+        crowd ? Query{Vec3(0.5f, 0.5f, 0.5f), Vec3(0, 0, 1), 0.2f} : scene.queries[q];
+    const float radius = 0.02f * u(rng), angle = 0.1f;
+    for (int s = 0; s < 16; ++s) {
+      // Up to 1.2x the region's radius and angle away from the first query of the run.
+      Vec3 x = base.x + RandomUnit(rng) * (1.2f * radius * u(rng));
+      Vec3 n = Jitter(base.n, 1.2f * angle, rng);
+      if (s == 8 && next_insert < scene.records.size()) cache.Insert(scene.records[next_insert++]);
+      Vec3 e_near, e_walk;
+      LookupInfo near, walk;
+      const bool f = cache.LookupNear(x, n, base.a, radius, angle, &region, &e_near, &near);
+      const bool w = cache.Lookup(x, n, base.a, &e_walk, &walk);
+      ASSERT_EQ(f, w) << "run " << q << " sample " << s;
+      ASSERT_EQ(near.records_used, walk.records_used) << "run " << q << " sample " << s;
+      if (w) {
+        EXPECT_NEAR(near.weight_sum, walk.weight_sum, 1e-5f * walk.weight_sum);
+        for (int k = 0; k < 3; ++k) EXPECT_NEAR(e_near[k], e_walk[k], 1e-5f * std::abs(e_walk[k]));
+      }
+      if (crowd) {
+        EXPECT_FALSE(near.from_region);  // too many candidates: walked every time
+      }
+      reused += near.from_region;
+      found += w;
+      ++total;
+    }
+  }
+  // Meaningful only if many lookups reuse a region (a third: the runs leave the region and
+  // inserts renew it) and many find records.
+  EXPECT_GT(reused, total / 4);
+  EXPECT_GT(found, total / 5);
+  EXPECT_LT(found, total);
+}
+
 // Scaling by a power of two is exact in float, so every quantity of the rule (eps, weights, the
 // in-front tolerance) and the octree's grid mapping scale exactly: results must be bit-identical.
 TEST(IrradianceCacheTest, ScaleInvariantExactlyForPowerOfTwoScales) {
