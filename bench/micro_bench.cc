@@ -55,6 +55,32 @@ void BM_CacheLookup(benchmark::State& state) {
 }
 BENCHMARK(BM_CacheLookup)->Arg(1000)->Arg(10000)->Arg(100000);
 
+// The same cache and lookups in runs of 16, one run per pixel, as a pixel's camera samples land:
+// uniformly over a pixel footprint of half the mean record spacing (caches of real renders hold
+// 0.1-0.5 records per pixel, so this is the dense end), through LookupNear with one region as
+// the final pass uses it (2 footprints, 0.1 rad). Time per lookup, gathers included.
+void BM_CacheLookupPixelRuns(benchmark::State& state) {
+  const int n = int(state.range(0));
+  const auto cache = MakeCache(n);
+  const float footprint = 0.5f * std::sqrt(24.0f / float(n));
+  Rng rng(3, 4);
+  LookupRegion region;
+  int hits = 0, reused = 0, k = 0;
+  Vec3 pixel;
+  for (auto _ : state) {
+    if (k++ % 16 == 0) pixel = Vec3(rng.Next() * 2 - 1, rng.Next() * 2 - 1, -1);
+    const Vec3 x = pixel + Vec3(rng.Next() * footprint, rng.Next() * footprint, 0);
+    Vec3 E;
+    LookupInfo info;
+    hits += cache->LookupNear(x, Vec3(0, 0, 1), 0.1f, 2 * footprint, 0.1f, &region, &E, &info);
+    reused += info.from_region;
+    benchmark::DoNotOptimize(E);
+  }
+  state.counters["hit_rate"] = double(hits) / double(state.iterations());
+  state.counters["from_region"] = double(reused) / double(state.iterations());
+}
+BENCHMARK(BM_CacheLookupPixelRuns)->Arg(1000)->Arg(10000)->Arg(100000);
+
 std::unique_ptr<Scene> CornellBox() {
   absl::StatusOr<SceneDesc> desc =
       LoadSceneFile(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml", {});

@@ -36,6 +36,16 @@ constexpr int kSpp = 16;
 // against path 0.0146 +- 0.0003 (21% low).
 constexpr int kKnownMeanMismatch[] = {54, 65, 132};
 
+// Scenes rendered at kCoarseRes instead of kRes: at 16 x 16 a few records cover the whole image
+// (records are at least min_spacing_px = 1.5 pixels apart, and a visible face is 3-4 pixels
+// wide), so where indirect light varies steeply across a face the image is off by more than the
+// accuracy allows. Measured for scene 115 (boxes next to a point light, indirect irradiance
+// varying 4x across a face): irrcache mean 6.8e-4 at 16 x 16 (1 record per lookup, 10 records),
+// 1.18e-3 at 48 x 48, 1.23e-3 at 128 x 128; path 1.25e-3 at every resolution. At 16 x 16 the
+// result flipped between runs (threads) right at the bound.
+constexpr int kCoarseScenes[] = {115};
+constexpr int kCoarseRes = 48;
+
 // One random scene, as Mitsuba XML. Local coordinates: objects in [-1, 1]^3, camera 4 units from
 // the origin; every position is then scaled by `scale_` and moved by `offset_` (in double, and
 // printed with 17 digits, so the loader sees the far scene exactly).
@@ -50,7 +60,7 @@ class RandomSceneWriter {
     }
   }
 
-  std::string Write() {
+  std::string Write(int res = kRes) {
     std::string xml =
         "<scene version=\"3.0.0\">\n<integrator type=\"path\">"
         "<integer name=\"max_depth\" value=\"4\"/></integrator>\n";
@@ -71,7 +81,7 @@ class RandomSceneWriter {
            "\" up=\"0, 1, 0\"/></transform>"
            "<sampler type=\"independent\"><integer name=\"sample_count\" value=\"16\"/></sampler>"
            "<film type=\"hdrfilm\"><integer name=\"width\" value=\"" +
-           std::to_string(kRes) + "\"/><integer name=\"height\" value=\"" + std::to_string(kRes) +
+           std::to_string(res) + "\"/><integer name=\"height\" value=\"" + std::to_string(res) +
            "\"/><rfilter type=\"box\"/></film></sensor>\n";
     const int shapes = 2 + int(Uniform(0, 6));
     for (int i = 0; i < shapes; ++i) xml += RandomShape();
@@ -223,7 +233,9 @@ TEST(RandomScenePropertyTest, NoNanNoInfinityNoNegativeAndIrrcacheMeanMatchesPat
   int far = 0, lit = 0;
   for (int i = 0; i < kScenes; ++i) {
     RandomSceneWriter writer(1000 + i);
-    const std::string xml = writer.Write();
+    const bool coarse =
+        std::find(std::begin(kCoarseScenes), std::end(kCoarseScenes), i) != std::end(kCoarseScenes);
+    const std::string xml = writer.Write(coarse ? kCoarseRes : kRes);
     far += writer.far();
     const std::string what = "scene " + std::to_string(i) + ":\n" + xml;
     const absl::StatusOr<SceneDesc> desc = LoadSceneString(xml, "random.xml", LoadOptions{});
