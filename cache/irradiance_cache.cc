@@ -564,7 +564,12 @@ void IrradianceCache::Gather(const Vec3& x, const Vec3& n, float a, float radius
           region->count = -1;
           return;
         }
-        region->refs[region->count++] = RefOf(b, i);
+        const int k = region->count++;
+        region->refs[k] = RefOf(b, i);
+        region->x[k] = b->x()[i];
+        region->y[k] = b->y()[i];
+        region->z[k] = b->z()[i];
+        region->r[k] = b->radius()[i];
       }
     }
   });
@@ -590,7 +595,12 @@ bool IrradianceCache::LookupNear(const Vec3& x, const Vec3& n, float a, float ra
   }
   if (region->count < 0) return Lookup(x, n, a, irradiance, info, max_level);
   Accumulator acc{x, n, a, max_level};
+  // Squared-distance reject on the copied hot parts (Within4's expression: never rejects a record
+  // the rule counts), then the full rule on the few within reach.
   for (int k = 0; k < region->count; ++k) {
+    const float dx = x.x - region->x[k], dy = x.y - region->y[k], dz = x.z - region->z[k];
+    const float reach = a * region->r[k];
+    if (!(dx * dx + dy * dy + dz * dz < reach * reach)) continue;
     const uint64_t ref = region->refs[k];
     acc.Add(BlockOf(ref)->Record(SlotOf(ref)));
   }

@@ -84,6 +84,9 @@ struct LookupRegion {
   size_t generation = 0;        // its insert count when gathered
   int count = -1;  // records in refs; -1 = more than kMaxRecords (lookups walk the octree)
   uint64_t refs[kMaxRecords];
+  // Copies of the candidates' hot parts (position, R: the octree's upper bound on the radius), so
+  // that a lookup rejects the candidates beyond reach 4 at a time without touching the records.
+  alignas(16) float x[kMaxRecords], y[kMaxRecords], z[kMaxRecords], r[kMaxRecords];
 };
 
 // Bytes held by a cache (IrradianceCache::MemoryUse). record_bytes counts the filled record
