@@ -325,7 +325,7 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     }
     if (!bsdf.HasNonDiffuse()) break;
     if (max_depth >= 0 && depth + 1 > max_depth) break;
-    if ((bsdf.Flags() & (kGlossyReflection | kGlossyTransmission)) != 0)
+    if ((bsdf.Flags() & kSmoothNonDiffuseLobes) != 0)
       L += beta * GlossyDirect(bsdf, ctx, frame, hit, wo, wo_l, rng, counters);
     const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
     const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3, kNonDiffuseLobes);
@@ -436,7 +436,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     }
     if (!bsdf.HasNonDiffuse()) break;
     if (max_depth >= 0 && depth + 1 > max_depth) break;
-    const bool glossy = (bsdf.Flags() & (kGlossyReflection | kGlossyTransmission)) != 0;
+    const bool glossy = (bsdf.Flags() & kSmoothNonDiffuseLobes) != 0;
     if (glossy) {
       prev_glossy = true;
       ++counters.glossy_bounces;

@@ -7,7 +7,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
                float* first_distance, SampleAov* aov) {
   Vec3 L, beta(1, 1, 1);
   float prev_pdf = 0;   // solid-angle pdf of the BSDF sample that made `ray`; 0 = delta/camera
-  Vec3 prev_p, prev_n;  // the previous vertex and its facing normal (light selection weights)
+  Vec3 prev_p, prev_n;  // the previous vertex and the normal it selected lights with
   float eta_scale = 1;
   bool first = true;
   // AOVs: depth of the first non-specular vertex (-1: not reached yet), and the path length so
@@ -56,8 +56,11 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     const Vec3 wo_l = frame.ToLocal(wo);
     const bool can_extend = settings.max_depth < 0 || depth + 1 <= settings.max_depth;
     if (!can_extend) break;
-    // The facing normal: the side wo is on (light selection weighs lights by it).
+    // The facing normal: the side wo is on (light selection weighs lights by it). A diffuse
+    // transmitter (principledthin) takes light from both sides alike: it selects lights with no
+    // normal (all directions), so lamps behind it are sampled too.
     const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;
+    const Vec3 n_select = (bsdf.Flags() & kDiffuseTransmission) ? Vec3() : nf;
 
     if (aov && diffuse_depth < 0 && bsdf.HasSmooth()) {  // the first non-specular surface
       diffuse_depth = depth;
@@ -69,7 +72,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       LightSample ls;
       const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
       int skipped = 0;
-      const bool sampled = scene.SampleLight(hit.p, nf, u1, u2, u3, true, &ls, &skipped);
+      const bool sampled = scene.SampleLight(hit.p, n_select, u1, u2, u3, true, &ls, &skipped);
       counters.lights_skipped += uint64_t(skipped);
       if (sampled) {
         const Vec3 wi_l = frame.ToLocal(ls.wi);
@@ -108,7 +111,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       beta /= q;
     }
     prev_p = hit.p;
-    prev_n = nf;
+    prev_n = n_select;
     ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
     ++counters.bounce_rays;
   }

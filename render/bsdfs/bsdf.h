@@ -36,6 +36,9 @@ enum BsdfLobe : uint32_t {
   kDeltaTransmission = 1u << 4,   // smooth refraction
   kNullTransmission = 1u << 5,    // straight through (mask): the ray continues unchanged
   kTwoSidedFlag = 1u << 6,        // not a lobe: the BSDF is the same on both sides
+  // Lambertian to the other side (principledthin). Not served by the irradiance cache, whose
+  // records hold the light on one side only: integrators sample it with the non-diffuse lobes.
+  kDiffuseTransmission = 1u << 7,
 };
 
 // Which lobes a call may use.
@@ -47,7 +50,10 @@ enum LobeMask : uint32_t {
 
 constexpr uint32_t kDeltaLobes = kDeltaReflection | kDeltaTransmission | kNullTransmission;
 constexpr uint32_t kTransmissionLobes =
-    kGlossyTransmission | kDeltaTransmission | kNullTransmission;
+    kGlossyTransmission | kDeltaTransmission | kNullTransmission | kDiffuseTransmission;
+// The lobes besides kDiffuseReflection that Eval sees (next-event estimation helps them).
+constexpr uint32_t kSmoothNonDiffuseLobes =
+    kGlossyReflection | kGlossyTransmission | kDiffuseTransmission;
 
 // Where the BSDF is evaluated: texture coordinates for textured parameters and, for normal and
 // bump mapping, the surface's tangents (world space, per unit of u and v) with the shading
@@ -118,7 +124,7 @@ class Bsdf {
   bool HasDiffuse() const { return (Flags() & kDiffuseReflection) != 0; }
   bool HasNonDiffuse() const { return (Flags() & ~uint32_t(kDiffuseReflection | kTwoSidedFlag)) != 0; }
   bool HasSmooth() const {  // a lobe that Eval can see (so next-event estimation helps)
-    return (Flags() & (kDiffuseReflection | kGlossyReflection | kGlossyTransmission)) != 0;
+    return (Flags() & (kDiffuseReflection | kSmoothNonDiffuseLobes)) != 0;
   }
   bool Transmits() const { return (Flags() & kTransmissionLobes) != 0; }
   bool IsTwoSided() const { return (Flags() & kTwoSidedFlag) != 0; }

@@ -25,12 +25,13 @@
 // For the irradiance cache the diffuse lobe (diffuse, retro-reflection, fake subsurface and
 // sheen) is kDiffuseReflection; it is not Lambertian, so DiffuseAlbedo(v) is its directional
 // albedo (its integral over l), exact under uniform light: the view-dependent integrals are
-// tabulated once over cos_v (see DiffuseTables) as polynomials in the roughness.
+// tabulated once over cos_v (see BurleyDiffuseTables) as polynomials in the roughness.
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <iterator>
 
+#include "render/bsdfs/burley.h"
 #include "render/bsdfs/fresnel.h"
 #include "render/bsdfs/microfacet.h"
 #include "render/bsdfs/registry.h"
@@ -39,35 +40,10 @@
 namespace irfarm {
 namespace {
 
-inline float SchlickWeight(float c) {
-  const float m = std::clamp(1 - c, 0.0f, 1.0f);
-  return m * m * m * m * m;
-}
-
-// Mitsuba's calc_schlick: Schlick's approximation towards 1 from f0, with the transmitted
-// angle's cosine when the light comes from the optically denser side (eta_it < 1).
-template <typename T>
-T Schlick(const T& f0, float cos_i, float eta) {
-  const float eta_it = cos_i >= 0 ? eta : 1 / eta;
-  float w;
-  if (eta_it > 1) {
-    w = SchlickWeight(std::abs(cos_i));
-  } else {
-    const float cos_t2 = 1 - (1 - cos_i * cos_i) / (eta_it * eta_it);
-    w = SchlickWeight(std::sqrt(std::max(0.0f, cos_t2)));
-  }
-  return f0 * (1 - w) + T(1.0f) * w;
-}
-
 // Relative-index Fresnel reflectance for a (signed) cosine from the outside (cos >= 0: eta,
 // else 1 / eta), as Mitsuba's fresnel().
 inline float FresnelSigned(float cos_i, float eta) {
   return FresnelDielectric(std::abs(cos_i), cos_i >= 0 ? eta : 1 / eta);
-}
-
-// Mitsuba's luminance of linear sRGB (its RGB variants).
-inline float MitsubaLuminance(const Vec3& c) {
-  return 0.212671f * c.x + 0.715160f * c.y + 0.072169f * c.z;
 }
 
 // Burley's GTR1 distribution of the clearcoat (isotropic, sampled by D cos).
@@ -96,61 +72,6 @@ inline float SmithGgx1(const Vec3& w, const Vec3& m, float alpha) {
   return 2 / (1 + std::sqrt(1 + alpha * alpha * tan2));
 }
 
-// Directional albedo of the diffuse lobe per unit weight, tabulated over cos_v. The diffuse,
-// retro-reflection and fake-subsurface terms are quadratic in the roughness r, so each is
-// stored as three coefficients: albedo = c0 + r c1 + r^2 c2 (all with the 1/pi of the lobe).
-// Sheen's table is its integral of F(l.h) cos_l. Midpoint quadrature over the cosine-weighted
-// hemisphere (64 x 64 cells): the integrands are smooth, error below 1e-3.
-struct DiffuseTables {
-  static constexpr int kSize = 64;
-  std::array<float, kSize> dr[3], ss[3], sheen;
-
-  DiffuseTables() {
-    constexpr int kQ = 64;
-    for (int k = 0; k < kSize; ++k) {
-      const float mu = std::max(1e-4f, float(k) / (kSize - 1));
-      const Vec3 v(std::sqrt(1 - mu * mu), 0, mu);
-      const float fv = SchlickWeight(mu);
-      double a[3] = {0, 0, 0}, b[3] = {0, 0, 0}, s = 0;
-      for (int i = 0; i < kQ; ++i)
-        for (int j = 0; j < kQ; ++j) {
-          const Vec3 l = CosineHemisphere((float(i) + 0.5f) / kQ, (float(j) + 0.5f) / kQ);
-          // Estimator of integral g cos_l dl: pi g (cosine-weighted samples); with the 1/pi of
-          // the diffuse lobe: g.
-          const float fl = SchlickWeight(l.z);
-          const Vec3 h = Normalize(v + l);
-          const float cd2 = Dot(h, l) * Dot(h, l);
-          a[0] += (1 - 0.5f * fv) * (1 - 0.5f * fl);
-          a[1] += 2 * cd2 * (fl + fv - fl * fv);
-          a[2] += 4 * cd2 * cd2 * fl * fv;
-          const float kk = 1.25f * (1 / (l.z + mu) - 0.5f);
-          b[0] += 0.625f + kk * (1 - fl) * (1 - fv);
-          b[1] += kk * cd2 * (fl * (1 - fv) + fv * (1 - fl));
-          b[2] += kk * cd2 * cd2 * fl * fv;
-          s += kPi * SchlickWeight(std::abs(Dot(h, l)));
-        }
-      for (int c = 0; c < 3; ++c) {
-        dr[c][size_t(k)] = float(a[c] / (kQ * kQ));
-        ss[c][size_t(k)] = float(b[c] / (kQ * kQ));
-      }
-      sheen[size_t(k)] = float(s / (kQ * kQ));
-    }
-  }
-
-  static float Lookup(const std::array<float, kSize>& t, float mu) {
-    const float x = std::clamp(mu, 0.0f, 1.0f) * (kSize - 1);
-    const int i = std::min(int(x), kSize - 2);
-    const float f = x - float(i);
-    return t[size_t(i)] * (1 - f) + t[size_t(i) + 1] * f;
-  }
-};
-
-// Immutable after its first construction (thread-safe static initialisation).
-const DiffuseTables& Tables() {
-  static const DiffuseTables tables;
-  return tables;
-}
-
 class PrincipledBsdf final : public Bsdf {
  public:
   struct Params {
@@ -161,7 +82,7 @@ class PrincipledBsdf final : public Bsdf {
     uint32_t flags = 0;
   };
 
-  explicit PrincipledBsdf(const Params& p) : p_(p), tables_(Tables()) {}
+  explicit PrincipledBsdf(const Params& p) : p_(p), tables_(BurleyTables()) {}
 
   uint32_t Flags() const override { return p_.flags; }
 
@@ -285,16 +206,16 @@ class PrincipledBsdf final : public Bsdf {
     Vec3 a;
     const float r = pt.roughness, mu = wo.z;
     if (pt.brdf > 0) {
-      const auto poly = [&](const std::array<float, DiffuseTables::kSize>* t) {
-        return DiffuseTables::Lookup(t[0], mu) + r * DiffuseTables::Lookup(t[1], mu) +
-               r * r * DiffuseTables::Lookup(t[2], mu);
+      const auto poly = [&](const std::array<float, BurleyDiffuseTables::kSize>* t) {
+        return BurleyDiffuseTables::Lookup(t[0], mu) + r * BurleyDiffuseTables::Lookup(t[1], mu) +
+               r * r * BurleyDiffuseTables::Lookup(t[2], mu);
       };
       const float d = poly(tables_.dr), fs = poly(tables_.ss);
       a += pt.base * (pt.brdf * (d + (fs - d) * pt.flatness));
     }
     if (pt.sheen > 0 && pt.metallic < 1)
       a += SheenColor(pt) *
-           (pt.sheen * (1 - pt.metallic) * DiffuseTables::Lookup(tables_.sheen, mu));
+           (pt.sheen * (1 - pt.metallic) * BurleyDiffuseTables::Lookup(tables_.sheen, mu));
     return a;
   }
 
@@ -418,7 +339,7 @@ class PrincipledBsdf final : public Bsdf {
   }
 
   Params p_;
-  const DiffuseTables& tables_;
+  const BurleyDiffuseTables& tables_;
 };
 
 // Mitsuba 3's principled parameters that may be textures, with their defaults.

@@ -16,6 +16,7 @@ namespace irfarm {
   X(kMaskBsdf)                 \
   X(kRoughDielectricBsdf)      \
   X(kPrincipledBsdf)           \
+  X(kPrincipledThinBsdf)       \
   X(kNormalMapBsdf)            \
   X(kBumpMapBsdf)
 

@@ -64,7 +64,7 @@ absl::Status Parse(BsdfParams& p) {
     const bool transmits =
         st != p.Nested(i).colors.end() && (st->second.texture >= 0 || !IsBlack(st->second.value));
     if (t == "dielectric" || t == "thindielectric" || t == "roughdielectric" || t == "twosided" ||
-        (t == "principled" && transmits))
+        t == "principledthin" || (t == "principled" && transmits))
       return p.Error("", absl::StrCat("twosided can only wrap a bsdf without transmission, not '",
                                       t, "'"));
   }

@@ -82,7 +82,10 @@ constexpr int kCosBins = 24, kPhiBins = 48, kSubCos = 48, kSubPhi = 12;
 constexpr int kSamples = 400000;
 
 // Chi-square test of bsdf.Sample(wo) against bsdf.Pdf(wo, .). Returns a failure message or "".
-std::string ChiSquare(const Bsdf& bsdf, const Vec3& wo, uint64_t seed) {
+// `refine` multiplies the midpoint rule's sub-cells in each direction (the sharp lobes of GGX
+// alpha ~0.05, principledthin's scaled transmission roughness, need it: at 1 the rule's own
+// error fails the test, at 3 they pass).
+std::string ChiSquare(const Bsdf& bsdf, const Vec3& wo, uint64_t seed, int refine = 1) {
   const BsdfContext ctx;
   const int cells = kCosBins * kPhiBins;
   std::vector<double> observed(cells + 1, 0), expected(cells + 1, 0);
@@ -118,15 +121,16 @@ std::string ChiSquare(const Bsdf& bsdf, const Vec3& wo, uint64_t seed) {
   for (int a = 0; a < kCosBins; ++a)
     for (int b = 0; b < kPhiBins; ++b) {
       double sum = 0;
-      for (int i = 0; i < kSubCos; ++i)
-        for (int j = 0; j < kSubPhi; ++j) {
-          const double c = -1 + (a + (i + 0.5) / kSubCos) * dc;
-          const double phi = (b + (j + 0.5) / kSubPhi) * dp;
+      const int sub_cos = kSubCos * refine, sub_phi = kSubPhi * refine;
+      for (int i = 0; i < sub_cos; ++i)
+        for (int j = 0; j < sub_phi; ++j) {
+          const double c = -1 + (a + (i + 0.5) / sub_cos) * dc;
+          const double phi = (b + (j + 0.5) / sub_phi) * dp;
           const double st = std::sqrt(std::max(0.0, 1 - c * c));
           sum += bsdf.Pdf(ctx, wo,
                           Vec3(float(st * std::cos(phi)), float(st * std::sin(phi)), float(c)));
         }
-      const double p = sum / (kSubCos * kSubPhi) * dc * dp;
+      const double p = sum / (double(sub_cos) * sub_phi) * dc * dp;
       expected[a * kPhiBins + b] = p * kSamples;
       total += p;
     }
@@ -286,6 +290,100 @@ TEST(BsdfChiSquareTest, Principled) {
   }
 }
 
+// A principledthin description, as Principled (all its parameters are textured scalars).
+BsdfDesc PrincipledThin(Vec3 base, std::vector<std::pair<const char*, float>> scalars) {
+  BsdfDesc d = Principled(base, scalars);
+  d.type = "principledthin";
+  return d;
+}
+
+// The principledthin parameter sets of the tests: each lobe alone and mixed, with anisotropy,
+// the scaled transmission roughness (eta 1.33 and 1.9) and non-default sampling rates.
+std::vector<std::pair<std::string, BsdfDesc>> PrincipledThinCases() {
+  BsdfDesc rates = PrincipledThin(
+      Vec3(0.7f, 0.5f, 0.3f), {{"roughness", 0.4f}, {"spec_trans", 0.4f}, {"diff_trans", 0.6f}});
+  rates.floats["specular_transmittance_sampling_rate"] = 2;
+  rates.floats["diffuse_reflectance_sampling_rate"] = 0.5f;
+  return {
+      {"diffuse + diff_trans",
+       PrincipledThin(Vec3(0.3f, 0.6f, 0.2f),
+                      {{"roughness", 0.5f}, {"diff_trans", 1.0f}, {"sheen", 0.4f}})},
+      {"specular, anisotropic",
+       PrincipledThin(
+           Vec3(0.9f, 0.9f, 1.0f),
+           {{"roughness", 0.35f}, {"spec_trans", 0.9f}, {"anisotropic", 0.6f}, {"eta", 1.5f}})},
+      {"all lobes", PrincipledThin(Vec3(0.8f, 0.4f, 0.3f), {{"roughness", 0.6f},
+                                                            {"spec_trans", 0.5f},
+                                                            {"diff_trans", 0.8f},
+                                                            {"spec_tint", 0.4f},
+                                                            {"sheen", 0.5f},
+                                                            {"sheen_tint", 0.5f},
+                                                            {"flatness", 0.3f},
+                                                            {"eta", 1.33f}})},
+      {"glossy, eta 1.9",
+       PrincipledThin(
+           Vec3(0.8f),
+           {{"roughness", 0.25f}, {"spec_trans", 0.7f}, {"anisotropic", 0.3f}, {"eta", 1.9f}})},
+      {"sampling rates", rates},
+  };
+}
+
+// Sampling against Pdf from both sides (the sheet is the same from each): each view direction
+// of ViewDirections once, from alternating sides, and 30 degrees from both.
+TEST(BsdfChiSquareTest, PrincipledThin) {
+  uint64_t seed = 71;
+  for (const auto& [name, d] : PrincipledThinCases()) {
+    const Built b = Build({d});
+    std::vector<Vec3> views = ViewDirections();
+    for (size_t i = 1; i < views.size(); i += 2) views[i].z = -views[i].z;
+    views.push_back(Dir(150, 20));
+    for (const Vec3& wo : views)
+      EXPECT_EQ(ChiSquare(b.last(), wo, seed++, 3), "")
+          << "principledthin " << name << " wo.z=" << wo.z;
+  }
+}
+
+// The lobes the integrators ask for separately (the irradiance cache: the diffuse reflection;
+// the path it traces: everything else, diffuse transmission included) are sampled consistently
+// with their restricted Pdf too.
+TEST(BsdfChiSquareTest, PrincipledThinLobeSubsets) {
+  const Built b = Build({PrincipledThinCases()[2].second});
+  uint64_t seed = 171;
+  for (const uint32_t lobes : {uint32_t(kDiffuseLobe), uint32_t(kNonDiffuseLobes)})
+    for (Vec3 wo : {Dir(30, 20), Dir(70, 250)})
+      for (int side = 0; side < 2; ++side, wo.z = -wo.z) {
+        const BsdfContext ctx;
+        Rng rng(seed++, 3);
+        // Sample(lobes) against Pdf(lobes): as ChiSquare, through a restricted view.
+        struct Restricted final : public Bsdf {
+          const Bsdf* b;
+          uint32_t lobes;
+          uint32_t Flags() const override { return b->Flags(); }
+          Vec3 Eval(const BsdfContext& c, const Vec3& o, const Vec3& i, uint32_t) const override {
+            return b->Eval(c, o, i, lobes);
+          }
+          float Pdf(const BsdfContext& c, const Vec3& o, const Vec3& i, uint32_t) const override {
+            return b->Pdf(c, o, i, lobes);
+          }
+          BsdfSample Sample(const BsdfContext& c, const Vec3& o, float u1, float u2, float u3,
+                            uint32_t) const override {
+            return b->Sample(c, o, u1, u2, u3, lobes);
+          }
+        } r;
+        r.b = &b.last();
+        r.lobes = lobes;
+        EXPECT_EQ(ChiSquare(r, wo, seed++), "") << "lobes " << lobes << " wo.z=" << wo.z;
+        // No diffuse transmission in the cached lobe; the rest reaches the other side.
+        const BsdfSample s = b.last().Sample(ctx, wo, 0.99f, rng.Next(), rng.Next(), lobes);
+        if (lobes == kDiffuseLobe) {
+          EXPECT_GT(s.wi.z * wo.z, 0) << "wo.z=" << wo.z;
+        } else {
+          EXPECT_EQ(s.lobe, uint32_t(kDiffuseTransmission)) << "wo.z=" << wo.z;
+          EXPECT_LT(s.wi.z * wo.z, 0) << "wo.z=" << wo.z;
+        }
+      }
+}
+
 // Normal mapping (a constant tilted map, the hit's local axes as tangents) keeps sampling and
 // Pdf consistent, including the side checks and the shadow-terminator weight.
 TEST(BsdfChiSquareTest, NormalMappedRoughPlastic) {
@@ -352,12 +450,33 @@ TEST(BsdfFurnaceTest, NoBsdfReflectsMoreThanItReceives) {
     cases.push_back({"principled clearcoat " + std::to_string(r),
                      {Principled(Vec3(0.0f), {{"roughness", r}, {"clearcoat", 1.0f}})}});
   }
+  // principledthin where Mitsuba's model conserves energy: white at roughness 0 (no
+  // retro-reflection) without sheen or flatness (which exceed 1 at grazing angles, as in
+  // principled), every mix of specular and diffuse transmission; and rougher specular-only
+  // sheets. From both sides (the loop below mirrors the view for two-sided transmitters).
+  for (const float st : {0.0f, 0.5f, 1.0f})
+    for (const float dt : {0.0f, 1.0f, 2.0f})
+      cases.push_back(
+          {"principledthin st " + std::to_string(st) + " dt " + std::to_string(dt),
+           {PrincipledThin(
+               Vec3(1.0f),
+               {{"roughness", 0.0f}, {"spec_trans", st}, {"diff_trans", dt}, {"eta", 1.5f}})}});
+  for (const float r : {0.1f, 0.4f, 0.8f})
+    cases.push_back(
+        {"principledthin specular r " + std::to_string(r),
+         {PrincipledThin(
+             Vec3(1.0f),
+             {{"roughness", r}, {"spec_trans", 1.0f}, {"anisotropic", 0.5f}, {"eta", 1.5f}})}});
   for (const auto& [name, chain] : cases) {
     const Built b = Build(chain);
     for (const Vec3& wo : ViewDirections()) {
       const Vec3 a = Albedo(b.last(), wo);
       // Statistical slack: weights are at most a few, so 200k samples give sigma < 0.005.
       EXPECT_LE(MaxComponent(a), 1.015f) << name << " wo.z=" << wo.z;
+      if (b.last().IsTwoSided() && b.last().Transmits()) {  // principledthin: from behind too
+        const Vec3 back = Albedo(b.last(), Vec3(wo.x, wo.y, -wo.z));
+        EXPECT_LE(MaxComponent(back), 1.015f) << name << " wo.z=" << -wo.z;
+      }
     }
   }
 }
@@ -618,6 +737,48 @@ TEST(BsdfFurnaceTest, PrincipledDiffuseAlbedoIsTheDiffuseLobesAlbedo) {
       const Vec3 mc = sum / float(n), a = b.last().DiffuseAlbedo(BsdfContext(), wo);
       for (int c = 0; c < 3; ++c) EXPECT_NEAR(a[c], mc[c], 0.005f) << "wo.z=" << wo.z;
     }
+  }
+}
+
+// principledthin, white, roughness 0, seen along the normal: the diffuse term is then
+// (1 - F(cos_l)/2) (Schlick's F(1) = 0, no retro-reflection), whose albedo is the integral of
+// (1 - (1 - mu)^5 / 2) 2 mu dmu = 1 - 1/42, and the transmission is Lambertian. So the light
+// splits between the sides as reflection (1 - dt/2)(1 - 1/42), transmission dt/2.
+TEST(BsdfFurnaceTest, PrincipledThinSplitsDiffuseLightBetweenTheSides) {
+  for (const float dt : {0.5f, 1.0f, 1.5f}) {
+    const Built b = Build({PrincipledThin(Vec3(1.0f), {{"roughness", 0.0f}, {"diff_trans", dt}})});
+    for (const float z : {1.0f, -1.0f}) {
+      Rng rng(4, 5);
+      double refl = 0, trans = 0;
+      const int n = 200000;
+      for (int i = 0; i < n; ++i) {
+        const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+        const BsdfSample s = b.last().Sample(BsdfContext(), Vec3(0, 0, z), u1, u2, u3);
+        (s.wi.z * z > 0 ? refl : trans) += s.weight.x;
+      }
+      EXPECT_NEAR(refl / n, (1 - dt / 2) * (1 - 1.0 / 42), 0.005) << "dt " << dt << " z " << z;
+      EXPECT_NEAR(trans / n, dt / 2, 0.005) << "dt " << dt << " z " << z;
+    }
+  }
+}
+
+// DiffuseAlbedo is the diffuse reflection lobe's directional albedo from both sides, and the
+// cache's lobe leaves out the transmitted light.
+TEST(BsdfFurnaceTest, PrincipledThinDiffuseAlbedoIsTheDiffuseLobesAlbedo) {
+  for (const auto& [name, d] : PrincipledThinCases()) {
+    const Built b = Build({d});
+    for (Vec3 wo : ViewDirections())
+      for (int side = 0; side < 2; ++side, wo.z = -wo.z) {
+        Rng rng(2, 3);
+        Vec3 sum;
+        const int n = 200000;
+        for (int i = 0; i < n; ++i) {
+          const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+          sum += b.last().Sample(BsdfContext(), wo, u1, u2, u3, kDiffuseLobe).weight;
+        }
+        const Vec3 mc = sum / float(n), a = b.last().DiffuseAlbedo(BsdfContext(), wo);
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(a[c], mc[c], 0.005f) << name << " wo.z=" << wo.z;
+      }
   }
 }
 

@@ -102,6 +102,11 @@ TEST_P(GoldenImageTest, PathMatchesReferenceWithinMeasuredNoise) {
 
 TEST_P(GoldenImageTest, IrrcacheBeatsPathAt256Spp) {
   const std::string name = GetParam();
+  // principledthin: the lamp lights only the room behind the translucent panels, and at the
+  // default accuracy the cache interpolates floor and wall irradiance across them (full size,
+  // 256 spp: blocks seen through the frosted panel 7-10% dark; 2.4% at accuracy 0.03), so the
+  // claim is not made there; path is held to Mitsuba above.
+  if (name == "principledthin") GTEST_SKIP() << "irrcache is not claimed for " << name;
   const GoldenCase& g = Case(name);
   const Image& ref = g.ref;
   const double path256 = g.noise * kPathSpp / 256.0;
@@ -119,7 +124,8 @@ TEST_P(GoldenImageTest, IrrcacheBeatsPathAt256Spp) {
 // README "Two cache levels").
 TEST_P(GoldenImageTest, TwoCacheLevelsBeatPathAt256Spp) {
   const std::string name = GetParam();
-  if (name == "materials" || name == "thin-panels" || name == "principled")
+  if (name == "materials" || name == "thin-panels" || name == "principled" ||
+      name == "principledthin")
     GTEST_SKIP() << "the second cache level is not claimed for " << name;
   const GoldenCase& g = Case(name);
   const double path256 = g.noise * kPathSpp / 256.0;
@@ -137,13 +143,52 @@ TEST_P(GoldenImageTest, TwoCacheLevelsBeatPathAt256Spp) {
 INSTANTIATE_TEST_SUITE_P(Scenes, GoldenImageTest,
                          ::testing::Values("cornell-box", "sunlit-room", "specular", "thin-panels",
                                            "stress-degenerate", "stress-scale-tiny",
-                                           "stress-scale-huge", "materials", "principled"),
+                                           "stress-scale-huge", "materials", "principled",
+                                           "principledthin"),
                          [](const auto& info) {
                            std::string n = info.param;
                            for (char& c : n)
                              if (c == '-') c = '_';
                            return n;
                          });
+
+// principledthin, region by region: the image-wide relMSE and means above cannot see one panel's
+// transmission being a few percent off (a panel is 1/16 of the image). The 1/4-size image in
+// 8 x 8 blocks (each column of blocks holds mostly one panel: leaf, paper, frosted, blend), path
+// at 1024 spp twice; each block's mean within 5 standard errors of reference-x4's, the standard
+// error from the two renders' per-pixel differences (64 pixels: a t statistic with 63 degrees
+// of freedom, P(|t| > 5) ~ 5e-6 per block and channel) widened by the reference's own noise
+// (4096 spp at 16x the pixels: 1/32 of the variance of these 2048 spp).
+TEST(GoldenImageTest, PrincipledThinRegionsMatchMitsuba) {
+  const LoadedScene s = LoadQuarter("principledthin");
+  const Image ref = QuarterReference("principledthin");
+  const RenderOutput a = RenderWith(s, "path", 1024, 21), b = RenderWith(s, "path", 1024, 22);
+  ASSERT_EQ(a.image.width, ref.width);
+  ASSERT_EQ(a.image.height, ref.height);
+  constexpr int kBlock = 8;
+  for (int by = 0; by + kBlock <= ref.height; by += kBlock)
+    for (int bx = 0; bx + kBlock <= ref.width; bx += kBlock)
+      for (int c = 0; c < 3; ++c) {
+        double sum_a = 0, sum_b = 0, sum_ref = 0, var = 0;
+        for (int y = by; y < by + kBlock; ++y)
+          for (int x = bx; x < bx + kBlock; ++x) {
+            const double pa = a.image.at(x, y)[c], pb = b.image.at(x, y)[c];
+            sum_a += pa;
+            sum_b += pb;
+            sum_ref += ref.at(x, y)[c];
+            var += (pa - pb) * (pa - pb) / 2;  // estimates var(pa) + var(pb) over 2
+          }
+        const double n = kBlock * kBlock;
+        // Mean of both renders: variance var / n^2 / 2 (a and b independent, equal variance).
+        const double se = std::sqrt(var / 2 * (1 + 1.0 / 32)) / n;
+        const double mean = (sum_a + sum_b) / (2 * n), mean_ref = sum_ref / n;
+        RecordProperty(
+            "block_" + std::to_string(bx) + "_" + std::to_string(by) + "_" + std::to_string(c),
+            std::to_string((mean - mean_ref) / se));
+        EXPECT_NEAR(mean, mean_ref, 5 * se) << "block at (" << bx << ", " << by << ") channel " << c
+                                            << ": " << 100 * (mean / mean_ref - 1) << "% off";
+      }
+}
 
 // --target-error E lands within [E/2, 2E] of the reference (issue 6's band), on the scenes at
 // 1/4 size (the reference's own error, scaled as above, widens the band by its amount).

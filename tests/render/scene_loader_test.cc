@@ -649,6 +649,61 @@ TEST(SceneLoaderTest, Principled) {
                   .ok());
 }
 
+// principledthin: Mitsuba 3's parameters (its documentation's example, plus a textured
+// diff_trans and the sampling rates), file:line errors for values outside the ranges Mitsuba
+// documents and for parameters it does not have, and twosided refusing it (it transmits).
+TEST(SceneLoaderTest, PrincipledThin) {
+  const std::string dir = MakeDir("principledthin");
+  fs::create_directories(dir + "/textures");
+  WriteFile(dir + "/textures/leaf.png", "not decoded by the loader");
+  const auto scene = Load(R"(  <bsdf type="principledthin">
+    <rgb name="base_color" value="0.7,0.1,0.1 "/>
+    <float name="roughness" value="0.15" />
+    <float name="spec_tint" value="0.1" />
+    <float name="anisotropic" value="0.5" />
+    <float name="spec_trans" value="0.8" />
+    <texture type="bitmap" name="diff_trans">
+      <string name="filename" value="textures/leaf.png"/>
+    </texture>
+    <float name="eta" value="1.33" />
+    <float name="sheen" value="0.2"/>
+    <float name="sheen_tint" value="0.3"/>
+    <float name="flatness" value="0.4"/>
+    <float name="diffuse_transmittance_sampling_rate" value="2"/>
+  </bsdf>
+)",
+                          dir + "/scene.xml");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->bsdfs.size(), 1u);
+  const BsdfDesc& d = scene->bsdfs[0];
+  EXPECT_EQ(d.type, "principledthin");
+  EXPECT_FLOAT_EQ(d.Color("base_color", Vec3()).value.y, 0.1f);
+  EXPECT_FLOAT_EQ(d.Color("roughness", Vec3()).value.x, 0.15f);
+  EXPECT_FLOAT_EQ(d.Color("spec_trans", Vec3()).value.x, 0.8f);
+  EXPECT_FLOAT_EQ(d.Color("eta", Vec3()).value.x, 1.33f);
+  EXPECT_FLOAT_EQ(d.Color("flatness", Vec3()).value.x, 0.4f);
+  EXPECT_GE(d.Color("diff_trans", Vec3()).texture, 0);
+  EXPECT_FLOAT_EQ(d.Float("diffuse_transmittance_sampling_rate", 0), 2.0f);
+  ExpectError(Load("  <bsdf type=\"principledthin\">\n    <float name=\"diff_trans\" "
+                   "value=\"2.5\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "diff_trans must be in [0, 2], not 2.5");
+  ExpectError(Load("  <bsdf type=\"principledthin\">\n    <float name=\"spec_trans\" "
+                   "value=\"-0.1\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "spec_trans must be in [0, 1]");
+  ExpectError(Load("  <bsdf type=\"principledthin\">\n\n    <float name=\"eta\" "
+                   "value=\"0\"/>\n  </bsdf>\n"),
+              "scene.xml:4:", "eta must be at least");
+  ExpectError(Load("  <bsdf type=\"principledthin\">\n    <float name=\"metallic\" "
+                   "value=\"0.5\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "unknown parameter 'metallic' for bsdf 'principledthin'");
+  ExpectError(Load("  <bsdf type=\"principledthin\">\n    <float name=\"roughness\" "
+                   "value=\"rough\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "malformed number 'rough'");
+  ExpectError(Load("  <bsdf type=\"twosided\">\n    <bsdf type=\"principledthin\"/>\n"
+                   "  </bsdf>\n"),
+              "scene.xml:2:", "twosided can only wrap a bsdf without transmission");
+}
+
 // normalmap and bumpmap: their texture and one nested bsdf are required (file:line errors).
 TEST(SceneLoaderTest, NormalAndBumpMaps) {
   EXPECT_TRUE(Load("  <bsdf type=\"normalmap\">\n"
