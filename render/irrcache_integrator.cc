@@ -177,6 +177,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   // The geometric normal on the side of the facing normal: rays below it would pass through.
   const Vec3 ng_side = Dot(hit.ng, nf) >= 0 ? hit.ng : -hit.ng;
   double inv_dist_sum = 0;
+  float nearest = INFINITY;  // the nearest ray hit (occluder clamp)
   int T = strata_t_, P = strata_p_;
   if (ray_fraction < 1) Strata(ray_fraction, &T, &P);
   const bool cached_rays = level + 1 < settings_.cache_levels;
@@ -210,7 +211,10 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       } else {
         ++counters.nonfinite_samples;
       }
-      if (d > 0 && std::isfinite(d)) inv_dist_sum += 1.0 / d;
+      if (d > 0 && std::isfinite(d)) {
+        inv_dist_sum += 1.0 / d;
+        nearest = std::min(nearest, d);
+      }
     }
   const int n = T * P;
   IrradianceRecord r;
@@ -229,6 +233,12 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   const float r_min = settings_.min_spacing_px * pixel_spread / a;
   const float r_max = settings_.max_spacing_px * pixel_spread / a;
   r.radius = std::clamp(harmonic, r_min, r_max);
+  if (level > 0 && settings_.occluder_reach > 0 && std::isfinite(nearest)) {
+    const float a_max = a * std::max(1.0f, settings_.relaxed_factor);
+    const float reach = std::max(settings_.occluder_reach * nearest,
+                                 settings_.occluder_floor_px * pixel_spread);
+    r.radius = std::min(r.radius, reach / a_max);
+  }
   if (!(r.radius > 0) || !std::isfinite(r.radius)) {
     // Degenerate footprint (should not happen): fall back to a small multiple of the offset scale.
     r.radius = std::max(1e-4f * std::max(hit.error_scale, MaxAbsComponent(hit.p)), 1e-30f);

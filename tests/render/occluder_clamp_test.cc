@@ -1,0 +1,116 @@
+// The occluder clamp of secondary records (IrrcacheSettings::occluder_reach): a record made at
+// level 1 next to a thin panel standing on the floor must not reach the floor behind the panel,
+// whatever its footprint, and without the panel the same record keeps its footprint's spacing.
+// Real scene, real rays, real cache: the record is computed by the integrator, inserted and
+// looked up at the relaxed accuracy the final pass uses.
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <string>
+
+#include "cache/irradiance_cache.h"
+#include "render/irrcache_integrator.h"
+#include "render/renderer.h"
+#include "render/sampling.h"
+#include "render/scene_loader.h"
+
+namespace irfarm {
+namespace {
+
+// A grey floor (the y = 0 plane, facing +y) under a uniform sky; with `panel`, a thin panel in the
+// plane x = 0.2 stands on it (y in [0, 2], z in [-1, 1]).
+std::string FloorXml(bool panel) {
+  std::string xml = R"(<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="60"/>
+    <transform name="to_world"><lookat origin="-2, 1, 0" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="32"/><integer name="height" value="24"/></film>
+  </sensor>
+  <bsdf type="diffuse" id="gray"><rgb name="reflectance" value="0.5"/></bsdf>
+  <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+  <shape type="rectangle">
+    <transform name="to_world"><rotate x="1" angle="-90"/><scale value="5"/></transform>
+    <ref id="gray"/>
+  </shape>
+)";
+  if (panel)
+    xml += R"(  <shape type="rectangle">
+    <transform name="to_world"><rotate y="1" angle="90"/><translate x="0.2" y="1"/></transform>
+    <ref id="gray"/>
+  </shape>
+)";
+  return xml + "</scene>\n";
+}
+
+struct Built {
+  SceneDesc desc;
+  std::unique_ptr<Scene> scene;
+};
+
+Built Build(const std::string& xml) {
+  Built b;
+  absl::StatusOr<SceneDesc> desc = LoadSceneString(xml, ::testing::TempDir() + "/s.xml", {});
+  EXPECT_TRUE(desc.ok()) << desc.status();
+  b.desc = *desc;
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(b.desc);
+  EXPECT_TRUE(scene.ok()) << scene.status();
+  b.scene = std::move(*scene);
+  return b;
+}
+
+// A level-1 record at the origin, with a footprint of 0.5 scene units per "pixel" (a wide ray
+// cone: the min-spacing floor alone would make it valid 0.75 units around), inserted into a
+// cache whose lookups may relax to the final pass's accuracy.
+struct RecordSetup {
+  Built built;
+  IrrcacheSettings settings;
+  std::unique_ptr<IrradianceCache> cache;
+  IrradianceRecord record;
+  float a_max = 0;
+};
+
+RecordSetup MakeRecord(bool panel) {
+  RecordSetup s;
+  s.built = Build(FloorXml(panel));
+  const Scene& scene = *s.built.scene;
+  CacheSettings cs;
+  cs.bounds = scene.bounds();
+  s.a_max = s.settings.accuracy * s.settings.relaxed_factor;
+  cs.max_accuracy = s.a_max;
+  s.cache = std::make_unique<IrradianceCache>(cs);
+  const IrrcacheIntegrator integrator(scene, s.cache.get(), s.settings);
+  SurfaceHit hit;
+  EXPECT_TRUE(scene.Intersect(Ray{Vec3(0, 1, 0), Vec3(0, -1, 0)}, &hit));
+  EXPECT_NEAR(hit.p.y, 0, 1e-5);
+  Rng rng(7, 1);
+  RenderCounters counters;
+  s.record = integrator.ComputeRecord(hit, Vec3(0, 1, 0), 1, 0.5f, rng, counters, nullptr, 1);
+  s.cache->Insert(s.record);
+  return s;
+}
+
+bool Found(const RecordSetup& s, const Vec3& x) {
+  Vec3 e;
+  return s.cache->Lookup(x, Vec3(0, 1, 0), s.a_max, &e, nullptr, 1);
+}
+
+TEST(OccluderClampTest, SecondaryRecordDoesNotReachBehindAThinPanel) {
+  const RecordSetup s = MakeRecord(true);
+  ASSERT_GT(s.record.irradiance.x, 0);
+  // The panel is 0.2 away: the validity radius stays within 0.7 x the nearest hit (>= 0.2).
+  EXPECT_LT(s.a_max * s.record.radius, 0.2f);
+  EXPECT_FALSE(Found(s, Vec3(0.3f, 0, 0)));   // behind the panel
+  EXPECT_FALSE(Found(s, Vec3(0.21f, 0, 0)));  // just behind it
+  EXPECT_TRUE(Found(s, Vec3(-0.1f, 0, 0)));   // on the record's side, nearer than the panel
+}
+
+TEST(OccluderClampTest, WithoutThePanelTheFootprintSpacingStays) {
+  const RecordSetup s = MakeRecord(false);
+  // min_spacing_px footprints of 0.5 units: valid 0.75 units around at accuracy a.
+  EXPECT_GE(s.settings.accuracy * s.record.radius, s.settings.min_spacing_px * 0.5f * 0.999f);
+  EXPECT_TRUE(Found(s, Vec3(0.3f, 0, 0)));
+  EXPECT_TRUE(Found(s, Vec3(0.6f, 0, 0)));
+}
+
+}  // namespace
+}  // namespace irfarm
