@@ -235,8 +235,8 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   r.radius = std::clamp(harmonic, r_min, r_max);
   if (level > 0 && settings_.occluder_reach > 0 && std::isfinite(nearest)) {
     const float a_max = a * std::max(1.0f, settings_.relaxed_factor);
-    const float reach = std::max(settings_.occluder_reach * nearest,
-                                 settings_.occluder_floor_px * pixel_spread);
+    const float reach =
+        std::max(settings_.occluder_reach * nearest, settings_.occluder_floor_px * pixel_spread);
     r.radius = std::min(r.radius, reach / a_max);
   }
   if (!(r.radius > 0) || !std::isfinite(r.radius)) {
