@@ -204,8 +204,9 @@ class Parser {
   std::map<std::string, IdInfo> ids_;
   SceneDesc scene_;
   pugi::xml_node sensor_, integrator_, environment_;  // to reject a second one
-  int default_bsdf_ = -1;
-  bool upgraded_ = false;  // a Mitsuba 0.5/0.6 file, upgraded on load
+  int default_bsdf_ = -1;                             // diffuse 0.5, for shapes without a bsdf
+  int default_emitter_bsdf_ = -1;                     // diffuse 0, for emitting shapes without one
+  bool upgraded_ = false;                             // a Mitsuba 0.5/0.6 file, upgraded on load
   // Translation by minus SceneDesc::world_origin, composed (in double) into every to_world.
   Mat4 recentre_;
 
@@ -1036,25 +1037,29 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     }
   }
 
+  const std::vector<const Entry*> emitters = TakeObjects(p, "emitter");
   const std::vector<const Entry*> bsdfs = TakeObjects(p, "bsdf");
   if (bsdfs.size() > 1) return Error(bsdfs[1]->node, "a shape has at most one bsdf");
   if (bsdfs.empty()) {
-    if (default_bsdf_ < 0) {  // Mitsuba gives such shapes a diffuse 0.5
-      default_bsdf_ = int(scene_.bsdfs.size());
+    // Mitsuba 3 gives a shape without a bsdf a diffuse one, reflectance 0.5, or 0 when the shape
+    // emits (a lamp reflects nothing unless it says so).
+    const bool emits = !emitters.empty();
+    int& slot = emits ? default_emitter_bsdf_ : default_bsdf_;
+    if (slot < 0) {
+      slot = int(scene_.bsdfs.size());
       BsdfDesc b;
       b.type = "diffuse";
-      b.colors["reflectance"].value = Vec3(0.5f);
+      b.colors["reflectance"].value = Vec3(emits ? 0.0f : 0.5f);
       b.loc = Loc(n);
       scene_.bsdfs.push_back(b);
     }
-    s.bsdf = default_bsdf_;
+    s.bsdf = slot;
   } else if (bsdfs[0]->ref >= 0) {
     s.bsdf = bsdfs[0]->ref;
   } else {
     LOADER_ASSIGN_OR_RETURN(BsdfDesc b, ParseBsdf(bsdfs[0]->node));
     LOADER_ASSIGN_OR_RETURN(s.bsdf, AddBsdf(bsdfs[0]->node, std::move(b)));
   }
-  const std::vector<const Entry*> emitters = TakeObjects(p, "emitter");
   if (emitters.size() > 1) return Error(emitters[1]->node, "a shape has at most one emitter");
   if (!emitters.empty()) {
     LOADER_ASSIGN_OR_RETURN(s.area_radiance, ParseAreaEmitter(emitters[0]->node));

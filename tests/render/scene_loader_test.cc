@@ -206,9 +206,8 @@ TEST(SceneLoaderErrorTest, PlyIndexOutOfRange) {
 TEST(SceneLoaderErrorTest, UnknownPluginType) {
   const auto r = Load("  <bsdf type=\"measured\" id=\"x\"/>\n");
   ASSERT_FALSE(r.ok());
-  EXPECT_EQ(r.status().message(),
-            "scene.xml:2: unknown bsdf type 'measured' (supported: " +
-                absl::StrJoin(BsdfPluginNames(), ", ") + ")");
+  EXPECT_EQ(r.status().message(), "scene.xml:2: unknown bsdf type 'measured' (supported: " +
+                                      absl::StrJoin(BsdfPluginNames(), ", ") + ")");
   ExpectError(Load("\n  <shape type=\"mesh\"/>\n"), "scene.xml:3:", "unknown shape type 'mesh'");
   ExpectError(Load("  <emitter type=\"sky\"/>\n"), "scene.xml:2:", "unknown emitter type 'sky'");
   ExpectError(Load("  <integrator type=\"volpath\"/>\n"),
@@ -821,6 +820,12 @@ TEST(SceneLoaderTest, Emitters) {
   ASSERT_TRUE(scene.ok()) << scene.status();
   ASSERT_TRUE(scene->shapes.at(0).area_radiance.has_value());
   ExpectNear(*scene->shapes[0].area_radiance, Vec3(1, 2, 3));
+  // An emitting shape without a bsdf reflects nothing (Mitsuba 3 gives it diffuse 0, where a
+  // shape that does not emit gets 0.5): a large lamp that reflected half the light the floor
+  // sends it made a floor under it 1.3% bright.
+  const BsdfDesc& lamp = scene->bsdfs.at(scene->shapes[0].bsdf);
+  EXPECT_EQ(lamp.type, "diffuse");
+  ExpectNear(lamp.Color("reflectance", Vec3(-1)).value, Vec3(0));
   ASSERT_EQ(scene->emitters.size(), 5u);
   EXPECT_EQ(scene->emitters[0].type, EmitterType::kPoint);
   ExpectNear(scene->emitters[0].position, Vec3(1, 2, 3));
