@@ -65,19 +65,21 @@ class RoughPlasticBsdf final : public Bsdf {
         const Vec3 wr = m * (2 * c) - w;
         return FresnelDielectric(c, 1 / eta) * mf_.G1(wr, m);
       });
-      // Trapezoid weights over mu for the cosine-weighted averages (integrand * 2 mu).
+      // Cosine-weighted averages (integrand * 2 mu). T's by the trapezoid rule (ours: the
+      // irradiance cache's albedo); the internal reflectance as Mitsuba defines it, the plain
+      // mean over the 64 table points (which is not the trapezoid rule: with alpha 0.05 and eta
+      // 1.46 the trapezoid gives 0.009 more, and the diffuse base 2.3% more light than Mitsuba).
       const double wgt = (k == 0 || k == kTableSize - 1) ? 0.5 : 1.0;
       t_avg += wgt * table_[k] * 2 * mu;
-      r_in += wgt * r * 2 * mu;
+      r_in += double(r) * 2 * mu;
     }
     t_avg_ = float(t_avg / (kTableSize - 1));
-    internal_ = float(r_in / (kTableSize - 1));
+    internal_ = float(r_in / kTableSize);
   }
 
   uint32_t Flags() const override { return kGlossyReflection | kDiffuseReflection; }
 
-  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     if (wo.z <= 0 || wi.z <= 0) return Vec3();
     Vec3 f;
     if (lobes & kGlossyReflection) {
@@ -159,8 +161,8 @@ absl::Status Parse(BsdfParams& p) {
   absl::StatusOr<std::string> dist = p.String("distribution", "beckmann");
   if (!dist.ok()) return dist.status();
   if (*dist != "beckmann" && *dist != "ggx")
-    return p.Error("distribution", "unknown microfacet distribution '" + *dist +
-                                       "' (supported: beckmann, ggx)");
+    return p.Error("distribution",
+                   "unknown microfacet distribution '" + *dist + "' (supported: beckmann, ggx)");
   absl::StatusOr<float> alpha = p.Float("alpha", 0.1f);  // a number in Mitsuba 3 too
   if (!alpha.ok()) return alpha.status();
   if (!(*alpha > 0)) return p.Error("alpha", "alpha must be positive");
