@@ -57,8 +57,8 @@ float IrrcacheIntegrator::AreaLightMisWeight(float prev_pdf, const Vec3& prev_p,
 
 Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
                                      const Vec3& weight, const LightStrata& strata, Rng& rng,
-                                     RenderCounters& counters, DirectTerms* terms,
-                                     bool one_sample) const {
+                                     RenderCounters& counters, DirectTerms* terms, bool one_sample,
+                                     const DiffuseLobe* lobe) const {
   const LightSampler& ls = scene_.light_sampler();
   const int nl = ls.num_local();
   const int k = std::max(1, settings_.light_samples);
@@ -91,7 +91,8 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
       counters.lights_skipped += uint64_t(skipped);
       if (!ok) continue;
       const float cos_i = Dot(s.wi, nf);
-      if (cos_i > 0 && visible(s)) L += weight * scene_.LightValue(s) * (cos_i / float(k));
+      if (cos_i > 0 && visible(s))
+        L += (lobe ? lobe->Eval(s.wi) : weight * cos_i) * scene_.LightValue(s) / float(k);
     }
     return L;
   }
@@ -115,12 +116,15 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
       const float cos_i = Dot(s.wi, nf);
       if (cos_i <= 0) continue;
       const Vec3 c = weight * s.value * (cos_i / float(n));
-      if (!IsFinite(c)) {
+      // The lobe's own value; the unshadowed sum stays Lambertian where it divides the
+      // analytic term (same samples: the ratio is the lobe's visible share of that term).
+      const Vec3 e = lobe ? lobe->Eval(s.wi) * s.value / float(n) : c;
+      if (!IsFinite(c) || !IsFinite(e)) {
         ++counters.nonfinite_samples;
         continue;
       }
-      unshadowed += c;
-      if (visible(s)) shadowed += c;
+      unshadowed += slot >= 0 ? c : e;
+      if (visible(s)) shadowed += e;
     }
     if (slot < 0) {
       L += shadowed;
@@ -323,8 +327,10 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     if (!IsBlack(albedo)) {
       const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;
       const Vec3 w = beta * albedo * kInvPi;
-      if (max_depth < 0 || depth + 1 <= max_depth)
-        L += DirectLight(hit, nf, wo, w, LightStrata{}, rng, counters, nullptr, true);
+      if (max_depth < 0 || depth + 1 <= max_depth) {
+        const DiffuseLobe lobe{bsdf, ctx, frame, wo_l, beta};
+        L += DirectLight(hit, nf, wo, w, LightStrata{}, rng, counters, nullptr, true, &lobe);
+      }
       if (max_depth < 0 || depth + 2 <= max_depth) {
         bool made = false;
         // As the camera distance at which a pixel is that wide (Irradiance's unit).
@@ -437,9 +443,10 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
       // the ray weight), at level 1 where no camera-visible surface looks.
       const bool glossy_chain = cone_extra > 0;
       const float ray_fraction = glossy_chain ? std::min(1.0f, Luminance(beta)) : 1.0f;
+      const DiffuseLobe lobe{bsdf, ctx, frame, wo_l, beta};
       const Vec3 shaded = ShadeDiffuse(hit, nf, nd, wo, beta, albedo, depth, footprint_distance,
                                        glossy_chain ? 1 : 0, ray_fraction, strata, rng, counters,
-                                       shade, prev_glossy ? nullptr : terms, &cached);
+                                       shade, prev_glossy ? nullptr : terms, &cached, &lobe);
       add(shaded - cached, depth, false);
       add(cached, depth, true);
       prev_glossy = true;  // later diffuse vertices do not share the pixel's ratio terms
@@ -512,14 +519,15 @@ Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, con
                                       const Vec3& wo, const Vec3& beta, const Vec3& albedo,
                                       int depth, float distance, int level, float ray_fraction,
                                       const LightStrata& strata, Rng& rng, RenderCounters& counters,
-                                      IrrcacheShade* shade, DirectTerms* terms,
-                                      Vec3* cached) const {
+                                      IrrcacheShade* shade, DirectTerms* terms, Vec3* cached,
+                                      const DiffuseLobe* lobe) const {
   Vec3 L;
   *cached = Vec3();
   const int max_depth = settings_.path.max_depth;
   // Direct light from local lights, always explicit.
   if (max_depth < 0 || depth + 1 <= max_depth)
-    L += DirectLight(hit, nd, wo, beta * albedo * kInvPi, strata, rng, counters, terms);
+    L +=
+        DirectLight(hit, nd, wo, beta * albedo * kInvPi, strata, rng, counters, terms, false, lobe);
   // Indirect irradiance from the cache.
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;

@@ -196,16 +196,33 @@ class IrrcacheIntegrator {
                              const Vec3& dir) const;
   float AreaLightMisWeight(float prev_pdf, const Vec3& prev_p, const Vec3& prev_n,
                            const SurfaceHit& hit, const Vec3& dir) const;
+  // The BSDF's own diffuse lobe at a shading point (f cos, times the path throughput), for
+  // direct light: plastic's and roughplastic's diffuse lobes are not Lambertian (the coating
+  // lets less light in at grazing angles), nor is principled's (Burley's retro-reflection).
+  struct DiffuseLobe {
+    const Bsdf& bsdf;
+    const BsdfContext& ctx;
+    const ShadingFrame& frame;
+    const Vec3& wo_l;
+    const Vec3& beta;
+    Vec3 Eval(const Vec3& wi) const {
+      return beta * bsdf.Eval(ctx, wo_l, frame.ToLocal(wi), kDiffuseReflection);
+    }
+  };
   // `one_sample`: one light picked by expected contribution (records' rays) instead of all.
+  // With `lobe`, each light sample is weighed by the lobe itself instead of `weight` times the
+  // cosine; rectangles' analytic terms stay Lambertian (`weight`) and their ratio's
+  // denominator with them, so that the ratio carries the lobe's shape over the light.
   Vec3 DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo, const Vec3& weight,
                    const LightStrata& strata, Rng& rng, RenderCounters& counters,
-                   DirectTerms* terms, bool one_sample = false) const;
+                   DirectTerms* terms, bool one_sample = false,
+                   const DiffuseLobe* lobe = nullptr) const;
   // nf: the facing normal (cache lookups); nd: the facing mapped normal (direct light).
   Vec3 ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& nd, const Vec3& wo,
                     const Vec3& beta, const Vec3& albedo, int depth, float distance, int level,
                     float ray_fraction, const LightStrata& strata, Rng& rng,
                     RenderCounters& counters, IrrcacheShade* shade, DirectTerms* terms,
-                    Vec3* cached) const;
+                    Vec3* cached, const DiffuseLobe* lobe = nullptr) const;
   Vec3 GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx, const ShadingFrame& frame,
                     const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_l, Rng& rng,
                     RenderCounters& counters) const;
