@@ -121,18 +121,24 @@ TEST_P(GoldenImageTest, IrrcacheBeatsPathAt256Spp) {
 }
 
 // The second-level cache (cache_levels = 2, not the default) against the same bound, on the
-// scenes where it is claimed: all but principledthin (see above). thin-panels passes since the
-// occluder clamp of secondary records (before it the thin walls leaked: 1.1e-2 to 1.4e-2 against
-// the bound 2.8e-3).
+// scenes where it is claimed: all but principledthin (see above) and materials. thin-panels passes
+// since the occluder clamp of secondary records (before it the thin walls leaked: 1.1e-2 to 1.4e-2
+// against the bound 2.8e-3).
 TEST_P(GoldenImageTest, TwoCacheLevelsBeatPathAt256Spp) {
   const std::string name = GetParam();
-  if (name == "principledthin")
+  // materials: 5.5e-3 to 5.7e-3 against the bound 5.9e-3 over three runs (the threads' order of
+  // inserting records varies the cache): too close to claim.
+  if (name == "principledthin" || name == "materials")
     GTEST_SKIP() << "the second cache level is not claimed for " << name;
   const GoldenCase& g = Case(name);
   const double path256 = g.noise * kPathSpp / 256.0;
   RenderSettings s = *SettingsForScene(g.scene.desc, "irrcache");
   s.seed = 3;
   s.irrcache.cache_levels = 2;
+  // The default rays, not the pilot's balance: it times records against samples, and on a
+  // loaded machine it picks other rays from run to run (materials landed on both sides of the
+  // bound).
+  s.irrcache.balance_record_rays = false;
   const RenderOutput irr = Render(*g.scene.scene, s);
   EXPECT_EQ(irr.stats.nonfinite_pixels, 0);
   EXPECT_GT(irr.stats.counters.records_secondary, 0u);  // the second level was used
