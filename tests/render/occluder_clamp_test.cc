@@ -13,6 +13,7 @@
 #include "render/renderer.h"
 #include "render/sampling.h"
 #include "render/scene_loader.h"
+#include "tests/render/render_test_util.h"
 
 namespace irfarm {
 namespace {
@@ -42,27 +43,11 @@ std::string FloorXml(bool panel) {
   return xml + "</scene>\n";
 }
 
-struct Built {
-  SceneDesc desc;
-  std::unique_ptr<Scene> scene;
-};
-
-Built Build(const std::string& xml) {
-  Built b;
-  absl::StatusOr<SceneDesc> desc = LoadSceneString(xml, ::testing::TempDir() + "/s.xml", {});
-  EXPECT_TRUE(desc.ok()) << desc.status();
-  b.desc = *desc;
-  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(b.desc);
-  EXPECT_TRUE(scene.ok()) << scene.status();
-  b.scene = std::move(*scene);
-  return b;
-}
-
 // A level-1 record at the origin, with a footprint of 0.5 scene units per "pixel" (a wide ray
 // cone: the min-spacing floor alone would make it valid 0.75 units around), inserted into a
 // cache whose lookups may relax to the final pass's accuracy.
 struct RecordSetup {
-  Built built;
+  LoadedScene built;
   IrrcacheSettings settings;
   std::unique_ptr<IrradianceCache> cache;
   IrradianceRecord record;
@@ -71,7 +56,7 @@ struct RecordSetup {
 
 RecordSetup MakeRecord(bool panel) {
   RecordSetup s;
-  s.built = Build(FloorXml(panel));
+  s.built = BuildLoaded(LoadSceneString(FloorXml(panel), ::testing::TempDir() + "/s.xml", {}));
   const Scene& scene = *s.built.scene;
   CacheSettings cs;
   cs.bounds = scene.bounds();
