@@ -150,8 +150,8 @@ double EstimateCacheError(const IrrcacheIntegrator& integrator, const Camera& ca
 // (the same estimator at the same spp, so its bias at low spp is the same). Per-pixel errors
 // are heavy-tailed (a rare bright sample), so many pixels with few samples: 4096 pixels are 5%
 // of a 320 x 240 image.
-double EstimateSamplingError(const IrrcacheIntegrator& integrator, const Camera& cam,
-                             uint64_t seed, int spp, int light_samples, const PixelRect& rect,
+double EstimateSamplingError(const IrrcacheIntegrator& integrator, const Camera& cam, uint64_t seed,
+                             int spp, int light_samples, const PixelRect& rect,
                              tbb::task_arena& arena,
                              tbb::enumerable_thread_specific<RenderCounters>& counters) {
   constexpr int kSamplingChecks = 4096;
@@ -655,8 +655,8 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
         // noise of too few of them (room-b, 16 rays: estimates 0.57x to 0.95x of the measured).
         const int checks = int(std::min<long>(
             4096, 256L * std::max(1, TargetRecordRays(settings) / std::max(1, ic.record_rays))));
-        cache_error = EstimateCacheError(trial, cam, settings.seed, uint64_t(streams), checks,
-                                         rect, arena, counters);
+        cache_error = EstimateCacheError(trial, cam, settings.seed, uint64_t(streams), checks, rect,
+                                         arena, counters);
         if (streams == 0 && may_rebuild && cache_error < 0.125 * settings.target_error) {
           // An easy scene: the first cache is far inside its half of E (below E/8), and the render
           // would end far below E (room-b: 4.8e-4 at E = 4e-3, at 2 spp). Rebuild the cache once,
@@ -664,9 +664,9 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
           // 1 / rays), aiming at what the first round of samples leaves of E (at most 0.9 E, at
           // least E/2); the adaptive samples then stop at or near their minimum.
           const int light_samples = std::max(1, ic.light_samples);
-          const double sampling = EstimateSamplingError(
-              trial, cam, settings.seed, TargetMinSpp(settings), light_samples, rect, arena,
-              counters);
+          const double sampling =
+              EstimateSamplingError(trial, cam, settings.seed, TargetMinSpp(settings),
+                                    light_samples, rect, arena, counters);
           const double room = std::clamp(settings.target_error - sampling,
                                          0.5 * settings.target_error, 0.9 * settings.target_error);
           const double r = std::min(16.0, room / std::max(cache_error, 1e-12));
