@@ -696,8 +696,9 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
             (settings.time_limit > 0 && elapsed >= 0.5 * settings.time_limit))
           break;
         previous_error = cache_error;
-        // Interpolation error grows about as a^2 (Ward's bound is linear in a).
-        const double f = std::clamp(std::sqrt(0.4 * settings.target_error / cache_error), 0.5, 0.9);
+        // Interpolation error grows about as a^2 (Ward's bound is linear in a). Aim at 0.8 of the
+        // cache's share (0.4 E when that is E/2).
+        const double f = std::clamp(std::sqrt(0.8 * cache_budget / cache_error), 0.5, 0.9);
         ic.accuracy *= float(f);
         ic.record_rays = std::min(most_rays, int(std::lround(ic.record_rays / (f * f))));
       }
