@@ -647,6 +647,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
       double cache_budget = 0.5 * settings.target_error;
       // Only a cache this render made itself may be dropped and rebuilt coarser.
       const bool may_rebuild = own_cache != nullptr && cache->size() == 0;
+      int rebuilds = 0;
       double previous_error = 0, first_round = 0, round_start = 0;
       // `streams`: the random streams of the round (a rebuilt cache's rounds get new ones).
       for (int iteration = 0, streams = 0;; ++iteration, ++streams) {
@@ -659,28 +660,37 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
             4096, 256L * std::max(1, TargetRecordRays(settings) / std::max(1, ic.record_rays))));
         cache_error = EstimateCacheError(trial, cam, settings.seed, uint64_t(streams), checks, rect,
                                          arena, counters);
-        if (streams == 0 && may_rebuild && cache_error < 0.125 * settings.target_error) {
-          // An easy scene: the first cache is far inside its half of E (below E/8), and the render
-          // would end far below E (room-b: 4.8e-4 at E = 4e-3, at 2 spp). Rebuild the cache once,
-          // coarser by the model the first round used (interpolation error ~ a^2, noise ~
-          // 1 / rays), aiming at what the first round of samples leaves of E (at most 0.9 E, at
-          // least E/2); the adaptive samples then stop at or near their minimum.
-          const int light_samples = std::max(1, ic.light_samples);
-          const double sampling =
-              EstimateSamplingError(trial, cam, settings.seed, TargetMinSpp(settings),
-                                    light_samples, rect, arena, counters);
-          const double room = std::clamp(settings.target_error - sampling,
-                                         0.5 * settings.target_error, 0.9 * settings.target_error);
-          const double r = std::min(16.0, room / std::max(cache_error, 1e-12));
-          ic.accuracy = std::min(kCoarsestAccuracy, float(ic.accuracy * std::sqrt(r)));
-          ic.record_rays = std::max(kFewestRecordRays, int(std::lround(ic.record_rays / r)));
-          RenderSettings coarse = settings;  // the cache's largest accuracy follows a
-          coarse.irrcache.accuracy = ic.accuracy;
-          own_cache = std::make_unique<IrradianceCache>(CacheSettingsFor(scene, coarse));
-          cache = own_cache.get();
-          cache_budget = room;
-          iteration = -1;  // the rebuilt cache's rounds start afresh
-          continue;
+        // An easy scene: the first cache is far inside its half of E (below E/8), and the render
+        // would end far below E (room-b: 4.8e-4 at E = 4e-3, at 2 spp). Rebuild the cache coarser
+        // by the model the first round used (interpolation error ~ a^2, noise ~ 1 / rays), aiming
+        // at what the first round of samples leaves of E (at most 0.9 E, at least E/2); the
+        // adaptive samples then stop at or near their minimum. Once more if the rebuilt cache is
+        // still below half of that (the first estimate is from 256 checks only, and a larger a
+        // may buy nothing where the validity radius is clamped at max_spacing_px).
+        const bool far_below = rebuilds == 0 ? cache_error < 0.125 * settings.target_error
+                                             : iteration == 0 && cache_error < 0.5 * cache_budget;
+        if (may_rebuild && rebuilds < 2 && far_below) {
+          if (rebuilds == 0) {
+            const double sampling =
+                EstimateSamplingError(trial, cam, settings.seed, TargetMinSpp(settings),
+                                      std::max(1, ic.light_samples), rect, arena, counters);
+            cache_budget = std::clamp(settings.target_error - sampling, 0.5 * settings.target_error,
+                                      0.9 * settings.target_error);
+          }
+          const double r = std::min(16.0, cache_budget / std::max(cache_error, 1e-12));
+          const float a = std::min(kCoarsestAccuracy, float(ic.accuracy * std::sqrt(r)));
+          const int rays = std::max(kFewestRecordRays, int(std::lround(ic.record_rays / r)));
+          if (a != ic.accuracy || rays != ic.record_rays) {
+            ic.accuracy = a;
+            ic.record_rays = rays;
+            RenderSettings coarse = settings;  // the cache's largest accuracy follows a
+            coarse.irrcache.accuracy = ic.accuracy;
+            own_cache = std::make_unique<IrradianceCache>(CacheSettingsFor(scene, coarse));
+            cache = own_cache.get();
+            ++rebuilds;
+            iteration = -1;  // the rebuilt cache's rounds start afresh
+            continue;
+          }
         }
         const double elapsed =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
