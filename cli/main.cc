@@ -152,7 +152,8 @@ int RunRender(const RenderArgs& args) {
   st.phases.insert(st.phases.begin(), load_time);
   st.triangles = (*scene)->counts().triangles;
   st.degenerate_dropped = (*scene)->counts().degenerate_dropped;
-  st.warnings = desc->warnings;
+  for (const std::string& w : st.warnings) spdlog::warn("{}", w);  // the render's own
+  st.warnings.insert(st.warnings.begin(), desc->warnings.begin(), desc->warnings.end());
 
   const std::vector<ExrLayer> layers = args.aovs ? out.aovs.Layers() : std::vector<ExrLayer>{};
   absl::Status status;

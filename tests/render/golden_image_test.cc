@@ -198,9 +198,11 @@ TEST(GoldenImageTest, PrincipledThinRegionsMatchMitsuba) {
 }
 
 // --target-error E lands within [E/2, 2E] of the reference (issue 6's band), on the scenes at
-// 1/4 size (the reference's own error, scaled as above, widens the band by its amount).
+// 1/4 size (the reference's own error, scaled as above, widens the band by its amount). room-b is
+// an easy scene: before the cache could be rebuilt coarser it landed below E/2 (1.1e-3 at
+// E = 4e-3, 1.6e-4 at 1e-3; now 2.8e-3 to 4.0e-3 and 8.1e-4 to 1.0e-3 over seeds 5-7).
 TEST(GoldenImageTest, TargetErrorLandsWithinAFactorOfTwo) {
-  for (const char* name : {"sunlit-room", "thin-panels"}) {
+  for (const char* name : {"sunlit-room", "thin-panels", "room-b"}) {
     const LoadedScene s = LoadQuarter(name);
     const Image ref = QuarterReference(name);
     for (const double target : {4e-3, 1e-3}) {
