@@ -104,9 +104,9 @@ TEST_P(GoldenImageTest, IrrcacheBeatsPathAt256Spp) {
   const std::string name = GetParam();
   // principledthin: the panels' diffuse and rough transmission are path traced by irrcache
   // too, so at its default 64 spp the image has about 4x the variance of path at 256 spp there
-  // (quarter size: 8.2e-3 against the bound 4.3e-3); the claim is not made. What the cache adds
-  // is held by OccluderClampTest (before the clamp, what is seen through the frosted panel came
-  // out 6% dark: full size, 256 spp).
+  // (quarter size: 8.2e-3 against the bound 4.3e-3); the claim is not made. The cache's leak
+  // across the panels is held by OccluderClampTest (full size, 256 spp: what is seen through the
+  // frosted panel 6.4% dark without the clamp, 2.7% with it).
   if (name == "principledthin") GTEST_SKIP() << "irrcache is not claimed for " << name;
   const GoldenCase& g = Case(name);
   const Image& ref = g.ref;
