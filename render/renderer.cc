@@ -145,6 +145,33 @@ double EstimateCacheError(const IrrcacheIntegrator& integrator, const Camera& ca
   return std::max(0.0, sum / checks) * (n > 0 ? 1.0 : 0.0);
 }
 
+// A random pixel of `rect` (two draws of rng).
+void RandomPixel(const PixelRect& rect, Rng& rng, int* x, int* y) {
+  *x = rect.x0 + std::min(rect.width() - 1, int(rng.Next() * float(rect.width())));
+  *y = rect.y0 + std::min(rect.height() - 1, int(rng.Next() * float(rect.height())));
+}
+
+// `spp` camera samples of pixel (x, y) taken as the final pass takes them (stratified film and
+// light points, one lookup region for the pixel), added to slot i of `film`. A non-finite sample
+// adds 0 here: the final pass, which renders the pixel again, counts it.
+void SamplePixel(const IrrcacheIntegrator& integrator, const Camera& cam, int x, int y, int spp,
+                 int light_samples, Rng& rng, RenderCounters& c, SampleFilm* film, size_t i) {
+  PixelSampler film_points(spp, rng), light_points(spp * light_samples, rng);
+  LookupRegion region;
+  for (int s = 0; s < spp; ++s) {
+    float fu, fv;
+    film_points.Get(s, &fu, &fv);
+    const Ray ray{cam.origin(), cam.SampleDirection(x, y, fu, fv), INFINITY};
+    IrrcacheShade shade;
+    shade.region = &region;
+    DirectTerms terms;
+    Vec3 L =
+        integrator.Li(ray, LightStrata{&light_points, s * light_samples}, rng, c, &shade, &terms);
+    if (!IsFinite(L)) L = Vec3();
+    film->Add(i, s, L, &terms);
+  }
+}
+
 // The sampling error the final pass will estimate after its first round: `spp` samples at each
 // of kSamplingChecks random pixels, averaged as FinalPass averages SampleFilm::RelativeError
 // (the same estimator at the same spp, so its bias at low spp is the same). Per-pixel errors
@@ -158,24 +185,11 @@ double EstimateSamplingError(const IrrcacheIntegrator& integrator, const Camera&
   SampleFilm film(kSamplingChecks, integrator.ratio_slots());
   arena.execute([&] {
     tbb::parallel_for(0, kSamplingChecks, [&](int i) {
-      RenderCounters& c = counters.local();
       Rng rng(HashCombine(seed, uint64_t(i)), kStreamSamplingCheck);
-      const int x = rect.x0 + std::min(rect.width() - 1, int(rng.Next() * float(rect.width())));
-      const int y = rect.y0 + std::min(rect.height() - 1, int(rng.Next() * float(rect.height())));
-      PixelSampler film_points(spp, rng), light_points(spp * light_samples, rng);
-      LookupRegion region;
-      for (int s = 0; s < spp; ++s) {
-        float fu, fv;
-        film_points.Get(s, &fu, &fv);
-        const Ray ray{cam.origin(), cam.SampleDirection(x, y, fu, fv), INFINITY};
-        IrrcacheShade shade;
-        shade.region = &region;
-        DirectTerms terms;
-        Vec3 L = integrator.Li(ray, LightStrata{&light_points, s * light_samples}, rng, c, &shade,
-                               &terms);
-        if (!IsFinite(L)) L = Vec3();  // the final pass counts it
-        film.Add(size_t(i), s, L, &terms);
-      }
+      int x, y;
+      RandomPixel(rect, rng, &x, &y);
+      SamplePixel(integrator, cam, x, y, spp, light_samples, rng, counters.local(), &film,
+                  size_t(i));
     });
   });
   double sum = 0;
@@ -216,29 +230,15 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
     tbb::parallel_for(0, kPilotPixels, [&](int i) {
       RenderCounters& c = counters.local();
       Rng rng(HashCombine(settings.seed, uint64_t(i)), kStreamPilot);
-      const int x = rect.x0 + std::min(rect.width() - 1, int(rng.Next() * float(rect.width())));
-      const int y = rect.y0 + std::min(rect.height() - 1, int(rng.Next() * float(rect.height())));
+      int x, y;
+      RandomPixel(rect, rng, &x, &y);
       const auto t0 = Clock::now();
       const Ray centre{cam.origin(), cam.Direction(x + 0.5f, y + 0.5f), INFINITY};
       pilot.pixels[size_t(i)].has_record = integrator.Pilot(centre, rng, c, &records[size_t(i)]);
       if (pilot.pixels[size_t(i)].has_record) scratch.Insert(records[size_t(i)].record);
       const auto t1 = Clock::now();
       const double made_before = c.record_seconds;
-      PixelSampler film_points(kPilotSamples, rng),
-          light_points(kPilotSamples * light_samples, rng);
-      LookupRegion region;  // as the final pass's samples have it
-      for (int s = 0; s < kPilotSamples; ++s) {
-        float fu, fv;
-        film_points.Get(s, &fu, &fv);
-        const Ray ray{cam.origin(), cam.SampleDirection(x, y, fu, fv), INFINITY};
-        IrrcacheShade shade;
-        shade.region = &region;
-        DirectTerms terms;
-        Vec3 L = integrator.Li(ray, LightStrata{&light_points, s * light_samples}, rng, c, &shade,
-                               &terms);
-        if (!IsFinite(L)) L = Vec3();  // counted by the final pass, which renders it again
-        film.Add(size_t(i), s, L, &terms);
-      }
+      SamplePixel(integrator, cam, x, y, kPilotSamples, light_samples, rng, c, &film, size_t(i));
       record_seconds[size_t(i)] = std::chrono::duration<double>(t1 - t0).count();
       // Records the samples made (glossy paths reaching new surfaces) count as record time.
       const double made = c.record_seconds - made_before;
