@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <unordered_map>
 #include <utility>
@@ -185,6 +186,9 @@ absl::StatusOr<TriangleMesh> LoadObjMesh(const std::string& path, bool flip_v) {
 namespace {
 
 enum class PlyType { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64, kNone };
+
+// The longest list (a face's vertex count) a PLY file may hold.
+constexpr int64_t kMaxPlyListLength = int64_t{1} << 31;
 
 PlyType PlyTypeFromName(absl::string_view name) {
   static constexpr std::pair<const char*, PlyType> kNames[] = {
@@ -406,18 +410,23 @@ absl::StatusOr<TriangleMesh> LoadPlyMesh(const std::string& path) {
           continue;
         }
         double count = 0;
-        if (!reader.Read(p.count_type, &count) || count < 0) {
-          return truncated(absl::StrCat(e.name, " ", item));
+        if (!reader.Read(p.count_type, &count)) return truncated(absl::StrCat(e.name, " ", item));
+        // An ASCII file can write any number where the header says integer; a binary uint32 count
+        // can be 4e9. Both are checked before the count becomes a loop bound.
+        if (count < 0 || count != std::floor(count) || count > double(kMaxPlyListLength)) {
+          return absl::InvalidArgumentError(absl::StrCat(path, ": ", e.name, " ", item,
+                                                         ": list of ", count, " entries (0 to ",
+                                                         kMaxPlyListLength, " allowed)"));
         }
         polygon.clear();
-        for (int k = 0; k < int(count); ++k) {
+        for (int64_t k = 0; k < int64_t(count); ++k) {
           double index = 0;
           if (!reader.Read(p.type, &index)) return truncated(absl::StrCat(e.name, " ", item));
           if (int(i) != face_list) continue;
           if (index < 0 || index >= double(mesh.positions.size()) || !have_vertices) {
-            return absl::InvalidArgumentError(
-                absl::StrCat(path, ": face ", item, ": vertex index ", int64_t(index),
-                             " out of range (the file has ", mesh.positions.size(), " vertices)"));
+            return absl::InvalidArgumentError(absl::StrCat(path, ": face ", item, ": vertex index ",
+                                                           index, " out of range (the file has ",
+                                                           mesh.positions.size(), " vertices)"));
           }
           polygon.push_back(uint32_t(index));
         }
@@ -432,6 +441,13 @@ absl::StatusOr<TriangleMesh> LoadPlyMesh(const std::string& path) {
         }
       }
       if (is_vertex) {
+        for (const int s : slot) {
+          if (s >= 0 && !(std::abs(values[s]) <= double(std::numeric_limits<float>::max()))) {
+            return absl::InvalidArgumentError(absl::StrCat(path, ": vertex ", item, ": ",
+                                                           e.properties[s].name, " = ", values[s],
+                                                           " is not a finite 32-bit float"));
+          }
+        }
         const auto at = [&](int s) { return float(values[slot[s]]); };
         mesh.positions.emplace_back(at(0), at(1), at(2));
         if (normals) mesh.normals.emplace_back(at(3), at(4), at(5));

@@ -201,6 +201,26 @@ TEST(SceneLoaderErrorTest, PlyIndexOutOfRange) {
 )",
                       dir + "/scene.xml");
   ExpectError(r, dir + "/scene.xml:2:", "bad.ply: face 1: vertex index 3 out of range");
+
+  // Found by the fuzzer: a list count of 4294967295 (a uint count) was cast to int.
+  const auto load_with_body = [&](const std::string& count_type, const std::string& body) {
+    WriteFile(dir + "/meshes/bad.ply",
+              "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+              "property float z\nelement face 1\nproperty list " +
+                  count_type + " int vertex_indices\nend_header\n" + body);
+    return Load(
+        "  <shape type=\"ply\">\n    <string name=\"filename\" "
+        "value=\"meshes/bad.ply\"/>\n  </shape>\n",
+        dir + "/scene.xml");
+  };
+  ExpectError(load_with_body("uint", "0 0 0\n1 0 0\n0 1 0\n4294967295 0 1 2\n"),
+              dir + "/scene.xml:2:", "bad.ply: face 0: list of 4.29497e+09 entries");
+  ExpectError(load_with_body("uint", "0 0 0\n1 0 0\n0 1 0\n2.5 0 1 2\n"),
+              dir + "/scene.xml:2:", "bad.ply: face 0: list of 2.5 entries");
+  ExpectError(load_with_body("uchar", "0 0 0\n1 0 0\n0 1e300 0\n3 0 1 2\n"),
+              dir + "/scene.xml:2:", "bad.ply: vertex 2: y = 1e+300 is not a finite 32-bit float");
+  ExpectError(load_with_body("uchar", "0 0 0\n1 0 0\n0 1 0\n3 0 1 1e300\n"),
+              dir + "/scene.xml:2:", "bad.ply: face 0: vertex index 1e+300 out of range");
 }
 
 TEST(SceneLoaderErrorTest, UnknownPluginType) {
