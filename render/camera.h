@@ -36,9 +36,10 @@ class Camera {
     return Normalize(forward_ + right_ * ((2 * x / film_w_ - 1) * tan_x_) +
                      up_ * ((1 - 2 * y / film_h_) * tan_y_));
   }
-  // Unit direction of camera sample (u, v) in [0, 1)^2 of pixel (px, py): its film point is drawn
-  // from the pixel's filter (PixelFilter), so the pixel's value is the plain mean of its samples
-  // whatever the integrator. The one place camera samples are placed on the film.
+  // Unit direction of camera sample (u, v) in [0, 1)^2 of pixel (px, py) that stays in its pixel:
+  // its film point is drawn from the pixel's filter (PixelFilter::FilmPoint), so the pixel's
+  // value is the plain mean of its samples whatever the integrator. (Splatted samples land at
+  // (px + u, py + v): Direction.)
   Vec3 SampleDirection(int px, int py, float u, float v) const {
     float x, y;
     filter_.FilmPoint(px, py, u, v, &x, &y);

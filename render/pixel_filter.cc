@@ -40,6 +40,36 @@ PixelFilter::PixelFilter(const FilterDesc& desc, int width, int height)
   }
 }
 
+void PixelFilter::WeightIntegrals(double* sum, double* sum_sq) const {
+  // Midpoint rule over the support.
+  constexpr int kSteps = 4096;
+  const double r = desc_.radius, dt = 2 * r / kSteps;
+  *sum = *sum_sq = 0;
+  for (int i = 0; i < kSteps; ++i) {
+    const double w = Weight(-r + (i + 0.5) * dt);
+    *sum += w * dt;
+    *sum_sq += w * w * dt;
+  }
+}
+
+double PixelFilter::SplatVarianceFactor() const {
+  if (SplatReach() == 0) return 1;
+  double sum, sum_sq;
+  WeightIntegrals(&sum, &sum_sq);
+  // Separable: the 2D ratio is the square of the 1D one.
+  const double ratio = sum_sq / (sum * sum);
+  return ratio * ratio;
+}
+
+double PixelFilter::SplatSampleWeight() const {
+  if (SplatReach() == 0) return 1;
+  double sum, sum_sq;
+  WeightIntegrals(&sum, &sum_sq);
+  // n samples per pixel add n (sum)^2 of weight to a pixel on average; they must add
+  // n / SplatVarianceFactor = n (sum)^4 / (sum_sq)^2.
+  return sum * sum / (sum_sq * sum_sq);
+}
+
 double PixelFilter::Weight(double t) const {
   const double r = desc_.radius, a = std::abs(t);
   switch (desc_.type) {

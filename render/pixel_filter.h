@@ -1,17 +1,20 @@
-// Where a camera sample of a pixel lands on the film, for the film's reconstruction filter
-// (FilterDesc, Mitsuba 3's box, tent and gaussian): filter importance sampling, as pbrt-v4 does.
-// Mitsuba spreads each sample over the pixels its filter reaches and divides by the sum of
-// weights; its pixel converges to the filter-weighted average of the radiance around the pixel's
-// centre. Drawing each sample's film point from the pixel's own normalised filter instead, and
-// counting it with weight 1 for that pixel only, has exactly that expected value, keeps every
-// pixel (and tile) independent of its neighbours and leaves the film a plain per-pixel mean (the
-// adaptive sampler's half-images, the AOVs and the irradiance cache's per-pixel ratio estimator
-// need nothing else). Both axes are drawn by inverting the filter's 1D distribution function,
-// truncated to the image as Mitsuba's film truncates it (it samples only inside the image), so
-// a monotone warp keeps stratified (u, v) stratified. Box gives exactly px + u, as before filters.
+// The film's reconstruction filter (FilterDesc, Mitsuba 3's box, tent and gaussian): its weights
+// and where camera samples land.
+// The final pass splats (render/renderer.cc, SplatReach): a sample lands uniformly in its pixel
+// and is added to every pixel whose centre its filter reaches, with weight w(dx) w(dy); a pixel
+// is the weighted sum over the sum of weights, as Mitsuba's film divides by its weight channel.
+// Samples added to one pixel only (adaptive rounds, the pilot, filters too wide to splat) are
+// placed by FilmPoint instead: filter importance sampling, as pbrt-v4 does. Each sample's film
+// point is drawn from the pixel's own normalised filter and counted with weight 1 for that
+// pixel: the same expected value (the filter-weighted average of the radiance around the
+// pixel's centre), with the variance of that pixel's samples alone. Both axes are drawn by
+// inverting the filter's 1D distribution function, truncated to the image as Mitsuba's film
+// truncates it (it samples only inside the image), so a monotone warp keeps stratified (u, v)
+// stratified. Box gives exactly px + u, as before filters.
 #pragma once
 
 #include <array>
+#include <cmath>
 
 #include "render/scene_desc.h"
 
@@ -41,6 +44,30 @@ class PixelFilter {
   // inverse distribution function at u in [0, 1). [lo, hi] is clipped to the support.
   double SampleOffset(double u, double lo, double hi) const;
 
+  // The final pass splats (render/renderer.cc): each camera sample lands uniformly in its own
+  // pixel and is added, with weight Weight(dx) Weight(dy), to every pixel whose centre its filter
+  // reaches, as Mitsuba's film does. That averages each pixel over about 1 / SplatVarianceFactor
+  // times the samples (3.1x for the gaussian, 2.25x for the tent) where FilmPoint's one-pixel
+  // estimate has the same mean and the variance of its own samples only. SplatReach: how many
+  // pixels around its own a sample reaches, 1 for the tent and 2 for the gaussian; 0 for box (a
+  // sample stays in its pixel) and for filters wider than kMaxSplatReach, whose samples are
+  // placed by FilmPoint instead (splatting costs (2 reach + 1)^2 adds per sample).
+  static constexpr int kMaxSplatReach = 4;
+  int SplatReach() const {
+    if (desc_.type == FilterType::kBox) return 0;
+    const int g = int(std::ceil(reach()));
+    return g <= kMaxSplatReach ? g : 0;
+  }
+  // sum(w_i^2) / sum(w_i)^2 of the splat weights for samples spread uniformly at one per unit of
+  // area: the variance of a splatted pixel over that of a mean of one pixel's samples
+  // (1 without splatting).
+  double SplatVarianceFactor() const;
+  // The weight, times its filter weights, that makes a splatted sample count as one sample of a
+  // pixel's own (FilmPoint): its pixels' sums of weights are then, on average, the number of
+  // FilmPoint samples of the same variance (n / SplatVarianceFactor for n samples per pixel), so
+  // the two kinds of samples mix in one weighted mean. 1 without splatting.
+  double SplatSampleWeight() const;
+
   const FilterDesc& desc() const { return desc_; }
   // How far (pixels) beyond its own square a pixel's samples can land: 0 for box.
   float reach() const { return desc_.type == FilterType::kBox ? 0.0f : desc_.radius - 0.5f; }
@@ -51,6 +78,8 @@ class PixelFilter {
     const double c = double(p) + 0.5;
     return SampleOffset(double(u), -c, double(n) - c);
   }
+  // The integrals of Weight and of its square over the support (1D).
+  void WeightIntegrals(double* sum, double* sum_sq) const;
   // W(t): the integral of Weight from -radius to t, for |t| <= radius.
   double Cumulative(double t) const;
 

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -173,7 +174,8 @@ void SamplePixel(const IrrcacheIntegrator& integrator, const Camera& cam, int x,
 }
 
 // The sampling error the final pass will estimate after its first round: `spp` samples at each
-// of kSamplingChecks random pixels, averaged as FinalPass averages SampleFilm::RelativeError
+// of kSamplingChecks random pixels, averaged as FinalPass averages SampleFilm::RelativeError and
+// scaled by what splatting saves (PixelFilter::SplatVarianceFactor)
 // (the same estimator at the same spp, so its bias at low spp is the same). Per-pixel errors
 // are heavy-tailed (a rare bright sample), so many pixels with few samples: 4096 pixels are 5%
 // of a 320 x 240 image.
@@ -194,7 +196,8 @@ double EstimateSamplingError(const IrrcacheIntegrator& integrator, const Camera&
   });
   double sum = 0;
   for (int i = 0; i < kSamplingChecks; ++i) sum += film.RelativeError(size_t(i));
-  return sum / kSamplingChecks;
+  // These pixels keep their own samples; the final pass splats (PixelFilter).
+  return sum / kSamplingChecks * cam.filter().SplatVarianceFactor();
 }
 
 // The pilot of record_balance.h: kPilotPixels random pixels of `rect`, each a record and
@@ -249,7 +252,7 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
   });
   for (int i = 0; i < kPilotPixels; ++i) {
     PilotPixel& px = pilot.pixels[size_t(i)];
-    px.sampling_error = film.RelativeError(size_t(i));
+    px.sampling_error = film.RelativeError(size_t(i)) * cam.filter().SplatVarianceFactor();
     pilot.sample_seconds += sample_seconds[size_t(i)];
     pilot.sample_count += kPilotSamples;
     pilot.record_seconds += record_seconds[size_t(i)] * rays_scale;
@@ -287,13 +290,26 @@ struct PixelStreams {
 // sampling min_spp first and then rounds that double the samples of the pixels with the largest
 // estimated error); fills out->image, the sampling figures of out->stats and, if asked, the
 // sample map; marks pixels where records were computed.
+//
+// With a tent or gaussian film filter (PixelFilter::SplatReach() = g > 0) the first round's
+// samples splat: each lands uniformly in its own pixel and is added to every pixel of `rect`
+// whose centre its filter reaches, so the pixels up to g around `rect` (inside the image) are
+// sampled too, exactly as the rect owning them samples them (their streams are keyed by their
+// place in the image). Those pixels are rendered in four phases of tiles (below), so that no two
+// tiles running at once add to the same pixel. Adaptive rounds add samples to some pixels only:
+// splatted, those would make the sample density uneven under a pixel's filter and weigh its
+// neighbours unevenly (a shifted filter: a bias at every edge the rounds refine). Their samples are
+// placed by the pixel's own filter instead (PixelFilter::FilmPoint, an unbiased estimate of the
+// same value) and combined with the splatted ones as samples of equal variance
+// (PixelFilter::SplatSampleWeight).
 void FinalPass(const Scene& scene, const RenderSettings& settings,
                const IrrcacheIntegrator& integrator, const PixelRect& rect, bool tty,
                tbb::task_arena& arena, tbb::enumerable_thread_specific<RenderCounters>& counters,
                std::vector<uint8_t>* marks, RenderOutput* out,
                std::chrono::steady_clock::time_point start_time) {
   const Camera& cam = scene.camera();
-  const int w = cam.width();
+  const PixelFilter& filter = cam.filter();
+  const int w = cam.width(), h = cam.height();
   const int rw = rect.width(), rh = rect.height();
   const size_t npix = size_t(rw) * rh;
   const bool irrcache = settings.integrator == "irrcache";
@@ -304,27 +320,49 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   const double goal = settings.target_error > 0 ? settings.target_error : settings.sampling_error;
   const PathSettings& path = settings.irrcache.path;
 
+  // The pixels whose samples reach `rect` (src), and where a pixel of each is.
+  const int g = filter.SplatReach();
+  const PixelRect src{std::max(0, rect.x0 - g), std::max(0, rect.y0 - g), std::min(w, rect.x1 + g),
+                      std::min(h, rect.y1 + g)};
+  const int sw = src.width();
+  const size_t nsrc = size_t(sw) * src.height();
+  const auto src_index = [&](size_t p) {  // pixel p of rect -> its index in src
+    return size_t(int(p / size_t(rw)) + rect.y0 - src.y0) * sw +
+           size_t(int(p % size_t(rw)) + rect.x0 - src.x0);
+  };
+
   std::vector<PixelStreams> streams;
-  streams.reserve(npix);
-  for (size_t p = 0; p < npix; ++p) {
-    const int x = rect.x0 + int(p % size_t(rw)), y = rect.y0 + int(p / size_t(rw));
+  streams.reserve(nsrc);
+  for (size_t q = 0; q < nsrc; ++q) {
+    const int x = src.x0 + int(q % size_t(sw)), y = src.y0 + int(q / size_t(sw));
     streams.emplace_back(HashCombine(settings.seed, uint64_t(y) * w + x), max_spp, light_samples);
   }
+  std::vector<int> taken(nsrc, 0);  // samples each pixel of src has had
   SampleFilm film(npix, irrcache ? integrator.ratio_slots() : 0);
   std::vector<PixelAovSum> aov_sums(settings.aovs ? npix : 0);
 
-  // Samples [from, to) of pixel p.
-  // Samples [from, to) of pixel p; `region` is the calling thread's (see IrrcacheShade).
-  auto render_pixel = [&](size_t p, int from, int to, RenderCounters& c, LookupRegion* region) {
-    const int x = rect.x0 + int(p % size_t(rw)), y = rect.y0 + int(p / size_t(rw));
-    PixelStreams& ps = streams[p];
+  // Samples [from, to) of pixel q of src; `region` is the calling thread's (see IrrcacheShade).
+  // `splat`: the first round's samples with g > 0 (see above); otherwise the samples stay in
+  // their pixel, which must then be in rect.
+  const float splat_weight = float(filter.SplatSampleWeight());
+  auto render_pixel = [&](size_t q, int from, int to, bool splat, RenderCounters& c,
+                          LookupRegion* region) {
+    const int x = src.x0 + int(q % size_t(sw)), y = src.y0 + int(q / size_t(sw));
+    const bool inside = x >= rect.x0 && x < rect.x1 && y >= rect.y0 && y < rect.y1;
+    const size_t own = inside ? size_t(y - rect.y0) * rw + size_t(x - rect.x0) : 0;
+    splat = splat && g > 0;
+    PixelStreams& ps = streams[q];
     bool made = false;
     SampleAov sample_aov;
-    SampleAov* aov = settings.aovs ? &sample_aov : nullptr;
+    SampleAov* aov = settings.aovs && inside ? &sample_aov : nullptr;
+    // Splat weights along each axis: offsets -g..g from (x, y).
+    std::array<float, 2 * PixelFilter::kMaxSplatReach + 1> wx{}, wy{};
     for (int s = from; s < to; ++s) {
       float fu, fv;
       ps.film.Get(s, &fu, &fv);
-      const Ray ray{cam.origin(), cam.SampleDirection(x, y, fu, fv), INFINITY};
+      const float fx = float(x) + fu, fy = float(y) + fv;
+      const Ray ray{cam.origin(), splat ? cam.Direction(fx, fy) : cam.SampleDirection(x, y, fu, fv),
+                    INFINITY};
       ++c.camera_rays;
       Vec3 L;
       DirectTerms terms;
@@ -343,28 +381,79 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
         L = Vec3();
         if (aov) *aov = SampleAov{};
       }
-      film.Add(p, s, L, irrcache ? &terms : nullptr);
-      if (aov) aov_sums[p].Add(L, *aov);
+      const DirectTerms* t = irrcache ? &terms : nullptr;
+      if (!splat) {
+        film.Add(own, s, L, t);
+      } else {
+        for (int d = -g; d <= g; ++d) {
+          wx[size_t(d + g)] = float(filter.Weight(double(fx) - (x + d + 0.5)));
+          wy[size_t(d + g)] = float(filter.Weight(double(fy) - (y + d + 0.5)));
+        }
+        for (int ty = std::max(rect.y0, y - g); ty < std::min(rect.y1, y + g + 1); ++ty) {
+          const float wty = wy[size_t(ty - y + g)];
+          if (!(wty > 0)) continue;
+          for (int tx = std::max(rect.x0, x - g); tx < std::min(rect.x1, x + g + 1); ++tx) {
+            const float weight = wty * wx[size_t(tx - x + g)] * splat_weight;
+            if (weight > 0)
+              film.Add(size_t(ty - rect.y0) * rw + size_t(tx - rect.x0), s, L, t, weight);
+          }
+        }
+      }
+      if (aov) aov_sums[own].Add(L, *aov);
     }
-    if (made && !marks->empty()) (*marks)[p] = 1;
+    taken[q] = std::max(taken[q], to);
+    if (made && inside && !marks->empty()) (*marks)[own] = 1;
   };
 
-  // Round 0: every pixel, tile by tile.
-  const std::vector<Tile> tiles = MakeTiles(rect, settings.tile_size);
+  // Samples [from, to) of every pixel of src, tile by tile (round 0, and adaptive rounds that
+  // double every pixel). With splatting, the tiles are the cells of a grid of kSplatTile pixels
+  // fixed to the image, run in four phases by the parity of their column and row: a pixel gets
+  // at most one tile's samples per phase, added in the tile's pixel order, so its sums are added
+  // in the same order whatever the rect, tiles and thread count (path: the tiles of a job
+  // assemble into the image one process makes, bit for bit).
+  constexpr int kSplatTile = 16;
+  static_assert(kSplatTile >= 2 * PixelFilter::kMaxSplatReach);
+  std::vector<Tile> tiles;
+  std::vector<int> phase_of;
+  if (g == 0) {
+    tiles = MakeTiles(src, settings.tile_size);
+    phase_of.assign(tiles.size(), 0);
+  } else {
+    for (int gy = src.y0 / kSplatTile; gy * kSplatTile < src.y1; ++gy)
+      for (int gx = src.x0 / kSplatTile; gx * kSplatTile < src.x1; ++gx) {
+        tiles.push_back(Tile{std::max(src.x0, gx * kSplatTile), std::max(src.y0, gy * kSplatTile),
+                             std::min(src.x1, (gx + 1) * kSplatTile),
+                             std::min(src.y1, (gy + 1) * kSplatTile)});
+        phase_of.push_back(gx % 2 + 2 * (gy % 2));
+      }
+  }
+  const auto render_all = [&](int from, int to, Progress* progress) {
+    std::vector<size_t> batch;
+    for (int phase = 0; phase < (g > 0 ? 4 : 1); ++phase) {
+      batch.clear();
+      for (size_t t = 0; t < tiles.size(); ++t)
+        if (phase_of[t] == phase) batch.push_back(t);
+      arena.execute([&] {
+        tbb::parallel_for(size_t(0), batch.size(), [&](size_t i) {
+          const Tile& tile = tiles[batch[i]];
+          RenderCounters& c = counters.local();
+          LookupRegion region;
+          for (int y = tile.y0; y < tile.y1; ++y)
+            for (int x = tile.x0; x < tile.x1; ++x)
+              render_pixel(size_t(y - src.y0) * sw + size_t(x - src.x0), from, to, true, c,
+                           &region);
+          if (progress) progress->Tick();
+        });
+      });
+    }
+  };
   {
     Progress progress(tty, int(tiles.size()), "render");
-    arena.execute([&] {
-      tbb::parallel_for(size_t(0), tiles.size(), [&](size_t ti) {
-        const Tile& tile = tiles[ti];
-        RenderCounters& c = counters.local();
-        LookupRegion region;
-        for (int y = tile.y0; y < tile.y1; ++y)
-          for (int x = tile.x0; x < tile.x1; ++x)
-            render_pixel(size_t(y - rect.y0) * rw + size_t(x - rect.x0), 0, min_spp, c, &region);
-        progress.Tick();
-      });
-    });
+    render_all(0, min_spp, &progress);
   }
+  // While every pixel of src has had the same samples, a round that doubles them all keeps the
+  // sample density even and splats too.
+  bool even = true;
 
   // Adaptive rounds.
   std::vector<double> err(npix), smooth(npix);
@@ -385,7 +474,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     for (int y = 0; y < rh; ++y)
       for (int x = 0; x < rw; ++x) {
         const size_t p = size_t(y) * rw + x;
-        if (film.count(p) >= max_spp) continue;
+        if (taken[src_index(p)] >= max_spp) continue;
         double acc = 0;
         int n = 0;
         for (int dy = -1; dy <= 1; ++dy)
@@ -412,6 +501,13 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       ++k;
     }
     candidates.resize(k);
+    if (even && g > 0 && k == npix) {
+      const int n = taken[0];
+      render_all(n, std::min(2 * n, max_spp), nullptr);
+      ++rounds;
+      continue;
+    }
+    even = false;
     std::sort(candidates.begin(), candidates.end());
     arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates.size(), 16),
@@ -419,9 +515,9 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
                           RenderCounters& c = counters.local();
                           LookupRegion region;
                           for (size_t i = r.begin(); i < r.end(); ++i) {
-                            const size_t p = candidates[i];
-                            const int n = film.count(p);
-                            render_pixel(p, n, std::min(2 * n, max_spp), c, &region);
+                            const size_t q = src_index(candidates[i]);
+                            const int n = taken[q];
+                            render_pixel(q, n, std::min(2 * n, max_spp), false, c, &region);
                           }
                         });
     });
@@ -438,7 +534,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   if (settings.aovs) out->aovs = AovImages(rw, rh);
   for (size_t p = 0; p < npix; ++p) {
     out->image.pixels[p] = film.Value(p);
-    const int n = film.count(p);
+    const int n = taken[src_index(p)];
     if (settings.aovs) {
       const int x = int(p % size_t(rw)), y = int(p / size_t(rw));
       out->aovs.Set(x, y, aov_sums[p], n);
@@ -456,7 +552,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     out->sample_map = Image(rw, rh);
     const float scale = 1 / std::log2(float(max_spp) + 1);
     for (size_t p = 0; p < npix; ++p) {
-      const float t = std::log2(float(film.count(p)) + 1) * scale;
+      const float t = std::log2(float(taken[src_index(p)]) + 1) * scale;
       // Dark blue (few samples) through red to yellow-white (the most).
       out->sample_map.pixels[p] =
           Vec3(std::min(1.0f, 2 * t), std::max(0.0f, 2 * t - 1), std::max(0.0f, 0.5f - t));

@@ -8,23 +8,27 @@ SampleFilm::SampleFilm(size_t pixels, int slots)
     : slots_(slots),
       stride_(1 + 3 * size_t(slots)),
       data_(pixels * 2 * stride_),
+      weight_(pixels * 2, 0.0f),
       count_(pixels, 0) {}
 
-void SampleFilm::Add(size_t p, int index, const Vec3& L, const DirectTerms* terms) {
+void SampleFilm::Add(size_t p, int index, const Vec3& L, const DirectTerms* terms, float weight) {
   Vec3* h = Half(p, index & 1);
-  h[0] += L;
+  // Weight 1 (every sample of a box-filtered pixel) adds exactly what it did before weights.
+  h[0] += L * weight;
   if (terms)
     for (int j = 0; j < slots_; ++j) {
-      h[1 + 3 * j] += terms->analytic[j];
-      h[2 + 3 * j] += terms->shadowed[j];
-      h[3 + 3 * j] += terms->unshadowed[j];
+      h[1 + 3 * j] += terms->analytic[j] * weight;
+      h[2 + 3 * j] += terms->shadowed[j] * weight;
+      h[3 + 3 * j] += terms->unshadowed[j] * weight;
     }
+  weight_[2 * p + size_t(index & 1)] += weight;
   ++count_[p];
 }
 
-// Sum of the radiance and of A_j * S_j / U_j over the halves given (b may be null), over n.
-Vec3 SampleFilm::Resolve(const Vec3* a, const Vec3* b, int n) const {
-  if (n <= 0) return Vec3();
+// Sum of the radiance and of A_j * S_j / U_j over the halves given (b may be null), over the
+// sum of their weights.
+Vec3 SampleFilm::Resolve(const Vec3* a, const Vec3* b, float weight) const {
+  if (!(weight > 0)) return Vec3();
   Vec3 v = b ? a[0] + b[0] : a[0];
   for (int j = 0; j < slots_; ++j) {
     const Vec3 A = b ? a[1 + 3 * j] + b[1 + 3 * j] : a[1 + 3 * j];
@@ -32,18 +36,19 @@ Vec3 SampleFilm::Resolve(const Vec3* a, const Vec3* b, int n) const {
     const Vec3 U = b ? a[3 + 3 * j] + b[3 + 3 * j] : a[3 + 3 * j];
     v += A * DirectTerms::Ratio(S, U);
   }
-  return v / float(n);
+  return v / weight;
 }
 
-Vec3 SampleFilm::Value(size_t p) const { return Resolve(Half(p, 0), Half(p, 1), count_[p]); }
+Vec3 SampleFilm::Value(size_t p) const {
+  return Resolve(Half(p, 0), Half(p, 1), weight_[2 * p] + weight_[2 * p + 1]);
+}
 
 Vec3 SampleFilm::HalfValue(size_t p, int h) const {
-  const int n = count_[p];
-  return Resolve(Half(p, h), nullptr, h == 0 ? (n + 1) / 2 : n / 2);
+  return Resolve(Half(p, h), nullptr, weight_[2 * p + size_t(h)]);
 }
 
 double SampleFilm::RelativeError(size_t p) const {
-  if (count_[p] < 2) return 0;
+  if (!(weight_[2 * p] > 0 && weight_[2 * p + 1] > 0)) return 0;
   const Vec3 a = HalfValue(p, 0), b = HalfValue(p, 1);
   double e = 0;
   for (int c = 0; c < 3; ++c) {
