@@ -160,10 +160,23 @@ absl::Status WritePng(const Image& image, const std::string& path, float exposur
   return absl::OkStatus();
 }
 
-absl::StatusOr<Image> ReadImageFile(const std::string& path) {
+absl::StatusOr<Image> ReadImageFile(const std::string& path, bool* linear) {
   const std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
+  if (linear) *linear = true;
   if (ext == ".exr" || ext == ".EXR") return ReadExr(path);
   int w = 0, h = 0, n = 0;
+  if (stbi_is_hdr(path.c_str())) {
+    // Radiance RGBE (.hdr): linear floats. stbi_load would tone-map it to 8 bits.
+    float* hdr = stbi_loadf(path.c_str(), &w, &h, &n, 3);
+    if (!hdr)
+      return absl::InvalidArgumentError(path + ": cannot read image: " + stbi_failure_reason());
+    Image image(w, h);
+    for (size_t i = 0; i < image.pixels.size(); ++i)
+      image.pixels[i] = Vec3(hdr[3 * i], hdr[3 * i + 1], hdr[3 * i + 2]);
+    stbi_image_free(hdr);
+    return image;
+  }
+  if (linear) *linear = false;
   unsigned char* data = stbi_load(path.c_str(), &w, &h, &n, 3);
   if (!data)
     return absl::InvalidArgumentError(path + ": cannot read image: " + stbi_failure_reason());

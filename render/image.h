@@ -41,8 +41,10 @@ absl::StatusOr<Image> ReadExrLayer(const std::string& path, const std::string& l
 absl::Status WritePng(const Image& image, const std::string& path, float exposure = 0);
 // The same PNG as file bytes in memory (the coordinator's dashboard preview).
 absl::StatusOr<std::string> EncodePng(const Image& image, float exposure = 0);
-// Reads PNG/JPEG (8-bit, returned as values in [0,1], not decoded) or EXR (linear).
-absl::StatusOr<Image> ReadImageFile(const std::string& path);
+// Reads PNG/JPEG (8-bit, returned as values in [0,1], not decoded), EXR or Radiance .hdr.
+// *linear (if given): true for linear data (EXR, Radiance .hdr), false for 8-bit images (PNG,
+// JPEG, ...), which hold sRGB-encoded values scaled to [0, 1].
+absl::StatusOr<Image> ReadImageFile(const std::string& path, bool* linear = nullptr);
 
 float SrgbToLinear(float v);
 float LinearToSrgb(float v);

@@ -5,15 +5,14 @@
 namespace irfarm {
 
 absl::StatusOr<Texture> Texture::Load(const TextureDesc& desc) {
-  absl::StatusOr<Image> image = ReadImageFile(desc.filename);
+  bool linear = false;
+  absl::StatusOr<Image> image = ReadImageFile(desc.filename, &linear);
   if (!image.ok())
     return absl::InvalidArgumentError(desc.loc.ToString() + ": " +
                                       std::string(image.status().message()));
   Texture t;
   t.image_ = std::move(*image);
-  const bool is_exr =
-      desc.filename.size() >= 4 && (desc.filename.substr(desc.filename.size() - 4) == ".exr");
-  if (!desc.raw && !is_exr)
+  if (!desc.raw && !linear)
     for (Vec3& p : t.image_.pixels)
       p = Vec3(SrgbToLinear(p.x), SrgbToLinear(p.y), SrgbToLinear(p.z));
   t.bilinear_ = desc.filter_type != "nearest";

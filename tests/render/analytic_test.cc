@@ -7,6 +7,7 @@
 //   constant sky of radiance L (or an envmap of constant value L): E = pi L (no occluder)
 // and a thin dielectric with int_ior = ext_ior is invisible under the sky.
 #include <gtest/gtest.h>
+#include <stb_image_write.h>
 
 #include <algorithm>
 #include <cmath>
@@ -101,6 +102,16 @@ TEST_P(AnalyticTest, ConstantEnvmap) {
   const std::string xml =
       SceneXml(R"(<emitter type="envmap"><string name="filename" value="env.exr"/></emitter>)");
   ExpectRadiance(RenderMean(xml, GetParam(), dir_), 0.4f, 0.02f, "envmap");
+}
+
+// The same sky as a Radiance RGBE file (.hdr): linear radiance, not an 8-bit image (which would
+// be cut at 1 and tone-mapped: 2.4 must stay 2.4).
+TEST_P(AnalyticTest, ConstantEnvmapFromRadianceHdr) {
+  std::vector<float> rgb(16 * 8 * 3, 2.4f);
+  ASSERT_TRUE(stbi_write_hdr((dir_ + "/env.hdr").c_str(), 16, 8, 3, rgb.data()));
+  const std::string xml =
+      SceneXml(R"(<emitter type="envmap"><string name="filename" value="env.hdr"/></emitter>)");
+  ExpectRadiance(RenderMean(xml, GetParam(), dir_), 1.2f, 0.02f, "envmap .hdr");
 }
 
 TEST_P(AnalyticTest, IndexMatchedThinDielectricIsInvisible) {
