@@ -23,6 +23,8 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
@@ -738,9 +740,32 @@ absl::Status Parser::ParseSensor(pugi::xml_node n) {
   CameraDesc& cam = scene_.camera;
   cam.loc = Loc(n);
   LOADER_ASSIGN_OR_RETURN(const Entry* fov_entry, Find(p, "fov", {"float", "integer"}));
-  // Without fov Mitsuba uses a 50 mm lens on a 36 x 24 mm film, measured along the diagonal.
-  float fov = float(2 * std::atan(std::sqrt(36.0 * 36 + 24 * 24) / (2 * 50)) / kDegToRad);
+  LOADER_ASSIGN_OR_RETURN(const Entry* focal_entry, Find(p, "focal_length", {"string"}));
+  if (fov_entry && focal_entry) {
+    return Error(focal_entry->node, "give either fov or focal_length, not both");
+  }
+  // Without fov Mitsuba uses focal_length (35 mm film equivalent, "50mm" by default) on a
+  // 36 x 24 mm film, measured along the diagonal.
+  double focal_mm = 50;
+  if (focal_entry) {
+    LOADER_ASSIGN_OR_RETURN(std::string f, GetString(p, "focal_length", "50mm"));
+    f = absl::AsciiStrToLower(f);
+    if (absl::EndsWith(f, "mm")) f.resize(f.size() - 2);
+    if (!absl::SimpleAtod(f, &focal_mm) || !(focal_mm > 0) || !std::isfinite(focal_mm)) {
+      return Error(focal_entry->node,
+                   absl::StrCat("focal_length must be a positive length such as \"50mm\""));
+    }
+  }
+  float fov = float(2 * std::atan(std::sqrt(36.0 * 36 + 24 * 24) / (2 * focal_mm)) / kDegToRad);
   LOADER_ASSIGN_OR_RETURN(fov, GetFloat(p, "fov", fov));
+  // Read by Mitsuba's perspective camera and without effect on its image (a pinhole has no focus;
+  // nothing in a scene moves during the shutter): accepted, checked, ignored.
+  for (const char* name : {"focus_distance", "shutter_open", "shutter_close"}) {
+    LOADER_ASSIGN_OR_RETURN(const float v, GetFloat(p, name, 0));
+    if (!(v >= 0) || !std::isfinite(v)) {
+      return Error(NodeOf(p, name), absl::StrCat(name, " must be finite and not negative"));
+    }
+  }
   LOADER_ASSIGN_OR_RETURN(std::string axis,
                           GetString(p, "fov_axis", fov_entry != nullptr ? "x" : "diagonal"));
   axis = absl::AsciiStrToLower(axis);

@@ -477,6 +477,32 @@ TEST(SceneLoaderTest, CameraFromMatrix) {
   EXPECT_NEAR(scene->camera.fov_x_deg, 38.1848f, 1e-3f);
 }
 
+// Parameters Mitsuba 3's perspective camera reads: focal_length (35 mm equivalent, in place of
+// fov; x_fov 52.6225 for "35mm" on 320 x 240, Mitsuba 3.9.1's own x_fov), focus_distance and the
+// shutter (no effect on a pinhole image of a still scene). Bitterli's interiors set
+// focusDistance.
+TEST(SceneLoaderTest, PerspectiveFocalLengthFocusAndShutter) {
+  const auto load = [](const std::string& params) {
+    return LoadSceneString("<scene version=\"3.0.0\"><sensor type=\"perspective\">\n" + params +
+                               "<film type=\"hdrfilm\"><integer name=\"width\" value=\"320\"/>"
+                               "<integer name=\"height\" value=\"240\"/></film></sensor></scene>",
+                           "s.xml", {});
+  };
+  const auto scene = load(
+      "<string name=\"focal_length\" value=\"35mm\"/><float name=\"focus_distance\" "
+      "value=\"3\"/><float name=\"shutter_open\" value=\"0\"/><float name=\"shutter_close\" "
+      "value=\"0.5\"/>");
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_NEAR(scene->camera.fov_x_deg, 52.6225f, 1e-3f);
+  ExpectError(load("<string name=\"focal_length\" value=\"wide\"/>"),
+              "s.xml:2:", "focal_length must be a positive length");
+  ExpectError(load("<float name=\"fov\" value=\"40\"/>\n<string name=\"focal_length\" "
+                   "value=\"35mm\"/>"),
+              "s.xml:3:", "either fov or focal_length");
+  ExpectError(load("<float name=\"focus_distance\" value=\"-1\"/>"),
+              "s.xml:2:", "focus_distance must be finite and not negative");
+}
+
 // ---------------------------------------------------------------- $defaults and -D defines
 
 constexpr char kParameterized[] = R"(<scene version="3.0.0">
