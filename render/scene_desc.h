@@ -60,10 +60,16 @@ struct IntegratorDesc {
 };
 
 struct TextureDesc {
+  std::string type = "bitmap";  // Mitsuba plugin name: "bitmap" or "checkerboard"
+  // bitmap
   std::string filename;  // resolved absolute/relative path on disk (inside the scene folder)
   bool raw = false;      // true: values are linear already (no sRGB decoding)
   std::string filter_type = "bilinear";  // "bilinear" or "nearest"
   std::string wrap_mode = "repeat";      // "repeat", "mirror", "clamp"
+  // checkerboard
+  Vec3 color0{0.4f, 0.4f, 0.4f}, color1{0.2f, 0.2f, 0.2f};
+  // to_uv, as Mitsuba reduces it to 2D: (u, v) -> (a[0] u + a[1] v + a[2], a[3] u + a[4] v + a[5]).
+  std::array<float, 6> to_uv{1, 0, 0, 0, 1, 0};
   SourceLoc loc;
 };
 

@@ -1009,14 +1009,28 @@ absl::StatusOr<int> Parser::AddBsdf(pugi::xml_node n, BsdfDesc bsdf) {
 }
 
 absl::StatusOr<int> Parser::ParseTexture(pugi::xml_node n) {
-  LOADER_RETURN_IF_ERROR(PluginType(n, "texture", {"bitmap"}).status());
+  LOADER_ASSIGN_OR_RETURN(const std::string type,
+                          PluginType(n, "texture", {"bitmap", "checkerboard"}));
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "texture"));
   TextureDesc t;
+  t.type = type;
   t.loc = Loc(n);
-  LOADER_ASSIGN_OR_RETURN(t.filename, GetFile(p, "filename"));
-  LOADER_ASSIGN_OR_RETURN(t.filter_type, GetString(p, "filter_type", "bilinear"));
-  LOADER_ASSIGN_OR_RETURN(t.wrap_mode, GetString(p, "wrap_mode", "repeat"));
-  LOADER_ASSIGN_OR_RETURN(t.raw, GetBool(p, "raw", false));
+  if (type == "bitmap") {
+    LOADER_ASSIGN_OR_RETURN(t.filename, GetFile(p, "filename"));
+    LOADER_ASSIGN_OR_RETURN(t.filter_type, GetString(p, "filter_type", "bilinear"));
+    LOADER_ASSIGN_OR_RETURN(t.wrap_mode, GetString(p, "wrap_mode", "repeat"));
+    LOADER_ASSIGN_OR_RETURN(t.raw, GetBool(p, "raw", false));
+  } else {
+    LOADER_ASSIGN_OR_RETURN(t.color0, GetRgb(p, "color0", t.color0));
+    LOADER_ASSIGN_OR_RETURN(t.color1, GetRgb(p, "color1", t.color1));
+  }
+  // to_uv: Mitsuba keeps the upper-left 2 x 2 and the first two rows' translation.
+  LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_uv, GetTransform(p, "to_uv"));
+  if (to_uv) {
+    const auto& m = to_uv->m;
+    t.to_uv = {float(m[0][0]), float(m[0][1]), float(m[0][3]),
+               float(m[1][0]), float(m[1][1]), float(m[1][3])};
+  }
   LOADER_RETURN_IF_ERROR(Finish(p));
   if (!IsOneOf(t.filter_type, {"bilinear", "nearest"})) {
     return Error(NodeOf(p, "filter_type"), absl::StrCat("unknown filter_type '", t.filter_type,

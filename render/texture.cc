@@ -5,6 +5,15 @@
 namespace irfarm {
 
 absl::StatusOr<Texture> Texture::Load(const TextureDesc& desc) {
+  if (desc.type == "checkerboard") {
+    Texture t;
+    t.checkerboard_ = true;
+    t.color0_ = desc.color0;
+    t.color1_ = desc.color1;
+    t.to_uv_ = desc.to_uv;
+    t.average_ = (desc.color0 + desc.color1) * 0.5f;
+    return t;
+  }
   bool linear = false;
   absl::StatusOr<Image> image = ReadImageFile(desc.filename, &linear);
   if (!image.ok())
@@ -15,6 +24,7 @@ absl::StatusOr<Texture> Texture::Load(const TextureDesc& desc) {
   if (!desc.raw && !linear)
     for (Vec3& p : t.image_.pixels)
       p = Vec3(SrgbToLinear(p.x), SrgbToLinear(p.y), SrgbToLinear(p.z));
+  t.to_uv_ = desc.to_uv;
   t.bilinear_ = desc.filter_type != "nearest";
   t.wrap_ = desc.wrap_mode == "mirror" ? 1 : (desc.wrap_mode == "clamp" ? 2 : 0);
   Vec3 sum;
@@ -40,8 +50,16 @@ int Texture::Wrap(int i, int n) const {
 }
 
 Vec3 Texture::Eval(float u, float v) const {
-  const int w = image_.width, h = image_.height;
+  ToUv(&u, &v);
   if (!std::isfinite(u) || !std::isfinite(v)) return average_;
+  if (checkerboard_) {
+    return ((u - std::floor(u) > 0.5f) == (v - std::floor(v) > 0.5f)) ? color0_ : color1_;
+  }
+  return EvalBitmap(u, v);
+}
+
+Vec3 Texture::EvalBitmap(float u, float v) const {
+  const int w = image_.width, h = image_.height;
   if (!bilinear_) {
     const int x = Wrap(int(std::floor(u * w)), w), y = Wrap(int(std::floor(v * h)), h);
     return image_.at(x, y);
@@ -57,8 +75,10 @@ Vec3 Texture::Eval(float u, float v) const {
 
 void Texture::Gradient(float u, float v, float* d_du, float* d_dv) const {
   *d_du = *d_dv = 0;
+  ToUv(&u, &v);
   const int w = image_.width, h = image_.height;
-  if (!bilinear_ || !std::isfinite(u) || !std::isfinite(v)) return;
+  // A checkerboard is flat between its jumps.
+  if (checkerboard_ || !bilinear_ || !std::isfinite(u) || !std::isfinite(v)) return;
   const float fx = u * w - 0.5f, fy = v * h - 0.5f;
   const float x0f = std::floor(fx), y0f = std::floor(fy);
   const float tx = fx - x0f, ty = fy - y0f;
@@ -70,8 +90,11 @@ void Texture::Gradient(float u, float v, float* d_du, float* d_dv) const {
     return 0.212671f * c.x + 0.715160f * c.y + 0.072169f * c.z;
   };
   const float f00 = lum(x0, y0), f10 = lum(x1, y0), f01 = lum(x0, y1), f11 = lum(x1, y1);
-  *d_du = float(w) * ((f10 - f00) * (1 - ty) + (f11 - f01) * ty);
-  *d_dv = float(h) * ((f01 - f00) * (1 - tx) + (f11 - f10) * tx);
+  // With respect to the transformed (u', v'), then by the chain rule to the surface's (u, v).
+  const float g_u = float(w) * ((f10 - f00) * (1 - ty) + (f11 - f01) * ty);
+  const float g_v = float(h) * ((f01 - f00) * (1 - tx) + (f11 - f10) * tx);
+  *d_du = g_u * to_uv_[0] + g_v * to_uv_[3];
+  *d_dv = g_u * to_uv_[1] + g_v * to_uv_[4];
 }
 
 }  // namespace irfarm

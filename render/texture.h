@@ -1,7 +1,12 @@
-// Bitmap textures: 8-bit sRGB images decoded to linear on load (unless `raw`), or linear EXR;
-// looked up at (u, v) with column u*w, row v*h (row 0 = top), texel centres at half-integers,
-// bilinear or nearest filtering and repeat / mirror / clamp wrapping, as Mitsuba 3 does.
+// Textures, as Mitsuba 3's plugins (TextureDesc::type), each after its to_uv transform of (u, v):
+// - bitmap: 8-bit sRGB images decoded to linear on load (unless `raw`), or linear EXR / .hdr;
+//   looked up at (u, v) with column u*w, row v*h (row 0 = top), texel centres at half-integers,
+//   bilinear or nearest filtering and repeat / mirror / clamp wrapping;
+// - checkerboard: color0 where the fractional parts of u and v are both above 0.5 or both not,
+//   color1 elsewhere.
 #pragma once
+
+#include <array>
 
 #include "absl/status/statusor.h"
 #include "render/image.h"
@@ -19,7 +24,16 @@ class Texture {
   Vec3 Average() const { return average_; }
 
  private:
+  void ToUv(float* u, float* v) const {
+    const float x = *u, y = *v;
+    *u = to_uv_[0] * x + to_uv_[1] * y + to_uv_[2];
+    *v = to_uv_[3] * x + to_uv_[4] * y + to_uv_[5];
+  }
+  Vec3 EvalBitmap(float u, float v) const;
   int Wrap(int i, int n) const;
+  bool checkerboard_ = false;
+  Vec3 color0_, color1_;
+  std::array<float, 6> to_uv_{1, 0, 0, 0, 1, 0};
   Image image_;
   bool bilinear_ = true;
   int wrap_ = 0;  // 0 repeat, 1 mirror, 2 clamp

@@ -39,8 +39,14 @@ uint64_t SceneHash(const SceneDesc& desc) {
   h.Pod(desc.integrator.max_depth);
   h.Pod(desc.integrator.rr_depth);
   for (const TextureDesc& t : desc.textures) {
+    h.Str(t.type);
     h.Str(t.filename.substr(t.filename.find_last_of('/') + 1));
     h.Pod(t.raw);
+    h.Str(t.filter_type);
+    h.Str(t.wrap_mode);
+    h.V(t.color0);
+    h.V(t.color1);
+    h.Pod(t.to_uv);
   }
   for (const BsdfDesc& b : desc.bsdfs) {  // every parameter, in name order (std::map)
     h.Str(b.type);

@@ -1,0 +1,91 @@
+// Textures against Mitsuba 3.9.1's own values (scalar_rgb; the texture plugins evaluated at the
+// same (u, v) with the same to_uv from Python): checkerboard and bitmap through to_uv.
+#include "render/texture.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "render/image.h"
+#include "render/scene_loader.h"
+
+namespace irfarm {
+namespace {
+
+void ExpectColor(const Vec3& got, const Vec3& want, float tol, const std::string& what) {
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[c], want[c], tol) << what << " channel " << c;
+}
+
+// to_uv = translate(x 0.1) * scale(2, 3): (u, v) -> (2u + 0.1, 3v).
+TEST(TextureTest, CheckerboardMatchesMitsuba) {
+  const auto desc = LoadSceneString(R"(<scene version="3.0.0">
+  <sensor type="perspective"/>
+  <bsdf type="diffuse" id="d">
+    <texture type="checkerboard" name="reflectance">
+      <rgb name="color0" value="1, 0, 0"/>
+      <rgb name="color1" value="0, 0, 1"/>
+      <transform name="to_uv"><scale x="2" y="3"/><translate x="0.1"/></transform>
+    </texture>
+  </bsdf>
+</scene>)",
+                                    "s.xml", {});
+  ASSERT_TRUE(desc.ok()) << desc.status();
+  ASSERT_EQ(desc->textures.size(), 1u);
+  const absl::StatusOr<Texture> t = Texture::Load(desc->textures[0]);
+  ASSERT_TRUE(t.ok()) << t.status();
+  const Vec3 red(1, 0, 0), blue(0, 0, 1);
+  ExpectColor(t->Eval(0.1f, 0.1f), red, 0, "(0.1, 0.1)");
+  ExpectColor(t->Eval(0.3f, 0.1f), blue, 0, "(0.3, 0.1)");
+  ExpectColor(t->Eval(0.1f, 0.3f), blue, 0, "(0.1, 0.3)");
+  ExpectColor(t->Eval(0.3f, 0.3f), red, 0, "(0.3, 0.3)");
+  ExpectColor(t->Eval(0.05f, 0.05f), red, 0, "(0.05, 0.05)");
+  ExpectColor(t->Eval(0.2f, 0.05f), red, 0, "(0.2, 0.05)");
+  ExpectColor(t->Average(), Vec3(0.5f, 0, 0.5f), 1e-6f, "mean");
+  float du = 1, dv = 1;
+  t->Gradient(0.1f, 0.1f, &du, &dv);
+  EXPECT_EQ(du, 0);
+  EXPECT_EQ(dv, 0);
+}
+
+// A 2 x 2 linear image [[(.1 .2 .3) (.7 .8 .9)] [(.4 .4 .4) (1 .5 0)]] (row 0 on top) through
+// to_uv = translate(x 0.25) * rotate(z, 90) * scale(2, 1): (u, v) -> (0.25 - v, 2u).
+TEST(TextureTest, BitmapToUvMatchesMitsuba) {
+  const std::string dir = ::testing::TempDir() + "/texture_test";
+  Image image(2, 2);
+  image.at(0, 0) = Vec3(0.1f, 0.2f, 0.3f);
+  image.at(1, 0) = Vec3(0.7f, 0.8f, 0.9f);
+  image.at(0, 1) = Vec3(0.4f, 0.4f, 0.4f);
+  image.at(1, 1) = Vec3(1, 0.5f, 0);
+  std::filesystem::create_directories(dir);
+  ASSERT_TRUE(WriteExr(image, dir + "/t.exr").ok());
+  struct Case {
+    float u, v;
+    Vec3 nearest, bilinear;
+  };
+  const Case cases[] = {{0.1f, 0.2f, Vec3(0.1f, 0.2f, 0.3f), Vec3(0.37f, 0.44f, 0.51f)},
+                        {0.3f, 0.6f, Vec3(1, 0.5f, 0), Vec3(0.79f, 0.54f, 0.29f)},
+                        {0.45f, 0.9f, Vec3(0.4f, 0.4f, 0.4f), Vec3(0.43f, 0.39f, 0.35f)}};
+  for (const std::string filter : {"nearest", "bilinear"}) {
+    TextureDesc desc;
+    desc.filename = dir + "/t.exr";
+    desc.filter_type = filter;
+    const auto scene = LoadSceneString(
+        "<scene version=\"3.0.0\"><sensor type=\"perspective\"/><texture type=\"bitmap\" "
+        "id=\"t\"><string name=\"filename\" "
+        "value=\"t.exr\"/><transform name=\"to_uv\"><scale x=\"2\" y=\"1\"/><rotate z=\"1\" "
+        "angle=\"90\"/><translate x=\"0.25\"/></transform></texture></scene>",
+        dir + "/s.xml", {});
+    ASSERT_TRUE(scene.ok()) << scene.status();
+    desc.to_uv = scene->textures.at(0).to_uv;
+    const absl::StatusOr<Texture> t = Texture::Load(desc);
+    ASSERT_TRUE(t.ok()) << t.status();
+    for (const Case& c : cases) {
+      ExpectColor(t->Eval(c.u, c.v), filter == "nearest" ? c.nearest : c.bilinear, 1e-5f,
+                  filter + " (" + std::to_string(c.u) + ", " + std::to_string(c.v) + ")");
+    }
+  }
+}
+
+}  // namespace
+}  // namespace irfarm
