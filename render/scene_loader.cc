@@ -1100,6 +1100,13 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     LOADER_ASSIGN_OR_RETURN(s.bsdf, AddBsdf(bsdfs[0]->node, std::move(b)));
   }
   if (emitters.size() > 1) return Error(emitters[1]->node, "a shape has at most one emitter");
+  if (!emitters.empty() && scene_.bsdfs[size_t(s.bsdf)].type == "null") {
+    // Mitsuba 3's path tracer lights the scene with such a shape but shows the camera no emission
+    // from it (measured: a null-BSDF emitting sphere is invisible in its image).
+    return Error(emitters[0]->node,
+                 "an area emitter on a shape with a null bsdf is not rendered by irfarm "
+                 "(Mitsuba 3 hides its emission from the camera but lights the scene with it)");
+  }
   if (!emitters.empty()) {
     LOADER_ASSIGN_OR_RETURN(s.area_radiance, ParseAreaEmitter(emitters[0]->node));
   }

@@ -65,11 +65,14 @@ struct BsdfContext {
 };
 
 struct BsdfSample {
-  Vec3 wi;        // local
-  Vec3 weight;    // f * |cos(theta_i)| / pdf, including the lobe choice; black = failed
-  float pdf = 0;  // solid-angle pdf; 0 for delta lobes
+  Vec3 wi;            // local
+  Vec3 weight;        // f * |cos(theta_i)| / pdf, including the lobe choice; black = failed
+  float pdf = 0;      // solid-angle pdf; 0 for delta lobes
   uint32_t lobe = 0;  // the BsdfLobe sampled (one bit)
   float eta = 1;      // relative index crossed (transmitted over incident), 1 if no refraction
+  // A delta lobe: the probability with which Sample chose it among the BSDF's lobes (Mitsuba's
+  // bs.pdf for a delta lobe). blendbsdf weighs a delta lobe with it as Mitsuba's does.
+  float delta_prob = 1;
   bool IsDelta() const { return (lobe & kDeltaLobes) != 0; }
 };
 
@@ -77,9 +80,7 @@ struct BsdfSample {
 struct TexturedColor {
   Vec3 value{0.5f, 0.5f, 0.5f};
   const Texture* texture = nullptr;  // owned by the Scene
-  Vec3 Eval(const BsdfContext& ctx) const {
-    return texture ? texture->Eval(ctx.u, ctx.v) : value;
-  }
+  Vec3 Eval(const BsdfContext& ctx) const { return texture ? texture->Eval(ctx.u, ctx.v) : value; }
   // A scalar parameter (roughness, opacity) from the same: Mitsuba reads a grey value; for a
   // colour texture we take the channel mean.
   float EvalScalar(const BsdfContext& ctx) const {
@@ -122,7 +123,9 @@ class Bsdf {
   virtual float PassThrough(const BsdfContext& /*ctx*/) const { return 0; }
 
   bool HasDiffuse() const { return (Flags() & kDiffuseReflection) != 0; }
-  bool HasNonDiffuse() const { return (Flags() & ~uint32_t(kDiffuseReflection | kTwoSidedFlag)) != 0; }
+  bool HasNonDiffuse() const {
+    return (Flags() & ~uint32_t(kDiffuseReflection | kTwoSidedFlag)) != 0;
+  }
   bool HasSmooth() const {  // a lobe that Eval can see (so next-event estimation helps)
     return (Flags() & (kDiffuseReflection | kSmoothNonDiffuseLobes)) != 0;
   }

@@ -35,11 +35,13 @@ class DielectricBsdf final : public Bsdf {
       s.wi = ReflectZ(wo);
       s.weight = reflect_.Eval(ctx) * (has_t ? 1.0f : f);
       s.lobe = kDeltaReflection;
+      s.delta_prob = has_t ? f : 1.0f;
     } else {
       const float sign = c >= 0 ? 1.0f : -1.0f;
       s.wi = Normalize(-wo / eta + Vec3(0, 0, sign * (std::abs(c) / eta - cos_t)));
       s.weight = transmit_.Eval(ctx) * ((has_r ? 1.0f : 1 - f) / (eta * eta));
       s.lobe = kDeltaTransmission;
+      s.delta_prob = has_r ? 1 - f : 1.0f;
       s.eta = eta;
     }
     return s;

@@ -12,8 +12,7 @@ class DiffuseBsdf final : public Bsdf {
 
   uint32_t Flags() const override { return kDiffuseReflection; }
 
-  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     if (!(lobes & kDiffuseReflection) || wo.z <= 0 || wi.z <= 0) return Vec3();
     return reflectance_.Eval(ctx) * (wi.z * kInvPi);
   }
@@ -43,9 +42,7 @@ class DiffuseBsdf final : public Bsdf {
   TexturedColor reflectance_;
 };
 
-absl::Status Parse(BsdfParams& p) {
-  return p.Color("reflectance", Vec3(0.5f)).status();
-}
+absl::Status Parse(BsdfParams& p) { return p.Color("reflectance", Vec3(0.5f)).status(); }
 
 std::unique_ptr<Bsdf> Build(const BsdfDesc& d, const BsdfBuildContext& ctx) {
   return std::make_unique<DiffuseBsdf>(ctx.Color(d.Color("reflectance", Vec3(0.5f))));

@@ -11,17 +11,14 @@ namespace {
 
 class MaskBsdf final : public Bsdf {
  public:
-  MaskBsdf(const TexturedColor& opacity, const Bsdf* nested)
-      : opacity_(opacity), nested_(nested) {}
+  MaskBsdf(const TexturedColor& opacity, const Bsdf* nested) : opacity_(opacity), nested_(nested) {}
 
   uint32_t Flags() const override { return nested_->Flags() | kNullTransmission; }
 
-  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     return nested_->Eval(ctx, wo, wi, lobes) * Opacity(ctx);
   }
-  float Pdf(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  float Pdf(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     return nested_->Pdf(ctx, wo, wi, lobes) * Opacity(ctx);
   }
   BsdfSample Sample(const BsdfContext& ctx, const Vec3& wo, float u1, float u2, float u3,
@@ -33,12 +30,14 @@ class MaskBsdf final : public Bsdf {
       s.wi = -wo;
       s.weight = Vec3(1.0f);
       s.lobe = kNullTransmission;
+      s.delta_prob = 1 - a;
       return s;
     }
     // The nested BSDF, u1 rescaled to [0, 1). Without the null lobe, weight by the opacity.
     const float u = null_ok ? (a > 0 ? u1 / a : 0.0f) : u1;
     BsdfSample s = nested_->Sample(ctx, wo, std::min(u, 0x1.fffffep-1f), u2, u3, lobes);
     s.pdf *= a;
+    if (null_ok) s.delta_prob *= a;
     if (!null_ok) s.weight *= a;
     return s;
   }

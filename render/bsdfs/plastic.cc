@@ -25,8 +25,7 @@ class PlasticBsdf final : public Bsdf {
 
   uint32_t Flags() const override { return kDeltaReflection | kDiffuseReflection; }
 
-  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     if (!(lobes & kDiffuseReflection) || wo.z <= 0 || wi.z <= 0) return Vec3();
     const float fo = FresnelDielectric(wo.z, p_.eta), fi = FresnelDielectric(wi.z, p_.eta);
     return p_.Base(ctx, fdr_int_) * (inv_eta2_ * (1 - fo) * (1 - fi) * wi.z * kInvPi);
@@ -47,6 +46,7 @@ class PlasticBsdf final : public Bsdf {
       s.wi = ReflectZ(wo);
       s.lobe = kDeltaReflection;
       s.weight = p_.specular.Eval(ctx) * (fo / ps);
+      s.delta_prob = ps;
       return s;
     }
     s.wi = CosineHemisphere(u2, u3);

@@ -18,7 +18,9 @@ namespace irfarm {
   X(kPrincipledBsdf)           \
   X(kPrincipledThinBsdf)       \
   X(kNormalMapBsdf)            \
-  X(kBumpMapBsdf)
+  X(kBumpMapBsdf)              \
+  X(kBlendBsdf)                \
+  X(kNullBsdf)
 
 #define IRFARM_DECLARE_PLUGIN(p) extern const BsdfPlugin p;
 IRFARM_BSDF_PLUGINS(IRFARM_DECLARE_PLUGIN)

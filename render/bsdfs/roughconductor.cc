@@ -17,8 +17,7 @@ class RoughConductorBsdf final : public Bsdf {
 
   uint32_t Flags() const override { return kGlossyReflection; }
 
-  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     if (!(lobes & kGlossyReflection) || wo.z <= 0 || wi.z <= 0) return Vec3();
     const Vec3 m = Normalize(wo + wi);
     const Microfacet mf = dist_.At(ctx);
@@ -27,8 +26,7 @@ class RoughConductorBsdf final : public Bsdf {
     return Fresnel(Dot(wo, m)) * specular_.Eval(ctx) * (d * mf.G(wo, wi, m) / (4 * wo.z));
   }
 
-  float Pdf(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  float Pdf(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     if (!(lobes & kGlossyReflection) || wo.z <= 0 || wi.z <= 0) return 0;
     const Vec3 m = Normalize(wo + wi);
     const float dot = Dot(wo, m);

@@ -22,8 +22,7 @@ class RoughDielectricBsdf final : public Bsdf {
 
   uint32_t Flags() const override { return kGlossyReflection | kGlossyTransmission; }
 
-  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     Geometry g;
     if (!Setup(wo, wi, lobes, &g)) return Vec3();
     const Microfacet mf = dist_.At(ctx);
@@ -33,12 +32,11 @@ class RoughDielectricBsdf final : public Bsdf {
     const float f = FresnelDielectric(g.dot_o, g.e);
     if (g.reflect) return reflect_.Eval(ctx) * (f * d * G / (4 * std::abs(wo.z)));
     const float denom = g.dot_o + g.e * g.dot_i;
-    return transmit_.Eval(ctx) * ((1 - f) * d * G * std::abs(g.dot_o * g.dot_i) /
-                                  (std::abs(wo.z) * denom * denom));
+    return transmit_.Eval(ctx) *
+           ((1 - f) * d * G * std::abs(g.dot_o * g.dot_i) / (std::abs(wo.z) * denom * denom));
   }
 
-  float Pdf(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  float Pdf(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     Geometry g;
     if (!Setup(wo, wi, lobes, &g)) return 0;
     const Microfacet mf = dist_.At(ctx);

@@ -32,10 +32,12 @@ class ThinDielectricBsdf final : public Bsdf {
       s.wi = ReflectZ(wo);
       s.weight = reflect_.Eval(ctx) * (has_t ? 1.0f : r);
       s.lobe = kDeltaReflection;
+      s.delta_prob = has_t ? r : 1.0f;
     } else {
       s.wi = -wo;
       s.weight = transmit_.Eval(ctx) * (has_r ? 1.0f : 1 - r);
       s.lobe = kDeltaTransmission;
+      s.delta_prob = has_r ? 1 - r : 1.0f;
     }
     return s;
   }

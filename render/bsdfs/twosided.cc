@@ -13,18 +13,14 @@ class TwoSidedBsdf final : public Bsdf {
  public:
   TwoSidedBsdf(const Bsdf* front, const Bsdf* back) : front_(front), back_(back) {}
 
-  uint32_t Flags() const override {
-    return front_->Flags() | back_->Flags() | kTwoSidedFlag;
-  }
+  uint32_t Flags() const override { return front_->Flags() | back_->Flags() | kTwoSidedFlag; }
 
-  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  Vec3 Eval(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     return wo.z >= 0 ? front_->Eval(ctx, wo, wi, lobes)
                      : back_->Eval(ctx, FlipZ(wo), FlipZ(wi), lobes);
   }
 
-  float Pdf(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi,
-            uint32_t lobes) const override {
+  float Pdf(const BsdfContext& ctx, const Vec3& wo, const Vec3& wi, uint32_t lobes) const override {
     return wo.z >= 0 ? front_->Pdf(ctx, wo, wi, lobes)
                      : back_->Pdf(ctx, FlipZ(wo), FlipZ(wi), lobes);
   }
@@ -44,8 +40,7 @@ class TwoSidedBsdf final : public Bsdf {
   float PassThrough(const BsdfContext& ctx) const override { return front_->PassThrough(ctx); }
 
   Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {
-    return wo.z >= 0 ? front_->ShadingNormal(ctx, wo)
-                     : FlipZ(back_->ShadingNormal(ctx, FlipZ(wo)));
+    return wo.z >= 0 ? front_->ShadingNormal(ctx, wo) : FlipZ(back_->ShadingNormal(ctx, FlipZ(wo)));
   }
 
  private:
@@ -65,8 +60,8 @@ absl::Status Parse(BsdfParams& p) {
         st != p.Nested(i).colors.end() && (st->second.texture >= 0 || !IsBlack(st->second.value));
     if (t == "dielectric" || t == "thindielectric" || t == "roughdielectric" || t == "twosided" ||
         t == "principledthin" || (t == "principled" && transmits))
-      return p.Error("", absl::StrCat("twosided can only wrap a bsdf without transmission, not '",
-                                      t, "'"));
+      return p.Error(
+          "", absl::StrCat("twosided can only wrap a bsdf without transmission, not '", t, "'"));
   }
   return absl::OkStatus();
 }

@@ -223,6 +223,19 @@ TEST(SceneLoaderErrorTest, PlyIndexOutOfRange) {
               dir + "/scene.xml:2:", "bad.ply: face 0: vertex index 1e+300 out of range");
 }
 
+TEST(SceneLoaderErrorTest, BlendAndNullBsdfs) {
+  ASSERT_TRUE(Load("  <bsdf type=\"blendbsdf\" id=\"b\"><float name=\"weight\" value=\"0.3\"/>"
+                   "<bsdf type=\"diffuse\"/><bsdf type=\"conductor\"/></bsdf>\n"
+                   "  <shape type=\"sphere\"><bsdf type=\"null\"/></shape>\n")
+                  .ok());
+  ExpectError(Load("  <bsdf type=\"blendbsdf\"><bsdf type=\"diffuse\"/></bsdf>\n"),
+              "scene.xml:2:", "blendbsdf needs exactly two nested bsdfs");
+  // Mitsuba 3 shows the camera no emission from a null-BSDF lamp but lights the scene with it.
+  ExpectError(Load("  <shape type=\"sphere\"><bsdf type=\"null\"/>\n"
+                   "    <emitter type=\"area\"/></shape>\n"),
+              "scene.xml:3:", "an area emitter on a shape with a null bsdf");
+}
+
 TEST(SceneLoaderErrorTest, UnknownPluginType) {
   const auto r = Load("  <bsdf type=\"measured\" id=\"x\"/>\n");
   ASSERT_FALSE(r.ok());
