@@ -195,6 +195,8 @@ class Parser {
   absl::StatusOr<int> AddBsdf(pugi::xml_node n, BsdfDesc bsdf);
   absl::StatusOr<int> ParseTexture(pugi::xml_node n);
   absl::Status ParseShape(pugi::xml_node n);
+  absl::Status ParseShapeGroup(pugi::xml_node n);
+  absl::Status ParseInstance(pugi::xml_node n);
   absl::StatusOr<Vec3> ParseAreaEmitter(pugi::xml_node n);
   absl::Status ParseEmitter(pugi::xml_node n);
 
@@ -211,6 +213,12 @@ class Parser {
   bool upgraded_ = false;                             // a Mitsuba 0.5/0.6 file, upgraded on load
   // Translation by minus SceneDesc::world_origin, composed (in double) into every to_world.
   Mat4 recentre_;
+  // <shape type="shapegroup">: its shapes, in the group's own space, copied into the scene by
+  // every <shape type="instance"> that refers to it (by index). While a group's shapes are parsed,
+  // shape_sink_ points at it.
+  std::vector<std::vector<ShapeDesc>> groups_;
+  std::vector<ShapeDesc>* shape_sink_ = nullptr;
+  size_t instanced_triangles_ = 0;
 
  public:
   void SetWorldOrigin(const std::array<double, 3>& o) {
@@ -439,8 +447,8 @@ absl::StatusOr<Params> Parser::Collect(pugi::xml_node obj, absl::string_view kin
       const auto it = ids_.find(id);
       if (it == ids_.end()) {
         return Error(c, absl::StrCat("unknown id '", id,
-                                     "' (a <ref> names a bsdf or texture defined earlier in the "
-                                     "file)"));
+                                     "' (a <ref> names a bsdf, texture or shapegroup defined "
+                                     "earlier in the file)"));
       }
       if (it->second.index < 0) {
         return Error(c, absl::StrCat("id '", id, "' names a ", it->second.kind,
@@ -1046,10 +1054,79 @@ absl::StatusOr<int> Parser::ParseTexture(pugi::xml_node n) {
   return index;
 }
 
+absl::Status Parser::ParseShapeGroup(pugi::xml_node n) {
+  if (shape_sink_) return Error(n, "a shapegroup cannot be nested in another");
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "shape"));
+  const std::vector<const Entry*> shapes = TakeObjects(p, "shape");
+  LOADER_RETURN_IF_ERROR(Finish(p));
+  std::vector<ShapeDesc> group;
+  const Mat4 recentre = recentre_;
+  recentre_ = Mat4();  // the group's shapes stay in its own space; the instances place them
+  shape_sink_ = &group;
+  absl::Status status;
+  for (const Entry* e : shapes) {
+    if (!e->node.child("emitter").empty()) {
+      status = Error(e->node.child("emitter"),
+                     "a shape in a shapegroup cannot emit (Mitsuba 3 does not instance emitters)");
+      break;
+    }
+    status = ParseShape(e->node);
+    if (!status.ok()) break;
+  }
+  shape_sink_ = nullptr;
+  recentre_ = recentre;
+  LOADER_RETURN_IF_ERROR(status);
+  groups_.push_back(std::move(group));
+  return RegisterId(n, "shapegroup", int(groups_.size()) - 1);
+}
+
+absl::Status Parser::ParseInstance(pugi::xml_node n) {
+  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "shape"));
+  LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world_opt, GetTransform(p, "to_world"));
+  const std::vector<const Entry*> refs = TakeObjects(p, "shapegroup");
+  LOADER_RETURN_IF_ERROR(Finish(p));
+  if (refs.size() != 1 || refs[0]->ref < 0) {
+    return Error(n, "an instance needs exactly one <ref> to a shapegroup");
+  }
+  const Mat4 to_world = World(to_world_opt);
+  const double det = to_world.Determinant3();
+  if (!(det != 0) || !std::isfinite(det)) {
+    return Error(NodeOf(p, "to_world"), "the instance's to_world is singular");
+  }
+  // Instances are copies (Embree instancing is not used), so a short file could ask for any
+  // number of triangles: their total is capped.
+  constexpr size_t kMaxInstancedTriangles = size_t{1} << 25;
+  for (const ShapeDesc& s : groups_[size_t(refs[0]->ref)]) {
+    instanced_triangles_ += s.mesh.indices.size() / 3;
+  }
+  if (instanced_triangles_ > kMaxInstancedTriangles) {
+    return Error(n, absl::StrCat("instances copy more than ", kMaxInstancedTriangles,
+                                 " triangles in all (each instance is a copy of its group)"));
+  }
+  for (ShapeDesc s : groups_[size_t(refs[0]->ref)]) {
+    s.loc = Loc(n);
+    if (s.type == ShapeType::kSphere) {
+      s.center = to_world.ApplyPoint(s.center);
+      s.radius = float(s.radius * std::cbrt(std::abs(det)));
+    } else {
+      TransformMesh(to_world, &s.mesh);
+    }
+    scene_.shapes.push_back(std::move(s));
+  }
+  return RegisterId(n, "shape", -1);
+}
+
 absl::Status Parser::ParseShape(pugi::xml_node n) {
-  LOADER_ASSIGN_OR_RETURN(
-      const std::string type,
-      PluginType(n, "shape", {"obj", "ply", "rectangle", "cube", "sphere", "disk"}));
+  LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
+  if (type == "shapegroup") return ParseShapeGroup(n);
+  if (type == "instance") {
+    if (shape_sink_) return Error(n, "an instance cannot be part of a shapegroup");
+    return ParseInstance(n);
+  }
+  LOADER_RETURN_IF_ERROR(
+      PluginType(n, "shape",
+                 {"obj", "ply", "rectangle", "cube", "sphere", "disk", "shapegroup", "instance"})
+          .status());
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "shape"));
   ShapeDesc s;
   LOADER_ASSIGN_OR_RETURN(s.id, Attr(n, "id"));
@@ -1150,7 +1227,7 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
       return RegisterId(n, "shape", -1);
     }
   }
-  scene_.shapes.push_back(std::move(s));
+  (shape_sink_ ? *shape_sink_ : scene_.shapes).push_back(std::move(s));
   return RegisterId(n, "shape", -1);
 }
 
