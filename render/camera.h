@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "render/pixel_filter.h"
+#include "render/sampling.h"
 #include "render/scene_desc.h"
 
 namespace irfarm {
@@ -27,6 +28,8 @@ class Camera {
     right_ = Normalize(d.to_world.ApplyVector(Vec3(-1, 0, 0)));
     up_ = Normalize(d.to_world.ApplyVector(Vec3(0, 1, 0)));
     tan_x_ = std::tan(d.fov_x_deg * kPi / 360.0f);
+    aperture_radius_ = d.aperture_radius;
+    focus_distance_ = d.focus_distance;
     tan_y_ = tan_x_ * float(film_h_) / float(film_w_);
   }
   // Unit direction of the ray through image point (x, y) in pixels (of the crop window).
@@ -35,6 +38,22 @@ class Camera {
     y += crop_y_;
     return Normalize(forward_ + right_ * ((2 * x / film_w_ - 1) * tan_x_) +
                      up_ * ((1 - 2 * y / film_h_) * tan_y_));
+  }
+  // thinlens (Mitsuba 3's): the ray of film direction `dir` (from Direction) through the lens
+  // point given by (u, v) in [0, 1)^2, uniform on the aperture disk, aimed at where the pinhole
+  // ray meets the plane in focus. A pinhole camera returns the pinhole ray.
+  bool has_lens() const { return aperture_radius_ > 0; }
+  void LensRay(const Vec3& dir, float u, float v, Vec3* origin, Vec3* direction) const {
+    if (!has_lens()) {
+      *origin = origin_;
+      *direction = dir;
+      return;
+    }
+    const Vec3 focus = origin_ + dir * (focus_distance_ / Dot(dir, forward_));
+    float dx, dy;
+    ConcentricDisk(u, v, &dx, &dy);
+    *origin = origin_ + right_ * (dx * aperture_radius_) + up_ * (dy * aperture_radius_);
+    *direction = Normalize(focus - *origin);
   }
   // Unit direction of camera sample (u, v) in [0, 1)^2 of pixel (px, py) that stays in its pixel:
   // its film point is drawn from the pixel's filter (PixelFilter::FilmPoint), so the pixel's
@@ -76,6 +95,7 @@ class Camera {
   PixelFilter filter_;
   Vec3 origin_, forward_{0, 0, 1}, right_{-1, 0, 0}, up_{0, 1, 0};
   float tan_x_ = 1, tan_y_ = 1;
+  float aperture_radius_ = 0, focus_distance_ = 1e4f;
 };
 
 }  // namespace irfarm

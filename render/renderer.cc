@@ -162,7 +162,9 @@ void SamplePixel(const IrrcacheIntegrator& integrator, const Camera& cam, int x,
   for (int s = 0; s < spp; ++s) {
     float fu, fv;
     film_points.Get(s, &fu, &fv);
-    const Ray ray{cam.origin(), cam.SampleDirection(x, y, fu, fv), INFINITY};
+    Ray ray;
+    cam.LensRay(cam.SampleDirection(x, y, fu, fv), cam.has_lens() ? rng.Next() : 0.0f,
+                cam.has_lens() ? rng.Next() : 0.0f, &ray.origin, &ray.dir);
     IrrcacheShade shade;
     shade.region = &region;
     DirectTerms terms;
@@ -361,8 +363,12 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       float fu, fv;
       ps.film.Get(s, &fu, &fv);
       const float fx = float(x) + fu, fy = float(y) + fv;
-      const Ray ray{cam.origin(), splat ? cam.Direction(fx, fy) : cam.SampleDirection(x, y, fu, fv),
-                    INFINITY};
+      // thinlens: the lens point from the pixel's stream (a pinhole draws nothing).
+      Ray ray;
+      const float lu = cam.has_lens() ? ps.rng.Next() : 0.0f;
+      const float lv = cam.has_lens() ? ps.rng.Next() : 0.0f;
+      cam.LensRay(splat ? cam.Direction(fx, fy) : cam.SampleDirection(x, y, fu, fv), lu, lv,
+                  &ray.origin, &ray.dir);
       ++c.camera_rays;
       Vec3 L;
       DirectTerms terms;

@@ -59,6 +59,26 @@ inline void UniformTriangle(float u, float v, float* b0, float* b1) {
 
 // Veach's power heuristic (beta = 2) weight for a sample drawn from f, with pf and pg the pdfs
 // of f and g at it. Handles an infinite pf (delta distribution) and pf = pg = 0.
+// A point of the unit disk, uniform, from (u, v) in [0, 1)^2 by Shirley and Chiu's concentric
+// map (nearby (u, v) stay nearby, so stratified samples stay stratified).
+inline void ConcentricDisk(float u, float v, float* x, float* y) {
+  const float a = 2 * u - 1, b = 2 * v - 1;
+  if (a == 0 && b == 0) {
+    *x = *y = 0;
+    return;
+  }
+  float r, phi;
+  if (std::abs(a) > std::abs(b)) {
+    r = a;
+    phi = kPi / 4 * (b / a);
+  } else {
+    r = b;
+    phi = kPi / 2 - kPi / 4 * (a / b);
+  }
+  *x = r * std::cos(phi);
+  *y = r * std::sin(phi);
+}
+
 inline float PowerHeuristic(float pf, float pg) {
   if (std::isinf(pf)) return 1;
   const float f = pf * pf, g = pg * pg;

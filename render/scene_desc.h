@@ -47,6 +47,9 @@ struct CameraDesc {
   int film_width = 0, film_height = 0, crop_x = 0, crop_y = 0;
   int spp = 4;  // sampler sample_count
   FilterDesc filter;
+  // thinlens: the lens's radius (scene units; 0 = the pinhole `perspective`) and the distance
+  // of the plane in focus along the view direction.
+  float aperture_radius = 0, focus_distance = 1e4f;
   SourceLoc loc;
 };
 

@@ -743,7 +743,8 @@ absl::Status Parser::ParseSensor(pugi::xml_node n) {
                                  "); irfarm renders one camera"));
   }
   sensor_ = n;
-  LOADER_RETURN_IF_ERROR(PluginType(n, "sensor", {"perspective"}).status());
+  LOADER_ASSIGN_OR_RETURN(const std::string sensor_type,
+                          PluginType(n, "sensor", {"perspective", "thinlens"}));
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "sensor"));
   CameraDesc& cam = scene_.camera;
   cam.loc = Loc(n);
@@ -768,7 +769,7 @@ absl::Status Parser::ParseSensor(pugi::xml_node n) {
   LOADER_ASSIGN_OR_RETURN(fov, GetFloat(p, "fov", fov));
   // Read by Mitsuba's perspective camera and without effect on its image (a pinhole has no focus;
   // nothing in a scene moves during the shutter): accepted, checked, ignored.
-  for (const char* name : {"focus_distance", "shutter_open", "shutter_close"}) {
+  for (const char* name : {"shutter_open", "shutter_close"}) {
     LOADER_ASSIGN_OR_RETURN(const float v, GetFloat(p, name, 0));
     if (!(v >= 0) || !std::isfinite(v)) {
       return Error(NodeOf(p, name), absl::StrCat(name, " must be finite and not negative"));
@@ -779,6 +780,24 @@ absl::Status Parser::ParseSensor(pugi::xml_node n) {
   axis = absl::AsciiStrToLower(axis);
   LOADER_ASSIGN_OR_RETURN(cam.near_clip, GetFloat(p, "near_clip", 0.01f));
   LOADER_ASSIGN_OR_RETURN(cam.far_clip, GetFloat(p, "far_clip", 1e4f));
+  // Mitsuba's thinlens: aperture_radius has no default (0 becomes its float epsilon: a pinhole),
+  // focus_distance defaults to far_clip.
+  LOADER_ASSIGN_OR_RETURN(cam.focus_distance, GetFloat(p, "focus_distance", cam.far_clip));
+  if (!(cam.focus_distance >= 0) || !std::isfinite(cam.focus_distance)) {
+    return Error(NodeOf(p, "focus_distance"), "focus_distance must be finite and not negative");
+  }
+  if (sensor_type == "thinlens") {
+    if (!Find(p, "aperture_radius", {"float", "integer"}).value_or(nullptr)) {
+      return Error(n, "a thinlens sensor needs aperture_radius");
+    }
+    LOADER_ASSIGN_OR_RETURN(cam.aperture_radius, GetFloat(p, "aperture_radius", 0));
+    if (!(cam.aperture_radius >= 0) || !std::isfinite(cam.aperture_radius)) {
+      return Error(NodeOf(p, "aperture_radius"), "aperture_radius must be finite and not negative");
+    }
+    if (!(cam.focus_distance > 0) || !std::isfinite(cam.focus_distance)) {
+      return Error(NodeOf(p, "focus_distance"), "focus_distance must be positive and finite");
+    }
+  }
   LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
   cam.to_world = World(to_world);
   const std::vector<const Entry*> films = TakeObjects(p, "film");
