@@ -129,6 +129,10 @@ int RunRender(const RenderArgs& args) {
   }
   s.progress = !args.quiet;
   s.aovs = args.aovs || args.denoise;
+  // Splatted noise is shared between neighbouring pixels, which the denoiser cannot tell from
+  // detail: on the living room with a gaussian filter, path 64 spp denoised 4.8e-2 splatted
+  // against 1.6e-2 with each sample kept in its pixel (undenoised 5.3e-2 and 1.7e-1).
+  s.splat = !args.denoise;
 
   std::unique_ptr<IrradianceCache> warm_cache;
   if (!args.cache_in.empty()) {

@@ -182,7 +182,7 @@ void SamplePixel(const IrrcacheIntegrator& integrator, const Camera& cam, int x,
 // are heavy-tailed (a rare bright sample), so many pixels with few samples: 4096 pixels are 5%
 // of a 320 x 240 image.
 double EstimateSamplingError(const IrrcacheIntegrator& integrator, const Camera& cam, uint64_t seed,
-                             int spp, int light_samples, const PixelRect& rect,
+                             int spp, int light_samples, bool splat, const PixelRect& rect,
                              tbb::task_arena& arena,
                              tbb::enumerable_thread_specific<RenderCounters>& counters) {
   constexpr int kSamplingChecks = 4096;
@@ -199,7 +199,7 @@ double EstimateSamplingError(const IrrcacheIntegrator& integrator, const Camera&
   double sum = 0;
   for (int i = 0; i < kSamplingChecks; ++i) sum += film.RelativeError(size_t(i));
   // These pixels keep their own samples; the final pass splats (PixelFilter).
-  return sum / kSamplingChecks * cam.filter().SplatVarianceFactor();
+  return sum / kSamplingChecks * (splat ? cam.filter().SplatVarianceFactor() : 1.0);
 }
 
 // The pilot of record_balance.h: kPilotPixels random pixels of `rect`, each a record and
@@ -254,7 +254,8 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
   });
   for (int i = 0; i < kPilotPixels; ++i) {
     PilotPixel& px = pilot.pixels[size_t(i)];
-    px.sampling_error = film.RelativeError(size_t(i)) * cam.filter().SplatVarianceFactor();
+    px.sampling_error =
+        film.RelativeError(size_t(i)) * (settings.splat ? cam.filter().SplatVarianceFactor() : 1.0);
     pilot.sample_seconds += sample_seconds[size_t(i)];
     pilot.sample_count += kPilotSamples;
     pilot.record_seconds += record_seconds[size_t(i)] * rays_scale;
@@ -323,7 +324,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   const PathSettings& path = settings.irrcache.path;
 
   // The pixels whose samples reach `rect` (src), and where a pixel of each is.
-  const int g = filter.SplatReach();
+  const int g = settings.splat ? filter.SplatReach() : 0;
   const PixelRect src{std::max(0, rect.x0 - g), std::max(0, rect.y0 - g), std::min(w, rect.x1 + g),
                       std::min(h, rect.y1 + g)};
   const int sw = src.width();
@@ -346,7 +347,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   // Samples [from, to) of pixel q of src; `region` is the calling thread's (see IrrcacheShade).
   // `splat`: the first round's samples with g > 0 (see above); otherwise the samples stay in
   // their pixel, which must then be in rect.
-  const float splat_weight = float(filter.SplatSampleWeight());
+  const float splat_weight = g > 0 ? float(filter.SplatSampleWeight()) : 1.0f;
   auto render_pixel = [&](size_t q, int from, int to, bool splat, RenderCounters& c,
                           LookupRegion* region) {
     const int x = src.x0 + int(q % size_t(sw)), y = src.y0 + int(q / size_t(sw));
@@ -773,9 +774,9 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
                                              : iteration == 0 && cache_error < 0.5 * cache_budget;
         if (may_rebuild && rebuilds < 2 && far_below) {
           if (rebuilds == 0) {
-            const double sampling =
-                EstimateSamplingError(trial, cam, settings.seed, TargetMinSpp(settings),
-                                      std::max(1, ic.light_samples), rect, arena, counters);
+            const double sampling = EstimateSamplingError(
+                trial, cam, settings.seed, TargetMinSpp(settings), std::max(1, ic.light_samples),
+                settings.splat, rect, arena, counters);
             cache_budget = std::clamp(settings.target_error - sampling, 0.5 * settings.target_error,
                                       0.9 * settings.target_error);
           }

@@ -38,9 +38,14 @@ struct RenderSettings {
   // > 0: --target-error, the image's total relMSE to reach (cache + sampling); overrides
   // sampling_error and the cache's accuracy (see TargetErrorPlan in renderer.cc).
   double target_error = 0;
-  double time_limit = 0;      // seconds (wall) from the start of the render; 0 = none
-  bool sample_map = false;    // also produce an image of the samples each pixel got
-  bool aovs = false;          // also accumulate the AOV images (render/aov.h)
+  double time_limit = 0;    // seconds (wall) from the start of the render; 0 = none
+  bool sample_map = false;  // also produce an image of the samples each pixel got
+  bool aovs = false;        // also accumulate the AOV images (render/aov.h)
+  // Splat tent and gaussian samples into the pixels around them, as Mitsuba's film does
+  // (PixelFilter::SplatReach). Off: every sample stays in its pixel, placed by the pixel's filter
+  // (the same expected image, ~3x the variance, but no noise shared between neighbours: what a
+  // denoiser expects; `irfarm render --denoise` turns it off).
+  bool splat = true;
   IrrcacheSettings irrcache;  // its `path` member is used by both integrators
 };
 
