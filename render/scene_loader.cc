@@ -711,11 +711,14 @@ absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
         n, absl::StrCat("a second <integrator> (the first is at line ", Line(integrator_), ")"));
   }
   integrator_ = n;
-  LOADER_ASSIGN_OR_RETURN(const std::string type,
-                          PluginType(n, "integrator", {"path", "irrcache"}));
+  LOADER_ASSIGN_OR_RETURN(
+      const std::string type,
+      PluginType(n, "integrator", {"path", "irrcache", "volpath", "prbvolpath", "prb"}));
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "integrator"));
   IntegratorDesc& d = scene_.integrator;
-  d.type = type;
+  // Mitsuba's volumetric and differentiable path tracers render a scene without media (irfarm
+  // refuses <medium>) to the same image as `path`, with the same max_depth and rr_depth.
+  d.type = type == "irrcache" ? type : "path";
   d.loc = Loc(n);
   LOADER_ASSIGN_OR_RETURN(d.max_depth, GetInt(p, "max_depth", -1));
   LOADER_ASSIGN_OR_RETURN(d.rr_depth, GetInt(p, "rr_depth", 5));

@@ -278,8 +278,16 @@ TEST(SceneLoaderErrorTest, UnknownPluginType) {
                                       absl::StrJoin(BsdfPluginNames(), ", ") + ")");
   ExpectError(Load("\n  <shape type=\"mesh\"/>\n"), "scene.xml:3:", "unknown shape type 'mesh'");
   ExpectError(Load("  <emitter type=\"sky\"/>\n"), "scene.xml:2:", "unknown emitter type 'sky'");
-  ExpectError(Load("  <integrator type=\"volpath\"/>\n"),
-              "scene.xml:2:", "unknown integrator type 'volpath' (supported: path, irrcache)");
+  ExpectError(Load("  <integrator type=\"bdpt\"/>\n"), "scene.xml:2:",
+              "unknown integrator type 'bdpt' (supported: path, irrcache, volpath, prbvolpath, "
+              "prb)");
+  // Without media (irfarm refuses them) Mitsuba's volpath and prb render path's image.
+  const auto volpath = Load(
+      "  <integrator type=\"volpath\"><integer name=\"max_depth\" "
+      "value=\"7\"/></integrator>\n");
+  ASSERT_TRUE(volpath.ok()) << volpath.status();
+  EXPECT_EQ(volpath->integrator.type, "path");
+  EXPECT_EQ(volpath->integrator.max_depth, 7);
   ExpectError(Load("  <medium type=\"homogeneous\"/>\n"),
               "scene.xml:2:", "unknown element <medium>");
 }
