@@ -39,17 +39,18 @@ class Camera {
     return Normalize(forward_ + right_ * ((2 * x / film_w_ - 1) * tan_x_) +
                      up_ * ((1 - 2 * y / film_h_) * tan_y_));
   }
-  // thinlens (Mitsuba 3's): the ray of film direction `dir` (from Direction) through the lens
-  // point given by (u, v) in [0, 1)^2, uniform on the aperture disk, aimed at where the pinhole
-  // ray meets the plane in focus. A pinhole camera returns the pinhole ray.
+  // thinlens (Mitsuba 3's): the ray of film direction `dir` (from Direction) through a lens point
+  // uniform on the aperture disk (u then v drawn from rng), aimed at where the pinhole ray meets
+  // the plane in focus. A pinhole camera returns the pinhole ray and draws nothing.
   bool has_lens() const { return aperture_radius_ > 0; }
-  void LensRay(const Vec3& dir, float u, float v, Vec3* origin, Vec3* direction) const {
+  void LensRay(const Vec3& dir, Rng& rng, Vec3* origin, Vec3* direction) const {
     if (!has_lens()) {
       *origin = origin_;
       *direction = dir;
       return;
     }
     const Vec3 focus = origin_ + dir * (focus_distance_ / Dot(dir, forward_));
+    const float u = rng.Next(), v = rng.Next();
     float dx, dy;
     ConcentricDisk(u, v, &dx, &dy);
     *origin = origin_ + right_ * (dx * aperture_radius_) + up_ * (dy * aperture_radius_);

@@ -23,6 +23,22 @@ PixelFilter::PixelFilter(const FilterDesc& desc, int width, int height)
     g_radius_ = Cumulative(r);  // with g_radius_ = 0 still, this is G(r)
   }
   total_ = Cumulative(r);
+  if (SplatReach() > 0) {
+    // Separable: the 2D ratio sum(w^2) / sum(w)^2 is the square of the 1D one, with the 1D
+    // integral of w^2 by the midpoint rule over the support (that of w is total_).
+    constexpr int kSteps = 4096;
+    const double dt = 2 * r / kSteps;
+    double sum_sq = 0;
+    for (int i = 0; i < kSteps; ++i) {
+      const double w = Weight(-r + (i + 0.5) * dt);
+      sum_sq += w * w * dt;
+    }
+    const double ratio = sum_sq / (total_ * total_);
+    splat_variance_factor_ = ratio * ratio;
+    // n samples per pixel add n total_^2 of weight to a pixel on average; they must add
+    // n / splat_variance_factor_ = n total_^4 / sum_sq^2.
+    splat_sample_weight_ = total_ * total_ / (sum_sq * sum_sq);
+  }
   if (desc_.type != FilterType::kGaussian) return;
   // Each entry by bisection on the monotone W: 200 halvings reach the spacing of doubles.
   const double total = total_;
@@ -38,36 +54,6 @@ PixelFilter::PixelFilter(const FilterDesc& desc, int width, int height)
     }
     inverse_[i] = 0.5 * (lo + hi);
   }
-}
-
-void PixelFilter::WeightIntegrals(double* sum, double* sum_sq) const {
-  // Midpoint rule over the support.
-  constexpr int kSteps = 4096;
-  const double r = desc_.radius, dt = 2 * r / kSteps;
-  *sum = *sum_sq = 0;
-  for (int i = 0; i < kSteps; ++i) {
-    const double w = Weight(-r + (i + 0.5) * dt);
-    *sum += w * dt;
-    *sum_sq += w * w * dt;
-  }
-}
-
-double PixelFilter::SplatVarianceFactor() const {
-  if (SplatReach() == 0) return 1;
-  double sum, sum_sq;
-  WeightIntegrals(&sum, &sum_sq);
-  // Separable: the 2D ratio is the square of the 1D one.
-  const double ratio = sum_sq / (sum * sum);
-  return ratio * ratio;
-}
-
-double PixelFilter::SplatSampleWeight() const {
-  if (SplatReach() == 0) return 1;
-  double sum, sum_sq;
-  WeightIntegrals(&sum, &sum_sq);
-  // n samples per pixel add n (sum)^2 of weight to a pixel on average; they must add
-  // n / SplatVarianceFactor = n (sum)^4 / (sum_sq)^2.
-  return sum * sum / (sum_sq * sum_sq);
 }
 
 double PixelFilter::Weight(double t) const {

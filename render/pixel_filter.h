@@ -61,12 +61,12 @@ class PixelFilter {
   // sum(w_i^2) / sum(w_i)^2 of the splat weights for samples spread uniformly at one per unit of
   // area: the variance of a splatted pixel over that of a mean of one pixel's samples
   // (1 without splatting).
-  double SplatVarianceFactor() const;
+  double SplatVarianceFactor() const { return splat_variance_factor_; }
   // The weight, times its filter weights, that makes a splatted sample count as one sample of a
   // pixel's own (FilmPoint): its pixels' sums of weights are then, on average, the number of
   // FilmPoint samples of the same variance (n / SplatVarianceFactor for n samples per pixel), so
   // the two kinds of samples mix in one weighted mean. 1 without splatting.
-  double SplatSampleWeight() const;
+  double SplatSampleWeight() const { return splat_sample_weight_; }
 
   const FilterDesc& desc() const { return desc_; }
   // How far (pixels) beyond its own square a pixel's samples can land: 0 for box.
@@ -78,8 +78,6 @@ class PixelFilter {
     const double c = double(p) + 0.5;
     return SampleOffset(double(u), -c, double(n) - c);
   }
-  // The integrals of Weight and of its square over the support (1D).
-  void WeightIntegrals(double* sum, double* sum_sq) const;
   // W(t): the integral of Weight from -radius to t, for |t| <= radius.
   double Cumulative(double t) const;
 
@@ -89,7 +87,8 @@ class PixelFilter {
   // bracket and first guess of the Newton iteration that inverts W exactly.
   static constexpr int kTable = 128;
   std::array<double, kTable + 1> inverse_{};
-  double total_ = 1;  // W(radius)
+  double total_ = 1;                                            // W(radius)
+  double splat_variance_factor_ = 1, splat_sample_weight_ = 1;  // 1 without splatting
   // gaussian: 1 / (2 stddev^2), the weight at the radius (exp(-8)) that Mitsuba subtracts, and
   // G(t) = erf_scale_ erf(erf_arg_ t) - bias_ t, W(t) = G(t) + g_radius_.
   double inv_two_var_ = 2, bias_ = 0, erf_scale_ = 0, erf_arg_ = 0, g_radius_ = 0;

@@ -163,8 +163,7 @@ void SamplePixel(const IrrcacheIntegrator& integrator, const Camera& cam, int x,
     float fu, fv;
     film_points.Get(s, &fu, &fv);
     Ray ray;
-    cam.LensRay(cam.SampleDirection(x, y, fu, fv), cam.has_lens() ? rng.Next() : 0.0f,
-                cam.has_lens() ? rng.Next() : 0.0f, &ray.origin, &ray.dir);
+    cam.LensRay(cam.SampleDirection(x, y, fu, fv), rng, &ray.origin, &ray.dir);
     IrrcacheShade shade;
     shade.region = &region;
     DirectTerms terms;
@@ -366,9 +365,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       const float fx = float(x) + fu, fy = float(y) + fv;
       // thinlens: the lens point from the pixel's stream (a pinhole draws nothing).
       Ray ray;
-      const float lu = cam.has_lens() ? ps.rng.Next() : 0.0f;
-      const float lv = cam.has_lens() ? ps.rng.Next() : 0.0f;
-      cam.LensRay(splat ? cam.Direction(fx, fy) : cam.SampleDirection(x, y, fu, fv), lu, lv,
+      cam.LensRay(splat ? cam.Direction(fx, fy) : cam.SampleDirection(x, y, fu, fv), ps.rng,
                   &ray.origin, &ray.dir);
       ++c.camera_rays;
       Vec3 L;
