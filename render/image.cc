@@ -223,4 +223,34 @@ Image Downsample(const Image& image, int factor) {
   return out;
 }
 
+namespace {
+
+// Index i (any integer) reflected into [0, n) about the first and last pixel.
+int Reflect(int i, int n) {
+  if (n == 1) return 0;
+  const int period = 2 * (n - 1);
+  i %= period;
+  if (i < 0) i += period;
+  return i < n ? i : period - i;
+}
+
+}  // namespace
+
+Image PadMirrored(const Image& image, int border) {
+  Image out(image.width + 2 * border, image.height + 2 * border);
+  for (int y = 0; y < out.height; ++y) {
+    const int sy = Reflect(y - border, image.height);
+    for (int x = 0; x < out.width; ++x)
+      out.at(x, y) = image.at(Reflect(x - border, image.width), sy);
+  }
+  return out;
+}
+
+Image Crop(const Image& image, int x0, int y0, int width, int height) {
+  Image out(width, height);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) out.at(x, y) = image.at(x0 + x, y0 + y);
+  return out;
+}
+
 }  // namespace irfarm

@@ -59,5 +59,10 @@ struct ImageError {
 ImageError CompareImages(const Image& test, const Image& ref);
 // Averages blocks of `factor` x `factor` pixels (sizes must divide).
 Image Downsample(const Image& image, int factor);
+// The image with `border` more pixels on each side, mirrored about its edge pixels (as numpy's
+// pad mode "reflect": the column left of x = 0 is x = 1), reflected again where the image is
+// narrower than the border; and the inverse, the rectangle of `size` at (x0, y0).
+Image PadMirrored(const Image& image, int border);
+Image Crop(const Image& image, int x0, int y0, int width, int height);
 
 }  // namespace irfarm
