@@ -31,7 +31,7 @@ std::vector<IrradianceRecord> GlobalCache::Check(const std::vector<IrradianceRec
 void GlobalCache::Insert(const std::vector<IrradianceRecord>& valid) {
   for (const IrradianceRecord& r : valid) {
     if (cache_) cache_->Insert(r);
-    records_.push_back(r);  // also after ReleaseIndex: checked (and stored) while the job ran
+    records_.Append(r);  // also after ReleaseIndex: checked (and stored) while the job ran
   }
 }
 

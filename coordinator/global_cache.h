@@ -12,6 +12,7 @@
 
 #include "cache/irradiance_cache.h"
 #include "coordinator/record_bounds.h"
+#include "coordinator/record_log.h"
 
 namespace irfarm {
 
@@ -33,7 +34,7 @@ class GlobalCache {
   // snapshots and seeding).
   void ReleaseIndex() { cache_.reset(); }
 
-  const std::vector<IrradianceRecord>& records() const { return records_; }
+  const RecordLog& records() const { return records_; }
   size_t size() const { return records_.size(); }
   size_t rejected() const { return rejected_; }
   const RecordBounds& bounds() const { return bounds_; }
@@ -44,7 +45,7 @@ class GlobalCache {
  private:
   RecordBounds bounds_;
   std::unique_ptr<IrradianceCache> cache_;  // null after ReleaseIndex
-  std::vector<IrradianceRecord> records_;
+  RecordLog records_;
   size_t rejected_ = 0;
   float max_accuracy_;
 };

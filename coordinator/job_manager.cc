@@ -663,7 +663,7 @@ void JobManager::SettleWithheld(Job& job, uint32_t worker_id, bool erase) {
 }
 
 absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion& region) {
-  std::lock_guard<std::mutex> lock(mu_);
+  std::unique_lock<std::mutex> lock(mu_);
   auto wit = workers_.find(worker_id);
   if (wit == workers_.end()) return absl::NotFoundError("no worker");
   Worker& w = wit->second;
@@ -694,30 +694,58 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
   if (!old.Empty() && same(old.lo, r.box.lo) && same(old.hi, r.box.hi)) return absl::OkStatus();
   job.index_stale = true;
   // Backlog: records that reach the grown region but not the old one were withheld (every
-  // record reaching the old region was sent, by fan-out or backlog). O(records of the job) per
-  // growth, at most once per lease.
+  // record reaching the old region was sent, by fan-out or backlog). Records merged from now on
+  // are fanned out against the grown region; the ones merged so far are scanned without the
+  // lock (O(records of the job), at most once per lease: 2 million records held every other
+  // worker's records and leases for tens of ms, the scale bench's p99 latency), then queued.
+  const Bounds3 grown = r.box;
   const bool share = job.stored.job().settings().share_records();
   const float a = job.cache->max_accuracy();
-  std::vector<IrradianceRecord> chunk;
-  const std::vector<IrradianceRecord>& all = job.cache->records();
-  for (size_t i = 0; i <= all.size(); ++i) {
-    if (i == all.size() || chunk.size() == options_.sync_batch_records) {
-      if (!chunk.empty()) {
-        const size_t bytes = QueueRecords(w, region.job_id(), chunk);
-        v1::WorkerJobStats& ws = job.worker_stats[worker_id];
-        ws.set_bytes_received(ws.bytes_received() + bytes);
-        metrics_.records_sent->Add(chunk.size());
-        metrics_.record_bytes_sent->Add(bytes);
-        CountFanout(job, worker_id, w, chunk.size(), 0, chunk.size());
-        chunk.clear();
-      }
-      if (i == all.size()) break;
-    }
+  const RecordLog::Prefix all = job.cache->records().View();
+  const std::string job_id = region.job_id();
+  lock.unlock();
+  std::vector<IrradianceRecord> backlog;
+  for (size_t i = 0; i < all.size(); ++i) {
     const IrradianceRecord& rec = all[i];
     if (rec.origin == worker_id || (!share && rec.origin != kSnapshotOrigin)) continue;
-    if (RecordReachesBox(rec, r.box, a) && !RecordReachesBox(rec, old, a)) chunk.push_back(rec);
+    if (RecordReachesBox(rec, grown, a) && !RecordReachesBox(rec, old, a)) backlog.push_back(rec);
   }
-  Touched(&w);
+  // Packed into messages without the lock too; only handing them over takes it.
+  std::vector<v1::CoordinatorMessage> messages;
+  std::vector<size_t> counts;
+  std::vector<IrradianceRecord> chunk;
+  for (size_t i = 0; i < backlog.size(); i += options_.sync_batch_records) {
+    const size_t end = std::min(backlog.size(), i + options_.sync_batch_records);
+    chunk.assign(backlog.begin() + ptrdiff_t(i), backlog.begin() + ptrdiff_t(end));
+    v1::CoordinatorMessage& m = messages.emplace_back();
+    m.mutable_records()->set_job_id(job_id);
+    PackRecords(chunk, kSnapshotOrigin, m.mutable_records()->mutable_batch());
+    counts.push_back(chunk.size());
+  }
+  lock.lock();
+  // The worker may have left, or the job ended, meanwhile: then nobody needs the backlog.
+  wit = workers_.find(worker_id);
+  jit = jobs_.find(job_id);
+  if (wit == workers_.end() || jit == jobs_.end() || IsFinal(*jit->second)) return absl::OkStatus();
+  Worker& w2 = wit->second;
+  Job& job2 = *jit->second;
+  if (!job2.workers.count(worker_id)) return absl::OkStatus();
+  const bool was_empty = w2.outbox.empty();
+  for (size_t k = 0; k < messages.size(); ++k) {
+    const size_t bytes = BatchBytes(messages[k].records().batch());
+    w2.outbox.push_back(std::move(messages[k]));
+    w2.outbox_bytes += bytes;
+    v1::WorkerJobStats& ws = job2.worker_stats[worker_id];
+    ws.set_bytes_received(ws.bytes_received() + bytes);
+    metrics_.records_sent->Add(counts[k]);
+    metrics_.record_bytes_sent->Add(bytes);
+    CountFanout(job2, worker_id, w2, counts[k], 0, counts[k]);
+  }
+  if (was_empty && !messages.empty()) {
+    w2.records_queued_at = std::chrono::steady_clock::now();
+    WakeWorker(w2);
+  }
+  Touched(&w2);
   return absl::OkStatus();
 }
 
@@ -844,7 +872,7 @@ absl::StatusOr<Image> JobManager::RecordMap(const std::string& id, const Caller&
   const Camera camera = *job.camera;  // the job may be removed once the lock is released
   // Copied under the lock (the record list grows under it), drawn without it. Beyond
   // kMaxRecordMapPoints an even stride through the records, so the copy stays bounded.
-  const std::vector<IrradianceRecord>& all = job.cache->records();
+  const RecordLog& all = job.cache->records();
   const size_t stride = (all.size() + kMaxRecordMapPoints - 1) / kMaxRecordMapPoints;
   points.reserve(std::min(all.size(), kMaxRecordMapPoints));
   for (size_t i = 0; i < all.size(); i += std::max<size_t>(stride, 1))
@@ -944,7 +972,7 @@ absl::StatusOr<std::string> JobManager::ExportSnapshot(const std::string& id,
     absl::StatusOr<Job*> found = Find(id, caller);
     if (!found.ok()) return found.status();
     snap.scene_hash = (*found)->stored.job().scene_hash();
-    snap.records = (*found)->cache->records();
+    snap.records = (*found)->cache->records().ToVector();
   }
   return SerializeSnapshot(snap);
 }
@@ -1389,7 +1417,7 @@ void JobManager::SeedCache(Job& job) {
   SeedSet seed;
   std::string from;
   for (const Job* src : sources) {
-    seed.Add(src->cache->records());
+    seed.Add(src->cache->records().ToVector());
     from += (from.empty() ? "" : ",") + src->stored.job().id();
   }
   std::vector<IrradianceRecord> records = seed.records();
@@ -1446,7 +1474,7 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
     const bool share = job.stored.job().settings().share_records();
     const bool filtered = Filtered(worker);
     size_t withheld = 0;
-    const std::vector<IrradianceRecord>& all = job.cache->records();
+    const RecordLog& all = job.cache->records();
     std::vector<IrradianceRecord> chunk;
     for (size_t i = 0; i <= all.size(); ++i) {
       if (i == all.size() || chunk.size() == options_.sync_batch_records) {
