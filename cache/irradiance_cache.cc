@@ -162,8 +162,7 @@ IrradianceRecord IrradianceCache::Block::Record(int i) const {
 }
 
 IrradianceCache::IrradianceCache(const CacheSettings& settings)
-    // NaN or a <= 0 become 0: records then reach nowhere and no lookup ever succeeds.
-    : max_accuracy_(settings.max_accuracy > 0 ? std::min(settings.max_accuracy, 1.0f) : 0.0f),
+    : max_accuracy_(ClampedMaxAccuracy(settings.max_accuracy)),
       neighbour_slope_(settings.neighbour_slope > 0 && std::isfinite(settings.neighbour_slope)
                            ? settings.neighbour_slope
                            : 0.0f),

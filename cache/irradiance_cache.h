@@ -40,6 +40,7 @@
 // misses and data-dependent branches; the 250 ns goal of issue 9 is not reached.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
@@ -137,6 +138,9 @@ class IrradianceCache {
   // Number of records inserted (records of inserts still in progress may be missing).
   size_t size() const { return size_.load(std::memory_order_relaxed); }
   float max_accuracy() const { return max_accuracy_; }
+  // The largest accuracy a cache made with CacheSettings.max_accuracy = a looks up with: a
+  // clamped to 1; NaN or a <= 0 become 0 (records then reach nowhere, no lookup succeeds).
+  static float ClampedMaxAccuracy(float a) { return a > 0 ? std::min(a, 1.0f) : 0.0f; }
 
   // Memory held now, by walking the tree (O(nodes); for tests and statistics, not hot paths).
   CacheMemory MemoryUse() const;

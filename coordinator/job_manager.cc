@@ -265,7 +265,7 @@ absl::Status JobManager::Resume() {
     job->cache->Merge(*records);  // validated again on the way in
     if (FinalState(j.state())) {
       job->tiles->Clear();
-      job->cache->ReleaseIndex();
+      job->cache->Close();
     } else if (j.state() == v1::JOB_STATE_RUNNING) {
       job->stored.mutable_job()->set_state(v1::JOB_STATE_QUEUED);  // no lease survives
     }
@@ -559,9 +559,10 @@ void JobManager::FinishJob(Job& job, v1::JobState state, const std::string& erro
   job.finished = std::chrono::steady_clock::now();
   job.stored.set_finished_unix_ms(UnixMs());
   job.tiles->Clear();
-  // Release what only a running job needs: the octree (records stay for snapshots and seeding),
-  // the uploaded bundle (here and in the store), and the pixels of an image nobody can fetch.
-  job.cache->ReleaseIndex();
+  // Close the cache (records stay for snapshots and seeding) and release what only a running job
+  // needs: the uploaded bundle (here and in the store), and the pixels of an image nobody can
+  // fetch.
+  job.cache->Close();
   if (job.stored.scene().has_bundle())
     for (v1::BundleFile& f : *job.stored.mutable_scene()->mutable_bundle()->mutable_files())
       std::string().swap(*f.mutable_content());
@@ -695,21 +696,21 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
   job.index_stale = true;
   // Backlog: records that reach the grown region but not the old one were withheld (every
   // record reaching the old region was sent, by fan-out or backlog). Records merged from now on
-  // are fanned out against the grown region; the ones merged so far are scanned without the
-  // lock (O(records of the job), at most once per lease: 2 million records held every other
-  // worker's records and leases for tens of ms, the scale bench's p99 latency), then queued.
+  // are fanned out against the grown region; the ones merged so far that lie in grid cells near
+  // it are scanned without the lock (at most once per lease: a scan of all 2 million records
+  // under the lock held every other worker's records and leases for tens of ms, the scale
+  // bench's p99 latency), then queued. Backlog order: by cell, then arrival.
   const Bounds3 grown = r.box;
   const bool share = job.stored.job().settings().share_records();
   const float a = job.cache->max_accuracy();
-  const RecordLog::Prefix all = job.cache->records().View();
+  const GlobalCache::Near near = job.cache->RecordsNear(grown);
   const std::string job_id = region.job_id();
   lock.unlock();
   std::vector<IrradianceRecord> backlog;
-  for (size_t i = 0; i < all.size(); ++i) {
-    const IrradianceRecord& rec = all[i];
-    if (rec.origin == worker_id || (!share && rec.origin != kSnapshotOrigin)) continue;
+  near.ForEach([&](const IrradianceRecord& rec) {
+    if (rec.origin == worker_id || (!share && rec.origin != kSnapshotOrigin)) return;
     if (RecordReachesBox(rec, grown, a) && !RecordReachesBox(rec, old, a)) backlog.push_back(rec);
-  }
+  });
   // Packed into messages without the lock too; only handing them over takes it.
   std::vector<v1::CoordinatorMessage> messages;
   std::vector<size_t> counts;

@@ -1,13 +1,15 @@
-// RecordLog: a job's merged records in arrival order, append-only, in fixed-size blocks that never
-// move. The owner appends under its lock; View() hands out the records so far as a view that
-// stays valid and unchanged while the log grows (and after it is destroyed), so a long scan over
-// them (the backlog of a worker's grown region, JobManager::AddTileRegion) runs without the lock.
-// A reader of a prefix and the writer never touch the same record: the writer only fills slots
-// past every prefix handed out.
+// BlockLog<T>: an append-only list in fixed-size blocks that never move. The owner appends under
+// its lock; View() hands out the elements so far as a view that stays valid and unchanged while
+// the log grows (and after it is destroyed), so a long scan over them (the backlog of a worker's
+// grown region, JobManager::AddTileRegion) runs without the lock. A reader of a view and the
+// writer never touch the same element: the writer only fills slots past every view handed out.
+// RecordLog holds a job's merged records in arrival order; GlobalCache also keeps logs of record
+// indices per spatial cell.
 #pragma once
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -15,44 +17,41 @@
 
 namespace irfarm {
 
-class RecordLog {
+template <typename T>
+class BlockLog {
   static constexpr size_t kBlock = 4096;
   struct Block {
-    std::array<IrradianceRecord, kBlock> records;
+    std::array<T, kBlock> items;
   };
 
  public:
-  class Prefix {
+  class View {
    public:
     size_t size() const { return size_; }
-    const IrradianceRecord& operator[](size_t i) const {
-      return blocks_[i / kBlock]->records[i % kBlock];
-    }
+    const T& operator[](size_t i) const { return blocks_[i / kBlock]->items[i % kBlock]; }
 
    private:
-    friend class RecordLog;
+    friend class BlockLog;
     std::vector<std::shared_ptr<const Block>> blocks_;
     size_t size_ = 0;
   };
 
-  void Append(const IrradianceRecord& r) {
+  void Append(const T& item) {
     if (size_ % kBlock == 0) blocks_.push_back(std::make_shared<Block>());
-    blocks_.back()->records[size_ % kBlock] = r;
+    blocks_.back()->items[size_ % kBlock] = item;
     ++size_;
   }
   size_t size() const { return size_; }
   bool empty() const { return size_ == 0; }
-  const IrradianceRecord& operator[](size_t i) const {
-    return blocks_[i / kBlock]->records[i % kBlock];
+  const T& operator[](size_t i) const { return blocks_[i / kBlock]->items[i % kBlock]; }
+  View Snapshot() const {
+    View v;
+    v.blocks_.assign(blocks_.begin(), blocks_.end());
+    v.size_ = size_;
+    return v;
   }
-  Prefix View() const {
-    Prefix p;
-    p.blocks_.assign(blocks_.begin(), blocks_.end());
-    p.size_ = size_;
-    return p;
-  }
-  std::vector<IrradianceRecord> ToVector() const {
-    std::vector<IrradianceRecord> out;
+  std::vector<T> ToVector() const {
+    std::vector<T> out;
     out.reserve(size_);
     for (size_t i = 0; i < size_; ++i) out.push_back((*this)[i]);
     return out;
@@ -62,5 +61,7 @@ class RecordLog {
   std::vector<std::shared_ptr<Block>> blocks_;
   size_t size_ = 0;
 };
+
+using RecordLog = BlockLog<IrradianceRecord>;
 
 }  // namespace irfarm

@@ -31,7 +31,7 @@ TEST(RecordLogTest, AViewKeepsTheRecordsItSawWhileTheLogGrowsAndAfterItIsGone) {
   EXPECT_TRUE(log->empty());
   const size_t first = 10000;  // more than two blocks, ending inside one
   for (size_t i = 0; i < first; ++i) log->Append(Numbered(i));
-  const RecordLog::Prefix view = log->View();
+  const RecordLog::View view = log->Snapshot();
   for (size_t i = first; i < 5 * first; ++i) log->Append(Numbered(i));
   ASSERT_EQ(log->size(), 5 * first);
   for (size_t i = 0; i < log->size(); ++i) ExpectNumbered((*log)[i], i);
@@ -46,7 +46,7 @@ TEST(RecordLogTest, AViewKeepsTheRecordsItSawWhileTheLogGrowsAndAfterItIsGone) {
 TEST(RecordLogTest, AThreadReadsAViewWhileTheOwnerAppends) {
   RecordLog log;
   for (size_t i = 0; i < 6000; ++i) log.Append(Numbered(i));
-  const RecordLog::Prefix view = log.View();  // taken "under the lock"
+  const RecordLog::View view = log.Snapshot();  // taken "under the lock"
   std::thread reader([&view] {
     for (int pass = 0; pass < 20; ++pass)
       for (size_t i = 0; i < view.size(); ++i) ExpectNumbered(view[i], i);
