@@ -7,17 +7,22 @@
 namespace irfarm {
 
 bool RecordReachesBox(const IrradianceRecord& r, const Bounds3& box, float max_accuracy) {
-  if (r.level > 0) return true;
+  return ReachesBox(r.position, r.radius, r.level, box, max_accuracy);
+}
+
+bool ReachesBox(const Vec3& position, float radius, int level, const Bounds3& box,
+                float max_accuracy) {
+  if (level > 0) return true;
   if (box.Empty()) return false;
   // Squared distance from p_i to the box (0 inside), against (a_max R_i)^2, in double so that
   // scenes at large coordinates do not lose the comparison to rounding.
   double d2 = 0;
   for (int k = 0; k < 3; ++k) {
-    const double p = r.position[k];
+    const double p = position[k];
     const double d = std::max({double(box.lo[k]) - p, 0.0, p - double(box.hi[k])});
     d2 += d * d;
   }
-  const double reach = double(max_accuracy) * double(r.radius);
+  const double reach = double(max_accuracy) * double(radius);
   // 1e-6 relative slack: the worker's box and the record come from float arithmetic.
   return d2 <= reach * reach * (1 + 1e-6);
 }

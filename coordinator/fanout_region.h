@@ -19,6 +19,9 @@ namespace irfarm {
 // True when record `r` can be used by a lookup at level 0 somewhere in `box` at accuracy at most
 // `max_accuracy` (always for level > 0 records; never for an empty box).
 bool RecordReachesBox(const IrradianceRecord& r, const Bounds3& box, float max_accuracy);
+// The same from the record's position, radius and level alone.
+bool ReachesBox(const Vec3& position, float radius, int level, const Bounds3& box,
+                float max_accuracy);
 
 // The box of `region`, clipped to `scene_box` (the job's RecordBounds box). INVALID_ARGUMENT
 // when a coordinate is not finite, min > max on an axis, or the box misses the scene.

@@ -81,13 +81,13 @@ std::vector<IrradianceRecord> GlobalCache::Check(const std::vector<IrradianceRec
 void GlobalCache::Insert(const std::vector<IrradianceRecord>& valid) {
   // Also after Close: these were checked (and stored) while the job ran.
   for (const IrradianceRecord& r : valid) {
-    const uint32_t index = uint32_t(records_.size());
+    const Entry entry{r.position, r.radius, r.origin, uint32_t(records_.size()), r.level};
     records_.Append(r);
     if (r.level > 0) {
-      cells_.back().Append(index);
+      cells_.back().Append(entry);
     } else {
       const int cell = CellOf(r.position);
-      cells_[size_t(cell)].Append(index);
+      cells_[size_t(cell)].Append(entry);
       float& m = cell_max_radius_[size_t(cell)];
       m = std::max(m, r.radius);
     }

@@ -40,21 +40,39 @@ class GlobalCache {
 
   const RecordLog& records() const { return records_; }
 
+  // What a grid cell keeps of each of its records: enough to decide whether it belongs to a
+  // backlog without reading the record (the scan stays in the cell's contiguous entries).
+  struct Entry {
+    Vec3 position;
+    float radius;
+    uint32_t origin;
+    uint32_t index;  // in records()
+    uint8_t level;
+  };
+  // A cell's entries, in small blocks: most of the 4,096 cells hold few records.
+  using CellLog = BlockLog<Entry, 256>;
+
   // The records merged so far that may reach `box` at max_accuracy(): every one that
   // RecordReachesBox(r, box, max_accuracy()) accepts, and others of the grid cells near it, as
   // views that stay valid and unchanged without the caller's lock while the cache grows.
   class Near {
    public:
+    // f(record) for each record whose entry `keep(entry)` accepts.
+    template <typename Keep, typename F>
+    void ForEach(Keep keep, F f) const {
+      for (const CellLog::View& cell : cells_)
+        for (size_t i = 0; i < cell.size(); ++i)
+          if (keep(cell[i])) f(records_[cell[i].index]);
+    }
     template <typename F>
-    void ForEach(F f) const {  // f(const IrradianceRecord&)
-      for (const BlockLog<uint32_t>::View& cell : cells_)
-        for (size_t i = 0; i < cell.size(); ++i) f(records_[cell[i]]);
+    void ForEach(F f) const {
+      ForEach([](const Entry&) { return true; }, f);
     }
 
    private:
     friend class GlobalCache;
     RecordLog::View records_;
-    std::vector<BlockLog<uint32_t>::View> cells_;
+    std::vector<CellLog::View> cells_;
   };
   Near RecordsNear(const Bounds3& box) const;
   size_t size() const { return records_.size(); }
@@ -73,8 +91,8 @@ class GlobalCache {
   float max_accuracy_;
   bool closed_ = false;
   RecordLog records_;
-  std::vector<BlockLog<uint32_t>> cells_;  // kGrid^3 cells of level-0 records, then level > 0
-  std::vector<float> cell_max_radius_;     // per level-0 cell
+  std::vector<CellLog> cells_;          // kGrid^3 cells of level-0 records, then level > 0
+  std::vector<float> cell_max_radius_;  // per level-0 cell
   size_t rejected_ = 0;
 };
 

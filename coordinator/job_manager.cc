@@ -707,10 +707,13 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
   const std::string job_id = region.job_id();
   lock.unlock();
   std::vector<IrradianceRecord> backlog;
-  near.ForEach([&](const IrradianceRecord& rec) {
-    if (rec.origin == worker_id || (!share && rec.origin != kSnapshotOrigin)) return;
-    if (RecordReachesBox(rec, grown, a) && !RecordReachesBox(rec, old, a)) backlog.push_back(rec);
-  });
+  near.ForEach(
+      [&](const GlobalCache::Entry& e) {
+        if (e.origin == worker_id || (!share && e.origin != kSnapshotOrigin)) return false;
+        return ReachesBox(e.position, e.radius, e.level, grown, a) &&
+               !ReachesBox(e.position, e.radius, e.level, old, a);
+      },
+      [&](const IrradianceRecord& rec) { backlog.push_back(rec); });
   // Packed into messages without the lock too; only handing them over takes it.
   std::vector<v1::CoordinatorMessage> messages;
   std::vector<size_t> counts;

@@ -17,9 +17,8 @@
 
 namespace irfarm {
 
-template <typename T>
+template <typename T, size_t kBlock = 4096>
 class BlockLog {
-  static constexpr size_t kBlock = 4096;
   struct Block {
     std::array<T, kBlock> items;
   };
