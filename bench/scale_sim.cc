@@ -273,8 +273,16 @@ RunFigures RunConfig(const Setup& s, int n, const std::string& fanout, bool smok
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
   for (auto& w : workers)
     if (!w->registered()) {
+      size_t registered = 0;
+      for (auto& v : workers) registered += v->registered() ? 1 : 0;
       stop_all();
-      f.error = "a simulated worker did not register in 30 s";
+      f.error = std::to_string(workers.size() - registered) + " of " +
+                std::to_string(workers.size()) + " simulated workers did not register in 30 s";
+      for (auto& v : workers)  // the first reason a session gave (stats are valid after Join)
+        if (!v->stats().error.empty()) {
+          f.error += ": " + v->stats().error;
+          break;
+        }
       return f;
     }
   absl::StatusOr<v1::Job> job = Submit(stub.get(), s);
