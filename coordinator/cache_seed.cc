@@ -33,8 +33,11 @@ bool CanSeed(const v1::StoredJob& from, const v1::StoredJob& to) {
 }
 
 void SeedSet::Add(const std::vector<IrradianceRecord>& records) {
-  for (const IrradianceRecord& r : records)
-    if (seen_.insert(RecordKey(r)).second) records_.push_back(r);
+  for (const IrradianceRecord& r : records) Add(r);
+}
+
+void SeedSet::Add(const IrradianceRecord& r) {
+  if (seen_.insert(RecordKey(r)).second) records_.push_back(r);
 }
 
 }  // namespace irfarm

@@ -25,6 +25,7 @@ class SeedSet {
  public:
   // Adds the records not added before (same position, normal and radius bits).
   void Add(const std::vector<IrradianceRecord>& records);
+  void Add(const IrradianceRecord& r);
   const std::vector<IrradianceRecord>& records() const { return records_; }
 
  private:

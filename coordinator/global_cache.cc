@@ -4,8 +4,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "coordinator/fanout_region.h"
-
 namespace irfarm {
 
 GlobalCache::GlobalCache(const CacheSettings& settings, const RecordBounds& bounds)
@@ -81,7 +79,7 @@ std::vector<IrradianceRecord> GlobalCache::Check(const std::vector<IrradianceRec
 void GlobalCache::Insert(const std::vector<IrradianceRecord>& valid) {
   // Also after Close: these were checked (and stored) while the job ran.
   for (const IrradianceRecord& r : valid) {
-    const Entry entry{r.position, r.radius, r.origin, uint32_t(records_.size()), r.level};
+    const Entry entry{r.position, r.radius, uint64_t(records_.size()), r.origin, r.level};
     records_.Append(r);
     if (r.level > 0) {
       cells_.back().Append(entry);

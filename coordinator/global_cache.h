@@ -2,13 +2,12 @@
 // publishes is validated (IsValidRecord: finite values, unit normal, R > 0, E >= 0, and within the
 // scene's RecordBounds, record_bounds.h) before it is merged; invalid ones are dropped and
 // counted, the rest of the batch is kept. The merged records are kept in arrival order
-// (RecordLog), for late-joining workers, snapshots and the store, and their indices by the cell
-// of a 16^3 grid over the scene they lie in, so that a grown fan-out region's backlog looks at
-// the records near it only (RecordsNear).
-// The coordinator never looks irradiance up, so it builds no octree: inserting every record
-// into one was about a tenth of its CPU at 64 workers (bench_scale_sim --perf) and most of its
-// memory, for nothing that was read. The workers' caches interpolate. Not thread-safe:
-// JobManager serialises access.
+// (RecordLog), for late-joining workers, snapshots and the store, and a compact entry of each by
+// the cell of a 16^3 grid over the scene they lie in, so that a grown fan-out region's backlog
+// looks at the records near it only (RecordsNear). The coordinator never looks irradiance up, so it
+// builds no octree: inserting every record into one was about a tenth of its CPU at 64 workers
+// (bench_scale_sim --perf) and most of its memory, for nothing that was read. The workers' caches
+// interpolate. Not thread-safe: JobManager serialises access.
 #pragma once
 
 #include <cstddef>
@@ -45,8 +44,8 @@ class GlobalCache {
   struct Entry {
     Vec3 position;
     float radius;
+    uint64_t index;  // in records()
     uint32_t origin;
-    uint32_t index;  // in records()
     uint8_t level;
   };
   // A cell's entries, in small blocks: most of the 4,096 cells hold few records.

@@ -1421,7 +1421,8 @@ void JobManager::SeedCache(Job& job) {
   SeedSet seed;
   std::string from;
   for (const Job* src : sources) {
-    seed.Add(src->cache->records().ToVector());
+    const RecordLog& log = src->cache->records();
+    for (size_t i = 0; i < log.size(); ++i) seed.Add(log[i]);
     from += (from.empty() ? "" : ",") + src->stored.job().id();
   }
   std::vector<IrradianceRecord> records = seed.records();

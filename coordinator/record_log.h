@@ -1,10 +1,10 @@
 // BlockLog<T>: an append-only list in fixed-size blocks that never move. The owner appends under
-// its lock; View() hands out the elements so far as a view that stays valid and unchanged while
+// its lock; Snapshot() hands out the elements so far as a view that stays valid and unchanged while
 // the log grows (and after it is destroyed), so a long scan over them (the backlog of a worker's
 // grown region, JobManager::AddTileRegion) runs without the lock. A reader of a view and the
 // writer never touch the same element: the writer only fills slots past every view handed out.
-// RecordLog holds a job's merged records in arrival order; GlobalCache also keeps logs of record
-// indices per spatial cell.
+// RecordLog holds a job's merged records in arrival order; GlobalCache also keeps a log of compact
+// record entries per spatial cell.
 #pragma once
 
 #include <array>
