@@ -34,7 +34,7 @@ struct RenderArgs {
   std::string adaptive;  // "on", "off" or "" (the integrator's default)
   int min_spp = 0;
   double target_error = 0, time_limit = 0, sampling_error = 0;
-  std::string integrator;
+  std::string integrator, spacing;
   int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
   float accuracy = 0, min_spacing = 0, max_spacing = 0;
   uint64_t seed = 0;
@@ -107,6 +107,8 @@ int RunRender(const RenderArgs& args) {
     ic.balance_record_rays = false;  // the user's rays, as asked
   }
   if (args.light_samples > 0) ic.light_samples = args.light_samples;
+  if (!args.spacing.empty())
+    ic.spacing = args.spacing == "hessian" ? RecordSpacing::kHessian : RecordSpacing::kSplitSphere;
   if (args.cache_levels > 0) ic.cache_levels = args.cache_levels;
   if (args.min_spacing > 0) ic.min_spacing_px = args.min_spacing;
   if (args.max_spacing > 0) ic.max_spacing_px = args.max_spacing;
@@ -295,6 +297,11 @@ int main(int argc, char** argv) {
                    "irrcache: 1 (default) = records' rays are path traced; 2 = they use a "
                    "second-level cache at the surfaces they reach")
       ->check(CLI::Range(1, 2));
+  render
+      ->add_option("--spacing", ra.spacing,
+                   "irrcache: record radii by split-sphere (Ward) or hessian (the record's own "
+                   "derivatives)")
+      ->check(CLI::IsMember({"split-sphere", "hessian"}));
   render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
   render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
   render->add_flag("--no-overture", ra.no_overture, "irrcache: skip the cache-filling prepass");

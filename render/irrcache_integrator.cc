@@ -1,5 +1,7 @@
 #include "render/irrcache_integrator.h"
 
+#include "render/irradiance_hessian.h"
+
 #include <chrono>
 #include <cmath>
 
@@ -9,6 +11,9 @@ constexpr int kMaxSpecularChain = 64;  // delta bounces before a camera path is 
 // Up to this many local lights, every light that can reach a point gets its own samples; with
 // more, DirectLight picks lights by their expected contribution (LightSampler::Sample).
 constexpr int kAllLightsMax = 16;
+// Records with more strata than this keep Ward's split-sphere spacing (the Hessian needs every
+// stratum's ray on the stack: 80 KB).
+constexpr int kMaxHessianStrata = 4096;
 
 }  // namespace
 
@@ -194,6 +199,11 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   // cornell-box and sunlit-room: 1536 rays with early roulette beat 1024 without it.
   PathSettings record_path = settings_.path;
   record_path.rr_depth = std::min(record_path.rr_depth, depth + 1);
+  // Hessian spacing keeps each stratum's ray (direction, first-hit distance, luminance).
+  const bool hessian = settings_.spacing == RecordSpacing::kHessian && T * P <= kMaxHessianStrata;
+  bool grid_complete = hessian;
+  Vec3 grid_dir[kMaxHessianStrata];
+  float grid_dist[kMaxHessianStrata], grid_lum[kMaxHessianStrata];
   Vec3 sum, half_sum[2];
   for (int i = 0; i < T; ++i)
     for (int j = 0; j < P; ++j) {
@@ -201,7 +211,10 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       const float v = rng.Next();  // drawn in order: argument evaluation order is unspecified
       const Vec3 local = StratifiedCosineHemisphere(i, j, T, P, u, v);
       const Vec3 dir = s * local.x + t * local.y + nf * local.z;
-      if (Dot(dir, ng_side) <= 0) continue;  // below the geometric surface: blocked, no light
+      if (Dot(dir, ng_side) <= 0) {  // below the geometric surface: blocked, no light
+        grid_complete = false;
+        continue;
+      }
       const Ray ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, dir);
       ++counters.record_rays;
       float d = INFINITY;
@@ -219,6 +232,11 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
         inv_dist_sum += 1.0 / d;
         nearest = std::min(nearest, d);
       }
+      if (hessian) {
+        grid_dir[i * P + j] = dir;
+        grid_dist[i * P + j] = d;
+        grid_lum[i * P + j] = IsFinite(L) ? Luminance(L) : 0.0f;
+      }
     }
   const int n = T * P;
   IrradianceRecord r;
@@ -233,10 +251,27 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   }
   const float a = settings_.accuracy;
   // Harmonic mean distance, then clamps on the validity radius a*R in pixel footprints at x.
-  const float harmonic = inv_dist_sum > 0 ? float(n / inv_dist_sum) : INFINITY;
+  float spacing = inv_dist_sum > 0 ? float(n / inv_dist_sum) : INFINITY;  // harmonic mean
+  if (grid_complete) {
+    // The distance where the record's own derivatives predict a relative error of a: there
+    // eps = |x - x_i| / R_i reaches a (irradiance_hessian.h). Rays that left the scene end far
+    // beyond the farthest hit (what lies there moves with x no more than the sky does).
+    float far = 0;
+    for (int k = 0; k < n; ++k)
+      if (std::isfinite(grid_dist[k])) far = std::max(far, grid_dist[k]);
+    far = far > 0 ? 100 * far : 1.0f;
+    for (int k = 0; k < n; ++k)
+      grid_dir[k] = grid_dir[k] * (std::isfinite(grid_dist[k]) ? grid_dist[k] : far);
+    IrradianceDerivatives der;
+    if (EstimateIrradianceDerivatives(T, P, grid_dir, grid_lum, Luminance(sum) / float(n), nf, s, t,
+                                      &der)) {
+      spacing = ErrorRadius(der, a) / a;
+      ++counters.records_hessian;
+    }
+  }
   const float r_min = settings_.min_spacing_px * pixel_spread / a;
   const float r_max = settings_.max_spacing_px * pixel_spread / a;
-  r.radius = std::clamp(harmonic, r_min, r_max);
+  r.radius = std::clamp(spacing, r_min, r_max);
   if (level > 0 && settings_.occluder_reach > 0 && std::isfinite(nearest)) {
     const float a_max = a * std::max(1.0f, settings_.relaxed_factor);
     const float reach =

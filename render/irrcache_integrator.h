@@ -28,10 +28,17 @@
 
 namespace irfarm {
 
+// How a record's validity radius R_i (eps_i = |x - x_i| / R_i + ...) is chosen.
+enum class RecordSpacing {
+  kSplitSphere,  // Ward's: the harmonic mean of the rays' hit distances (worst-case gradient)
+  kHessian,      // the record's own gradient and Hessian (render/irradiance_hessian.h)
+};
+
 struct IrrcacheSettings {
   float accuracy = 0.1f;   // Ward's a: records count when eps_i < a (RADIANCE rtrace -aa 0.1)
   int record_rays = 1536;  // rays per record, T x P with P ~ pi T (measured: see README)
   int light_samples = 1;   // direct-light samples per shading point and camera sample
+  RecordSpacing spacing = RecordSpacing::kSplitSphere;
   // Rectangles' direct light as analytic unoccluded irradiance times the pixel's shadow ratio
   // (DirectTerms); false: the plain Monte Carlo estimate (for comparison).
   bool analytic_direct = true;

@@ -16,6 +16,7 @@ struct RenderCounters {
   uint64_t glossy_bounces = 0;     // irrcache camera-path vertices shaded through a glossy lobe
   uint64_t records_computed = 0;
   uint64_t records_secondary = 0;    // of records_computed, level 1 (see IrradianceRecord)
+  uint64_t records_hessian = 0;      // of records_computed, spaced by their Hessian
   uint64_t lookups = 0;              // irradiance-cache queries
   uint64_t lookup_hits = 0;          // queries answered by interpolation
   uint64_t region_lookups = 0;       // of lookups, answered from a pixel's gathered region
@@ -36,6 +37,7 @@ struct RenderCounters {
     glossy_bounces += o.glossy_bounces;
     records_computed += o.records_computed;
     records_secondary += o.records_secondary;
+    records_hessian += o.records_hessian;
     lookups += o.lookups;
     lookup_hits += o.lookup_hits;
     region_lookups += o.region_lookups;

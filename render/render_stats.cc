@@ -96,6 +96,7 @@ std::string RenderStats::ToJson() const {
     << ", \"shadow_skipped_unreachable_light\": " << c.lights_skipped << "},\n";
   o << "  \"records\": {\"computed\": " << c.records_computed
     << ", \"computed_secondary\": " << c.records_secondary
+    << ", \"computed_hessian\": " << c.records_hessian
     << ", \"computed_overture\": " << records_overture << ", \"received\": " << records_received
     << ", \"in_cache\": " << records_in_cache << ", \"used\": " << c.records_used
     << ", \"used_remote\": " << c.remote_records_used
