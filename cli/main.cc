@@ -34,7 +34,7 @@ struct RenderArgs {
   std::string adaptive;  // "on", "off" or "" (the integrator's default)
   int min_spp = 0;
   double target_error = 0, time_limit = 0, sampling_error = 0;
-  std::string integrator, spacing;
+  std::string integrator, spacing, light_sampling;
   int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
   float accuracy = 0, min_spacing = 0, max_spacing = 0;
   uint64_t seed = 0;
@@ -107,6 +107,7 @@ int RunRender(const RenderArgs& args) {
     ic.balance_record_rays = false;  // the user's rays, as asked
   }
   if (args.light_samples > 0) ic.light_samples = args.light_samples;
+  if (!args.light_sampling.empty()) ic.path.all_lights = args.light_sampling == "all";
   if (!args.spacing.empty())
     ic.spacing = args.spacing == "hessian" ? RecordSpacing::kHessian : RecordSpacing::kSplitSphere;
   if (args.cache_levels > 0) ic.cache_levels = args.cache_levels;
@@ -297,6 +298,11 @@ int main(int argc, char** argv) {
                    "irrcache: 1 (default) = records' rays are path traced; 2 = they use a "
                    "second-level cache at the surfaces they reach")
       ->check(CLI::Range(1, 2));
+  render
+      ->add_option("--light-sampling", ra.light_sampling,
+                   "next-event estimation along paths: all (every light at each vertex, the "
+                   "default) or one (one light picked by its unoccluded contribution)")
+      ->check(CLI::IsMember({"all", "one"}));
   render
       ->add_option("--spacing", ra.spacing,
                    "irrcache: record radii by split-sphere (Ward) or hessian (the record's own "

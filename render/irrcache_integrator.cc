@@ -10,7 +10,7 @@ namespace {
 constexpr int kMaxSpecularChain = 64;  // delta bounces before a camera path is dropped
 // Up to this many local lights, every light that can reach a point gets its own samples; with
 // more, DirectLight picks lights by their expected contribution (LightSampler::Sample).
-constexpr int kAllLightsMax = 16;
+constexpr int kAllLightsMax = LightSampler::kAllLightsMax;
 // Records with more strata than this keep Ward's split-sphere spacing (the Hessian needs every
 // stratum's ray on the stack: 80 KB).
 constexpr int kMaxHessianStrata = 4096;
@@ -50,14 +50,18 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
 
 float IrrcacheIntegrator::EnvironmentMisWeight(float prev_pdf, const Vec3& prev_p,
                                                const Vec3& prev_n, const Vec3& dir) const {
-  return prev_pdf == 0 ? 1.0f
-                       : PowerHeuristic(prev_pdf, scene_.PdfEnvironment(prev_p, prev_n, dir));
+  return prev_pdf == 0
+             ? 1.0f
+             : PowerHeuristic(prev_pdf, scene_.light_sampler().NeePdfEnvironment(
+                                            settings_.path.all_lights, prev_p, prev_n, dir));
 }
 
 float IrrcacheIntegrator::AreaLightMisWeight(float prev_pdf, const Vec3& prev_p, const Vec3& prev_n,
                                              const SurfaceHit& hit, const Vec3& dir) const {
   return prev_pdf == 0 ? 1.0f
-                       : PowerHeuristic(prev_pdf, scene_.PdfAreaLight(prev_p, prev_n, hit, dir));
+                       : PowerHeuristic(prev_pdf, scene_.light_sampler().NeePdfArea(
+                                                      settings_.path.all_lights, prev_p, prev_n,
+                                                      hit.light, hit.p, hit.ns, hit.prim, dir));
 }
 
 Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
@@ -521,29 +525,31 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
   return L;
 }
 
-// Direct light through the non-diffuse (glossy) lobes at a camera-path vertex: one light sample
-// over all lights (environment included: the cache serves only the diffuse lobe), MIS-weighted
-// against the glossy sample that continues the path.
+// Direct light through the non-diffuse (glossy) lobes at a camera-path vertex: next-event
+// estimation as the path tracer does it (every light, or one picked: PathSettings::all_lights;
+// the environment included: the cache serves only the diffuse lobe), MIS-weighted against the
+// glossy sample that continues the path.
 Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
                                       const ShadingFrame& frame, const SurfaceHit& hit,
                                       const Vec3& wo, const Vec3& wo_l, Rng& rng,
                                       RenderCounters& counters) const {
-  LightSample ls;
-  const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
   const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;  // as prev_n in Li (light selection)
-  int skipped = 0;
-  const bool sampled = scene_.SampleLight(hit.p, nf, u1, u2, u3, true, &ls, &skipped);
-  counters.lights_skipped += uint64_t(skipped);
-  if (!sampled) return Vec3();
-  const Vec3 wi_l = frame.ToLocal(ls.wi);
-  if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return Vec3();
-  const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l, kNonDiffuseLobes);
-  if (IsBlack(f)) return Vec3();
-  ++counters.shadow_rays;
-  if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) return Vec3();
-  const float w =
-      ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l, kNonDiffuseLobes));
-  return f * scene_.LightValue(ls) * w;
+  Vec3 L;
+  scene_.light_sampler().SampleForNee(
+      settings_.path.all_lights, hit.p, nf, rng, &counters.lights_skipped,
+      [&](const LightSample& ls) {
+        const Vec3 wi_l = frame.ToLocal(ls.wi);
+        if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return;
+        const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l, kNonDiffuseLobes);
+        if (IsBlack(f)) return;
+        ++counters.shadow_rays;
+        if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) return;
+        const float w = ls.pdf == 0
+                            ? 1.0f
+                            : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l, kNonDiffuseLobes));
+        L += f * scene_.LightValue(ls) * w;
+      });
+  return L;
 }
 
 // The diffuse lobe at x, weighted by the path throughput beta: direct light from local lights

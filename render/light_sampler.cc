@@ -380,26 +380,37 @@ bool LightSampler::Sample(const Vec3& p, const Vec3& n, float u1, float u2, floa
     u1r = std::clamp((target - acc) / w[chosen], 0.0f, 0x1.fffffep-1f);
   }
   if (chosen == nl) {  // the environment
-    if (HasNormal(n)) {
-      Vec3 a, b;
-      MakeFrame(n, &a, &b);
-      const Vec3 local = CosineHemisphere(u2, u3);
-      s->wi = a * local.x + b * local.y + n * local.z;
-    } else {
-      s->wi = UniformSphere(u2, u3);
-    }
-    s->distance = INFINITY;
-    s->pdf = psel * (HasNormal(n) ? std::max(0.0f, Dot(s->wi, n)) * kInvPi : 0.25f * kInvPi);
-    if (!(s->pdf > 0)) return false;
+    if (!SampleEnvironment(n, u2, u3, s)) return false;
+    s->pdf *= psel;
     s->value = Vec3(1.0f / s->pdf);  // times EvalEnvironment(wi): Scene::LightValue
-    s->environment = true;
-    s->light = -1;
     return true;
   }
   if (!SampleOne(chosen, p, u1r, u2, u3, s)) return false;
   s->pdf *= psel;
   s->value = s->value / psel;
   return true;
+}
+
+bool LightSampler::SampleEnvironment(const Vec3& n, float u2, float u3, LightSample* s) const {
+  if (HasNormal(n)) {
+    Vec3 a, b;
+    MakeFrame(n, &a, &b);
+    const Vec3 local = CosineHemisphere(u2, u3);
+    s->wi = a * local.x + b * local.y + n * local.z;
+  } else {
+    s->wi = UniformSphere(u2, u3);
+  }
+  s->distance = INFINITY;
+  s->pdf = PdfEnvironmentAlone(n, s->wi);
+  if (!(s->pdf > 0)) return false;
+  s->value = Vec3(1.0f / s->pdf);  // times EvalEnvironment(wi): Scene::LightValue
+  s->environment = true;
+  s->light = -1;
+  return true;
+}
+
+float LightSampler::PdfEnvironmentAlone(const Vec3& n, const Vec3& wi) const {
+  return HasNormal(n) ? std::max(0.0f, Dot(wi, n)) * kInvPi : 0.25f * kInvPi;
 }
 
 float LightSampler::PdfArea(const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
@@ -409,9 +420,24 @@ float LightSampler::PdfArea(const Vec3& p, const Vec3& n, int light, const Vec3&
   return one > 0 ? one * SelectPdf(p, n, light) : 0;
 }
 
+float LightSampler::NeePdfArea(bool all, const Vec3& p, const Vec3& n, int light, const Vec3& q,
+                               const Vec3& nq, unsigned prim, const Vec3& wi) const {
+  if (!SamplesEveryLight(all)) return PdfArea(p, n, light, q, nq, prim, wi);
+  // A light that got weight 0 at p (e.g. behind the horizon of a transmitter) was not sampled:
+  // what reaches it through the BSDF counts in full.
+  if (light < 0 || light >= num_local_ || Weight(light, p, n) <= 0) return 0;
+  return PdfOne(light, p, q, nq, prim, wi);
+}
+
+float LightSampler::NeePdfEnvironment(bool all, const Vec3& p, const Vec3& n,
+                                      const Vec3& wi) const {
+  if (!SamplesEveryLight(all)) return PdfEnvironment(p, n, wi);
+  return has_environment() ? PdfEnvironmentAlone(n, wi) : 0;
+}
+
 float LightSampler::PdfEnvironment(const Vec3& p, const Vec3& n, const Vec3& wi) const {
   if (!has_environment()) return 0;
-  const float dir = HasNormal(n) ? std::max(0.0f, Dot(wi, n)) * kInvPi : 0.25f * kInvPi;
+  const float dir = PdfEnvironmentAlone(n, wi);
   return dir > 0 ? dir * SelectPdf(p, n, num_local_) : 0;
 }
 

@@ -19,12 +19,16 @@
 #include <vector>
 
 #include "render/light.h"
+#include "render/sampling.h"
 
 namespace irfarm {
 
 class LightSampler {
  public:
   static constexpr int kMaxSpatialLights = 64;
+  // Up to this many local lights, next-event estimation may sample every light at each vertex
+  // (SampleForNee with all = true); with more, one is picked.
+  static constexpr int kAllLightsMax = 16;
 
   // `lights`: local lights first, then environment lights.
   void Build(std::vector<Light> lights, int num_local);
@@ -47,6 +51,11 @@ class LightSampler {
   float PdfOne(int i, const Vec3& p, const Vec3& q, const Vec3& nq, unsigned prim,
                const Vec3& wi) const;
 
+  // Samples the environment alone from (p, n): cosine-weighted around n (uniform over the sphere
+  // when n is zero); s->pdf is that direction's pdf alone, s->value 1 / pdf (see Sample).
+  bool SampleEnvironment(const Vec3& n, float u2, float u3, LightSample* s) const;
+  // The pdf of SampleEnvironment(n, ...) giving wi.
+  float PdfEnvironmentAlone(const Vec3& n, const Vec3& wi) const;
   // Picks a light by weight (the environment too when include_env) and samples it; pdf and
   // value include the selection probability. An environment sample's value lacks the radiance
   // (LightSample::environment): Scene::LightValue completes it once the sample is unblocked.
@@ -67,6 +76,47 @@ class LightSampler {
 
   // Radiance from the environment lights (constant + envmap) along direction d.
   Vec3 EvalEnvironment(const Vec3& d) const;
+
+  // Next-event estimation at (p, n), for a path vertex that also samples its BSDF (MIS). With
+  // `all` (PathSettings::all_lights) and at most kAllLightsMax local lights: one sample of every
+  // local light that can reach p and one of the environment, each alone (its own pdf, no
+  // selection); else one light (or the environment) picked by weight, as Sample does. Calls
+  // f(const LightSample&) for each sample; lights that cannot reach p are counted in *skipped.
+  // Random numbers: three per light (two for the environment), or three in all.
+  bool SamplesEveryLight(bool all) const { return all && num_local_ <= kAllLightsMax; }
+  template <typename F>
+  void SampleForNee(bool all, const Vec3& p, const Vec3& n, Rng& rng, uint64_t* skipped,
+                    F&& f) const {
+    if (!SamplesEveryLight(all)) {
+      LightSample s;
+      const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+      int zero = 0;
+      const bool ok = Sample(p, n, u1, u2, u3, true, &s, &zero);
+      *skipped += uint64_t(zero);
+      if (ok) f(s);
+      return;
+    }
+    for (int i = 0; i < num_local_; ++i) {
+      if (Weight(i, p, n) <= 0) {
+        ++*skipped;  // cannot reach: no sample, no shadow ray
+        continue;
+      }
+      LightSample s;
+      const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+      if (SampleOne(i, p, u1, u2, u3, &s)) f(s);
+    }
+    if (has_environment()) {
+      LightSample s;
+      const float u2 = rng.Next(), u3 = rng.Next();
+      if (SampleEnvironment(n, u2, u3, &s)) f(s);
+    }
+  }
+  // The pdf with which SampleForNee(all, p, n, ...) produces direction wi towards point q of
+  // area light `light` (0 when it never does), and towards the environment: what MIS weighs a
+  // BSDF sample from p against.
+  float NeePdfArea(bool all, const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
+                   unsigned prim, const Vec3& wi) const;
+  float NeePdfEnvironment(bool all, const Vec3& p, const Vec3& n, const Vec3& wi) const;
 
  private:
   // Selection probability of candidate `index` (num_local_ = the environment).

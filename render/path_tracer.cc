@@ -10,6 +10,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
   Vec3 prev_p, prev_n;  // the previous vertex and the normal it selected lights with
   float eta_scale = 1;
   bool first = true;
+  const LightSampler& lights = scene.light_sampler();
   // AOVs: depth of the first non-specular vertex (-1: not reached yet), and the path length so
   // far. A contribution made at vertex `d` is direct up to one vertex past that one.
   int diffuse_depth = -1;
@@ -27,9 +28,9 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       if (first && first_distance) *first_distance = INFINITY;
       if (scene.has_environment()) {
         const bool skip_mis = prev_pdf == 0 || (first && skip_first_local_emission);
-        const float w =
-            skip_mis ? 1.0f
-                     : PowerHeuristic(prev_pdf, scene.PdfEnvironment(prev_p, prev_n, ray.dir));
+        const float light_pdf =
+            lights.NeePdfEnvironment(settings.all_lights, prev_p, prev_n, ray.dir);
+        const float w = skip_mis ? 1.0f : PowerHeuristic(prev_pdf, light_pdf);
         add(beta * scene.EvalEnvironment(ray.dir) * w, depth);
       }
       break;
@@ -41,9 +42,10 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       const Vec3 le = scene.Emitted(hit, wo);
       if (!IsBlack(le)) {
         const float w =
-            prev_pdf == 0
-                ? 1.0f
-                : PowerHeuristic(prev_pdf, scene.PdfAreaLight(prev_p, prev_n, hit, ray.dir));
+            prev_pdf == 0 ? 1.0f
+                          : PowerHeuristic(prev_pdf, lights.NeePdfArea(settings.all_lights, prev_p,
+                                                                       prev_n, hit.light, hit.p,
+                                                                       hit.ns, hit.prim, ray.dir));
         add(beta * le * w, depth);
       }
     }
@@ -68,27 +70,20 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       aov->normal = nf;
       aov->depth = path_length;
     }
-    if (bsdf.HasSmooth()) {  // next-event estimation, MIS against BSDF sampling
-      LightSample ls;
-      const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
-      int skipped = 0;
-      const bool sampled = scene.SampleLight(hit.p, n_select, u1, u2, u3, true, &ls, &skipped);
-      counters.lights_skipped += uint64_t(skipped);
-      if (sampled) {
-        const Vec3 wi_l = frame.ToLocal(ls.wi);
-        if (SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) {
-          const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l);
-          if (!IsBlack(f)) {
-            ++counters.shadow_rays;
-            if (!scene.Occluded(Scene::SpawnShadowRay(hit, ls))) {
-              const float w =
-                  ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l));
-              add(beta * f * scene.LightValue(ls) * w, depth);
-            }
-          }
-        }
-      }
-    }
+    // One light sample, MIS-weighted against BSDF sampling (a delta light's sample: weight 1).
+    const auto shade_light = [&](const LightSample& ls) {
+      const Vec3 wi_l = frame.ToLocal(ls.wi);
+      if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return;
+      const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l);
+      if (IsBlack(f)) return;
+      ++counters.shadow_rays;
+      if (scene.Occluded(Scene::SpawnShadowRay(hit, ls))) return;
+      const float w = ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l));
+      add(beta * f * scene.LightValue(ls) * w, depth);
+    };
+    if (bsdf.HasSmooth())  // next-event estimation, MIS against BSDF sampling
+      lights.SampleForNee(settings.all_lights, hit.p, n_select, rng, &counters.lights_skipped,
+                          shade_light);
     const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
     const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3);
     if (IsBlack(bs.weight)) break;  // failed sample, or a one-sided surface seen from the back

@@ -14,6 +14,16 @@ namespace irfarm {
 struct PathSettings {
   int max_depth = -1;  // path vertices as Mitsuba counts them; -1 = unbounded
   int rr_depth = 5;
+  // Next-event estimation with one sample of every light (and of the environment) at each
+  // vertex, instead of one light picked by its unoccluded contribution: a sun or a sky that is
+  // blocked at most points of a room lit through a window, or one lamp among several, is then
+  // not picked in vain. Up to LightSampler::kAllLightsMax local lights; with more, one is
+  // picked as usual.
+  // Measured at 16 spp (path) and 1540 record rays (irrcache), against picking one light:
+  // room-a (2 lamps, sun, sky) path relMSE 0.111 -> 0.019 for 1.7x the time, room-c 0.058 ->
+  // 0.0061 for 1.5x; irrcache room-a 7.4e-4 -> 5.1e-4 (the reference's own error is about
+  // 3.2e-4 of that), room-d 5.9e-4 -> 4.5e-4 in the same time; one-lamp scenes unchanged.
+  bool all_lights = true;
 };
 
 // Radiance arriving at the ray's origin along `ray`, whose first hit is path vertex `depth`.
