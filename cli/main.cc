@@ -110,7 +110,10 @@ int RunRender(const RenderArgs& args) {
   if (!args.light_sampling.empty()) ic.path.all_lights = args.light_sampling == "all";
   if (!args.spacing.empty())
     ic.spacing = args.spacing == "hessian" ? RecordSpacing::kHessian : RecordSpacing::kSplitSphere;
-  if (args.cache_levels > 0) ic.cache_levels = args.cache_levels;
+  if (args.cache_levels > 0) {
+    ic.cache_levels = args.cache_levels;
+    ic.choose_cache_levels = false;  // the user's levels, as asked
+  }
   if (args.min_spacing > 0) ic.min_spacing_px = args.min_spacing;
   if (args.max_spacing > 0) ic.max_spacing_px = args.max_spacing;
   if (!(ic.accuracy > 0 && ic.accuracy <= 1)) {

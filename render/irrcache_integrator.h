@@ -72,10 +72,13 @@ struct IrrcacheSettings {
   // record's rays are path traced (unbiased beyond the interpolation at x); 2 = they are shaded,
   // at the first diffuse surface they reach, by one direct-light sample plus that surface's own
   // cached irradiance (secondary records: secondary_ray_fraction of the rays, spaced for the
-  // ray's cone, used only by other records' rays). 1 is the default: 2 was measured 30% faster at
-  // equal error on four rooms but leaks light through thin walls (thin-panels 11x worse) and is
-  // worse on sunlit-room, specular and veach-ajar (README, "Two cache levels").
+  // ray's cone, used only by other records' rays). At default settings the pilot chooses
+  // (choose_cache_levels; PrefersTwoLevels in render/record_balance.h): two where the records'
+  // noise dominates the image's error (veach-ajar 4.5x lower relMSE, sunlit-room 1.8x), one where
+  // the camera samples' does (living-room, room-d). Off when the levels are given (scene,
+  // --cache-levels, the job's settings) and with --target-error.
   int cache_levels = 1;
+  bool choose_cache_levels = true;
   float secondary_ray_fraction = 0.25f;
   // Default settings: lower record_rays where the pilot shows that records cost more than their
   // noise is worth against the camera samples (render/record_balance.h). Off when the rays are

@@ -61,6 +61,10 @@ struct BalanceResult {
   double record_seconds = 0;    // C: the records' expected thread time at R0
   double sampling_seconds = 0;  // D: the camera samples' expected thread time
   long pilot_records = 0;       // records the pilot made (set by the renderer; not kept)
+  // Set by the renderer when it chose the cache levels (IrrcacheSettings::choose_cache_levels):
+  // the levels chosen, and the one-level pilot's figures that decided it.
+  int cache_levels = 0;
+  double one_level_record_noise = 0, one_level_sampling_error = 0;
 };
 
 // Records per pixel, as a factor on the plain tiling by the pilot records' validity areas
@@ -76,5 +80,22 @@ constexpr double kTrimmed = 0.02;
 
 // R* as the model above gives it, from the pilot's figures.
 BalanceResult ChooseRecordRays(const PilotFigures& pilot, const BalanceInputs& in);
+
+// Cache levels at default settings. A second level (records' rays shaded from a cache of
+// secondary records at the surfaces they reach, IrrcacheSettings::cache_levels) smooths the
+// records' noise and makes them cheaper, but adds secondary records, which pay off only where the
+// records' noise is what the image's error is made of. So two levels when the one-level pilot's
+// record noise N is above kTwoLevelsNoiseRatio times its expected sampling error S. Measured at
+// defaults, one level against two (relMSE, wall seconds; N / S from the pilot):
+//   veach-ajar 2.2e-2 / 4.8e-3, 6.8 / 4.5 s (N/S 221); sunlit-room 3.9e-4 / 2.2e-4, 3.9 / 4.1 s
+//   (2500); room-b 4.7e-5 / 2.7e-5, 2.0 / 2.9 s (1200); specular 1.11e-3 / 9.7e-4, 6.6 / 5.2 s
+//   (6.4); thin-panels 4.5e-4 / 3.5e-4, 4.4 / 4.9 s; cornell-box 2.6e-4 / 2.3e-4, 3.8 / 2.0 s;
+//   room-a 5.1e-4 / 5.2e-4, 7.6 / 6.0 s; room-c 3.4e-4 / 3.5e-4, 4.1 / 3.4 s (6.7); and where two
+//   levels lose: room-d 4.8e-4 / 5.4e-4 (N/S 1.15) and living-room 2.9e-2 in 21 s / 3.1e-2 in
+//   34 s (0.97: its rough plastic, metal and glass make the samples' error).
+constexpr double kTwoLevelsNoiseRatio = 3.0;
+inline bool PrefersTwoLevels(const BalanceResult& one_level) {
+  return one_level.record_noise > kTwoLevelsNoiseRatio * one_level.sampling_error;
+}
 
 }  // namespace irfarm

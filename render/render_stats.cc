@@ -75,7 +75,8 @@ std::string RenderStats::ToJson() const {
     << ", \"threads\": " << threads << ", \"seed\": " << seed << ",\n";
   o << "  \"settings\": {\"accuracy\": " << Num(accuracy) << ", \"record_rays\": " << record_rays
     << ", \"strata\": [" << strata_theta << ", " << strata_phi
-    << "], \"light_samples\": " << light_samples << ", \"min_spacing_px\": " << Num(min_spacing_px)
+    << "], \"light_samples\": " << light_samples << ", \"cache_levels\": " << cache_levels
+    << ", \"min_spacing_px\": " << Num(min_spacing_px)
     << ", \"max_spacing_px\": " << Num(max_spacing_px) << "},\n";
   o << "  \"seconds\": {";
   for (size_t i = 0; i < phases.size(); ++i) {
@@ -123,7 +124,10 @@ std::string RenderStats::ToJson() const {
       << ", \"expected_spp\": " << Num(balance.expected_spp)
       << ", \"record_thread_seconds\": " << Num(balance.record_seconds)
       << ", \"sampling_thread_seconds\": " << Num(balance.sampling_seconds)
-      << ", \"pilot_records\": " << balance.pilot_records << "},\n";
+      << ", \"pilot_records\": " << balance.pilot_records
+      << ", \"cache_levels\": " << balance.cache_levels
+      << ", \"one_level_record_noise_relmse\": " << Num(balance.one_level_record_noise)
+      << ", \"one_level_sampling_relmse\": " << Num(balance.one_level_sampling_error) << "},\n";
   o << "  \"tiles\": {\"count\": " << tiles << ", \"size\": " << tile_size << "},\n";
   o << "  \"geometry\": {\"triangles\": " << triangles
     << ", \"degenerate_dropped\": " << degenerate_dropped << "},\n";

@@ -25,7 +25,7 @@ struct RenderStats {
   uint64_t seed = 0;
   // irrcache settings actually used (zero for path)
   float accuracy = 0;
-  int record_rays = 0, strata_theta = 0, strata_phi = 0, light_samples = 0;
+  int record_rays = 0, strata_theta = 0, strata_phi = 0, light_samples = 0, cache_levels = 0;
   float min_spacing_px = 0, max_spacing_px = 0;
   std::vector<PhaseTime> phases;
   RenderCounters counters;

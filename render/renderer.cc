@@ -280,6 +280,32 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
   return ChooseRecordRays(pilot, in);
 }
 
+// The pilot (BalanceRecordRays) at the settings' cache levels and, where the settings leave the
+// levels to it (IrrcacheSettings::choose_cache_levels) and the records' noise dominates
+// (PrefersTwoLevels), a second pilot at two levels, whose rays are then the ones used. *ic
+// receives the rays and the levels.
+BalanceResult PilotSettings(const Scene& scene, const RenderSettings& settings,
+                            const PixelRect& rect, tbb::task_arena& arena,
+                            tbb::enumerable_thread_specific<RenderCounters>& counters,
+                            IrrcacheSettings* ic) {
+  BalanceResult b = BalanceRecordRays(scene, settings, rect, arena, counters);
+  ic->record_rays = b.record_rays;
+  if (!settings.irrcache.choose_cache_levels || settings.irrcache.cache_levels != 1) return b;
+  b.cache_levels = 1;
+  b.one_level_record_noise = b.record_noise;
+  b.one_level_sampling_error = b.sampling_error;
+  if (!PrefersTwoLevels(b)) return b;
+  RenderSettings two = settings;
+  two.irrcache.cache_levels = 2;
+  BalanceResult b2 = BalanceRecordRays(scene, two, rect, arena, counters);
+  b2.cache_levels = 2;
+  b2.one_level_record_noise = b.record_noise;
+  b2.one_level_sampling_error = b.sampling_error;
+  ic->cache_levels = 2;
+  ic->record_rays = b2.record_rays;
+  return b2;
+}
+
 // Per-pixel random streams and sample points of the final pass, kept across adaptive rounds.
 struct PixelStreams {
   PixelStreams(uint64_t seed, int spp, int light_samples)
@@ -605,7 +631,10 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
     if (values.count("min_spacing_px")) ic.min_spacing_px = float(values["min_spacing_px"]);
     if (values.count("max_spacing_px")) ic.max_spacing_px = float(values["max_spacing_px"]);
     if (values.count("spp")) spp = values["spp"];
-    if (values.count("cache_levels")) ic.cache_levels = int(values["cache_levels"]);
+    if (values.count("cache_levels")) {
+      ic.cache_levels = int(values["cache_levels"]);
+      ic.choose_cache_levels = false;  // the scene's levels, as asked
+    }
   }
   s.spp = integrator == "path" ? desc.camera.spp : std::max(1, int(spp));
   s.adaptive = integrator == "irrcache";
@@ -634,10 +663,10 @@ RenderSettings BalancedSettings(const Scene& scene, const RenderSettings& settin
   tbb::task_arena arena(threads);
   tbb::enumerable_thread_specific<RenderCounters> counters;
   const Camera& cam = scene.camera();
-  const BalanceResult b = BalanceRecordRays(
-      scene, settings, PixelRect{0, 0, cam.width(), cam.height()}, arena, counters);
-  out.irrcache.record_rays = b.record_rays;
+  const BalanceResult b = PilotSettings(scene, settings, PixelRect{0, 0, cam.width(), cam.height()},
+                                        arena, counters, &out.irrcache);
   out.irrcache.balance_record_rays = false;
+  out.irrcache.choose_cache_levels = false;
   if (result) *result = b;
   return out;
 }
@@ -730,9 +759,8 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
     PhaseTimer timer("pilot");
     // Its own counters: its records are not the render's (they stay out of its cache).
     tbb::enumerable_thread_specific<RenderCounters> pilot_counters;
-    BalanceResult b = BalanceRecordRays(scene, settings, rect, arena, pilot_counters);
+    BalanceResult b = PilotSettings(scene, settings, rect, arena, pilot_counters, &ic);
     for (const RenderCounters& c : pilot_counters) b.pilot_records += long(c.records_computed);
-    ic.record_rays = b.record_rays;
     out.stats.balance = b;
     out.stats.balanced = true;
     out.stats.phases.push_back(timer.Stop());
@@ -873,6 +901,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
     st.strata_theta = final_integrator.strata_theta();
     st.strata_phi = final_integrator.strata_phi();
     st.light_samples = settings.irrcache.light_samples;
+    st.cache_levels = ic.cache_levels;
     st.min_spacing_px = settings.irrcache.min_spacing_px;
     st.max_spacing_px = settings.irrcache.max_spacing_px;
     st.records_in_cache = cache->size();

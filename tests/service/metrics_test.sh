@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Metrics (issue 11, part 1): a real coordinator on a real redis-server and two real workers on
-# 127.0.0.1, each with --metrics, render the Cornell box at 128x128 (64 tiles). Both endpoints
+# 127.0.0.1, each with --metrics, render the Cornell box at 192x192 (144 tiles: at 128x128 the
+# job once ended before three scrapes, after the renders got faster). Both endpoints
 # are scraped every 0.2 s during the job and once after it; every scrape must parse with the
 # Prometheus project's own parser (prometheus_client.parser.text_string_to_metric_families), and:
 #  - the coordinator's irfarm_job_tiles_done{job} and irfarm_job_records_merged{job} and each
@@ -37,7 +38,7 @@ for m in "$CM" "${WM[@]}"; do
   curl -sf "http://$m/metrics" >/dev/null || fail "no metrics on $m"
 done
 
-JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" -Dresx=128 -Dresy=128 --tile-size 16 -q)
+JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" -Dresx=192 -Dresy=192 --tile-size 16 -q)
 mkdir -p "$WORK/scrapes"
 n=0
 end=$((SECONDS + 180))
