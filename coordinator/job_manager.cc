@@ -916,7 +916,10 @@ absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
     const int w = job.stored.job().width(), h = job.stored.job().height();
     image = Image(w, h);
     denoise = job.stored.job().settings().denoise();
-    if (denoise) guides = AovImages(w, h);
+    if (denoise) {
+      guides = AovImages(w, h);
+      guides.variance = Image();  // not carried by the tiles: the denoiser cannot judge the noise
+    }
     for (const auto& [tile, bytes] : job.pixels) {
       const PixelRect& r = job.tiles->rect(tile);
       std::vector<float> px(bytes.size() / sizeof(float));

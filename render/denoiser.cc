@@ -1,6 +1,8 @@
 // Denoiser: OIDN's C API through dlopen (see denoiser.h for why), and the denoising modes.
 #include "render/denoiser.h"
 
+#include <cmath>
+
 #include <dlfcn.h>
 
 #include <algorithm>
@@ -189,10 +191,24 @@ float SafeDivide(float x, float a) { return a > kMinAlbedo ? x / a : 0.0f; }
 
 }  // namespace
 
+double EstimatedSamplingError(const Image& image, const Image& variance) {
+  if (variance.width != image.width || variance.height != image.height || image.pixels.empty())
+    return -1;
+  double sum = 0;
+  for (size_t i = 0; i < image.pixels.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      const double v = image.pixels[i][c], var = variance.pixels[i][c];
+      if (std::isfinite(var) && std::isfinite(v)) sum += std::max(0.0, var) / (v * v + 0.01);
+    }
+  return sum / (3.0 * double(image.pixels.size()));
+}
+
 absl::StatusOr<Image> DenoiseRender(const Denoiser& denoiser, const Image& image,
                                     const AovImages& aovs, DenoiseMode mode, bool prefilter_aux) {
   if (aovs.empty() || aovs.albedo.width != image.width || aovs.albedo.height != image.height)
     return absl::InvalidArgumentError("denoiser: the render has no AOVs of its size");
+  const double noise = EstimatedSamplingError(image, aovs.variance);
+  if (noise >= 0 && noise < kDenoiseNoiseFloor) return image;  // nothing to remove
   if (mode == DenoiseMode::kImage)
     return denoiser.Denoise(image, &aovs.albedo, &aovs.normal, prefilter_aux);
   // Demodulated: the light arriving at the first diffuse surface (reflected radiance divided by

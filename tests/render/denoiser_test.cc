@@ -131,5 +131,31 @@ TEST(DenoiserTest, TheImageFrameIsDenoisedAsWellAsItsInterior) {
   EXPECT_LT(frame_err, 0.15 * noisy_err);
 }
 
+// A render whose variance AOV says its pixel noise is below kDenoiseNoiseFloor comes back as it
+// is; the same render with a variance above it is filtered.
+TEST(DenoiserTest, ARenderBelowTheNoiseFloorIsReturnedAsItIs) {
+  std::unique_ptr<Denoiser> denoiser = OpenOrSkip();
+  if (!denoiser) GTEST_SKIP() << "Open Image Denoise not installed";
+  const LoadedScene s = LoadQuarter("cornell-box");
+  RenderSettings settings = *SettingsForScene(s.desc, "path");
+  settings.spp = 16;
+  settings.seed = 7;
+  settings.aovs = true;
+  RenderOutput out = Render(*s.scene, settings);
+  const double noise = EstimatedSamplingError(out.image, out.aovs.variance);
+  EXPECT_GT(noise, 100 * kDenoiseNoiseFloor);  // a 16-spp path render is noisy
+  absl::StatusOr<Image> filtered =
+      DenoiseRender(*denoiser, out.image, out.aovs, DenoiseMode::kImage);
+  ASSERT_TRUE(filtered.ok()) << filtered.status();
+  EXPECT_GT(CompareImages(*filtered, out.image).relmse, 0);
+  // Scale the variance so that the estimate lands just below the floor.
+  const float scale = float(0.5 * kDenoiseNoiseFloor / noise);
+  for (Vec3& v : out.aovs.variance.pixels) v = v * scale;
+  EXPECT_LT(EstimatedSamplingError(out.image, out.aovs.variance), kDenoiseNoiseFloor);
+  absl::StatusOr<Image> kept = DenoiseRender(*denoiser, out.image, out.aovs, DenoiseMode::kImage);
+  ASSERT_TRUE(kept.ok()) << kept.status();
+  EXPECT_EQ(CompareImages(*kept, out.image).relmse, 0);
+}
+
 }  // namespace
 }  // namespace irfarm

@@ -142,6 +142,9 @@ TEST_P(GoldenImageTest, TwoCacheLevelsBeatPathAt256Spp) {
   RenderSettings s = *SettingsForScene(g.scene.desc, "irrcache");
   s.seed = 3;
   s.irrcache.cache_levels = 2;
+  // principled: at 128 spp, as in IrrcacheBeatsPathAt256Spp (its glossy chains are path traced;
+  // at 64 spp 2.1e-3 to 2.4e-3 against the bound 2.4e-3 since path samples every light).
+  if (name == "principled") s.spp = 128;
   // The default rays, not the pilot's balance: it times records against samples, and on a
   // loaded machine it picks other rays from run to run (materials landed on both sides of the
   // bound).
