@@ -88,16 +88,9 @@ TEST_P(GoldenImageTest, PathMatchesReferenceWithinMeasuredNoise) {
   // can come out several times too small (it did on principled, whose glass and metal make
   // heavy-tailed pixel noise).
   const ImageError m = CompareImages(a.image, ref);
-  for (int c = 0; c < 3; ++c) {
-    double var_sum = 0;
-    for (size_t i = 0; i < a.image.pixels.size(); ++i) {
-      const double d = double(a.image.pixels[i][c]) - double(b.image.pixels[i][c]);
-      var_sum += d * d / 2;
-    }
-    const double n = double(std::max<size_t>(1, a.image.pixels.size()));
-    const double se = std::sqrt(var_sum) / n + 1e-3 * m.mean_ref[c];
-    EXPECT_NEAR(m.mean_test[c], m.mean_ref[c], 4 * se) << name << " channel " << c;
-  }
+  const Vec3 se = MeanStandardError(a.image, b.image, m.mean_ref);
+  for (int c = 0; c < 3; ++c)
+    EXPECT_NEAR(m.mean_test[c], m.mean_ref[c], 4 * se[c]) << name << " channel " << c;
 }
 
 TEST_P(GoldenImageTest, IrrcacheBeatsPathAt256Spp) {

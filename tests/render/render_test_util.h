@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <memory>
@@ -74,6 +75,24 @@ inline RenderOutput RenderWith(const LoadedScene& s, const std::string& integrat
   settings.seed = seed;
   settings.threads = threads;
   return Render(*s.scene, settings);
+}
+
+// Per channel, the standard error of image a's mean, estimated from two independent renders a
+// and b of the same settings (var(a_p) ~ (a_p - b_p)^2 / 2 per pixel, pixels independent), plus
+// `ref_share` of the reference's mean (the reference's own share of the tolerance).
+inline Vec3 MeanStandardError(const Image& a, const Image& b, const Vec3& mean_ref,
+                              double ref_share = 1e-3) {
+  Vec3 se;
+  const double n = double(std::max<size_t>(1, a.pixels.size()));
+  for (int c = 0; c < 3; ++c) {
+    double var_sum = 0;
+    for (size_t i = 0; i < a.pixels.size(); ++i) {
+      const double d = double(a.pixels[i][c]) - double(b.pixels[i][c]);
+      var_sum += d * d / 2;
+    }
+    se[c] = float(std::sqrt(var_sum) / n + ref_share * mean_ref[c]);
+  }
+  return se;
 }
 
 }  // namespace irfarm
