@@ -1,11 +1,10 @@
 // Denoiser: OIDN's C API through dlopen (see denoiser.h for why), and the denoising modes.
 #include "render/denoiser.h"
 
-#include <cmath>
-
 #include <dlfcn.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <vector>
 

@@ -1,9 +1,10 @@
 #include "render/irrcache_integrator.h"
 
-#include "render/irradiance_hessian.h"
-
 #include <chrono>
 #include <cmath>
+#include <optional>
+
+#include "render/irradiance_hessian.h"
 
 namespace irfarm {
 namespace {
@@ -14,6 +15,12 @@ constexpr int kAllLightsMax = LightSampler::kAllLightsMax;
 // Records with more strata than this keep Ward's split-sphere spacing (the Hessian needs every
 // stratum's ray on the stack: 80 KB).
 constexpr int kMaxHessianStrata = 4096;
+// Each stratum's ray, kept for Hessian spacing: direction (times its hit distance, once known),
+// first-hit distance and luminance.
+struct StrataRays {
+  Vec3 dir[kMaxHessianStrata];
+  float dist[kMaxHessianStrata], lum[kMaxHessianStrata];
+};
 
 }  // namespace
 
@@ -203,11 +210,10 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   // cornell-box and sunlit-room: 1536 rays with early roulette beat 1024 without it.
   PathSettings record_path = settings_.path;
   record_path.rr_depth = std::min(record_path.rr_depth, depth + 1);
-  // Hessian spacing keeps each stratum's ray (direction, first-hit distance, luminance).
-  const bool hessian = settings_.spacing == RecordSpacing::kHessian && T * P <= kMaxHessianStrata;
-  bool grid_complete = hessian;
-  Vec3 grid_dir[kMaxHessianStrata];
-  float grid_dist[kMaxHessianStrata], grid_lum[kMaxHessianStrata];
+  // Hessian spacing keeps each stratum's ray; split-sphere records do not fill (or zero) it.
+  std::optional<StrataRays> grid;
+  if (settings_.spacing == RecordSpacing::kHessian && T * P <= kMaxHessianStrata) grid.emplace();
+  bool grid_complete = grid.has_value();
   Vec3 sum, half_sum[2];
   for (int i = 0; i < T; ++i)
     for (int j = 0; j < P; ++j) {
@@ -236,10 +242,10 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
         inv_dist_sum += 1.0 / d;
         nearest = std::min(nearest, d);
       }
-      if (hessian) {
-        grid_dir[i * P + j] = dir;
-        grid_dist[i * P + j] = d;
-        grid_lum[i * P + j] = IsFinite(L) ? Luminance(L) : 0.0f;
+      if (grid) {
+        grid->dir[i * P + j] = dir;
+        grid->dist[i * P + j] = d;
+        grid->lum[i * P + j] = IsFinite(L) ? Luminance(L) : 0.0f;
       }
     }
   const int n = T * P;
@@ -262,13 +268,13 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
     // beyond the farthest hit (what lies there moves with x no more than the sky does).
     float far = 0;
     for (int k = 0; k < n; ++k)
-      if (std::isfinite(grid_dist[k])) far = std::max(far, grid_dist[k]);
+      if (std::isfinite(grid->dist[k])) far = std::max(far, grid->dist[k]);
     far = far > 0 ? 100 * far : 1.0f;
     for (int k = 0; k < n; ++k)
-      grid_dir[k] = grid_dir[k] * (std::isfinite(grid_dist[k]) ? grid_dist[k] : far);
+      grid->dir[k] = grid->dir[k] * (std::isfinite(grid->dist[k]) ? grid->dist[k] : far);
     IrradianceDerivatives der;
-    if (EstimateIrradianceDerivatives(T, P, grid_dir, grid_lum, Luminance(sum) / float(n), nf, s, t,
-                                      &der)) {
+    if (EstimateIrradianceDerivatives(T, P, grid->dir, grid->lum, Luminance(sum) / float(n), nf, s,
+                                      t, &der)) {
       spacing = ErrorRadius(der, a) / a;
       ++counters.records_hessian;
     }

@@ -28,9 +28,10 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       if (first && first_distance) *first_distance = INFINITY;
       if (scene.has_environment()) {
         const bool skip_mis = prev_pdf == 0 || (first && skip_first_local_emission);
-        const float light_pdf =
-            lights.NeePdfEnvironment(settings.all_lights, prev_p, prev_n, ray.dir);
-        const float w = skip_mis ? 1.0f : PowerHeuristic(prev_pdf, light_pdf);
+        const float w =
+            skip_mis ? 1.0f
+                     : PowerHeuristic(prev_pdf, lights.NeePdfEnvironment(settings.all_lights,
+                                                                         prev_p, prev_n, ray.dir));
         add(beta * scene.EvalEnvironment(ray.dir) * w, depth);
       }
       break;

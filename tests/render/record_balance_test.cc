@@ -140,17 +140,16 @@ TEST(RecordBalanceTest, ThePilotChoosesTheCacheLevels) {
   const LoadedScene veach = LoadQuarter("veach-ajar");
   const Image ref = QuarterReference("veach-ajar");
   RenderSettings settings = *SettingsForScene(veach.desc, "irrcache");
-  settings.seed = 3;
   ASSERT_TRUE(settings.irrcache.choose_cache_levels);
-  const RenderOutput chosen = Render(*veach.scene, settings);
+  const RenderOutput chosen = RenderWith(veach, "irrcache", 0, 3);
   ASSERT_TRUE(chosen.stats.balanced);
   EXPECT_EQ(chosen.stats.balance.cache_levels, 2);
   EXPECT_EQ(chosen.stats.cache_levels, 2);
   EXPECT_GT(chosen.stats.balance.one_level_record_noise,
             kTwoLevelsNoiseRatio * chosen.stats.balance.one_level_sampling_error);
-  RenderSettings one = settings;
-  one.irrcache.choose_cache_levels = false;
-  const RenderOutput single = Render(*veach.scene, one);
+  settings.seed = 3;
+  settings.irrcache.choose_cache_levels = false;
+  const RenderOutput single = Render(*veach.scene, settings);
   EXPECT_EQ(single.stats.cache_levels, 1);
   const double two_levels = CompareImages(chosen.image, ref).relmse;
   const double one_level = CompareImages(single.image, ref).relmse;
@@ -158,10 +157,7 @@ TEST(RecordBalanceTest, ThePilotChoosesTheCacheLevels) {
   RecordProperty("veach_one_level", std::to_string(one_level));
   EXPECT_LT(two_levels, one_level / 2);
 
-  const LoadedScene materials = LoadQuarter("materials");
-  RenderSettings m = *SettingsForScene(materials.desc, "irrcache");
-  m.seed = 3;
-  const RenderOutput kept = Render(*materials.scene, m);
+  const RenderOutput kept = RenderWith(LoadQuarter("materials"), "irrcache", 0, 3);
   ASSERT_TRUE(kept.stats.balanced);
   EXPECT_EQ(kept.stats.balance.cache_levels, 1);
   EXPECT_EQ(kept.stats.cache_levels, 1);
