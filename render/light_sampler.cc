@@ -130,13 +130,16 @@ Vec3 LightSampler::AnalyticIrradiance(int i, const Vec3& p, const Vec3& n) const
 
 namespace {
 // Rect lights whose diagonal is under kSphericalRectSize times the distance to their centre are
-// sampled by area: their area pdf is then within about 2x of proportional to solid angle across
-// the light, and spherical-rectangle sampling's four acos and a sincos per sample cost more than
-// the variance they save. Measured on cornell-box (the sampler was 25% of a path render's
-// profile), path 64 spp: CPU 7.83 -> 6.51 s, relMSE 4.61e-3 -> 4.66e-3; irrcache default:
-// CPU 12.6 -> 10.6 s, relMSE 3.10e-4 -> 3.10e-4; room-a irrcache: 12.4 -> 9.8 s, 7.94e-4 ->
-// 7.96e-4. Area sampling everywhere (no threshold) lost 4% relMSE on cornell-box path.
-constexpr float kSphericalRectSize = 0.5f;
+// sampled by area: their area pdf is then within a few times of proportional to solid angle
+// across the light, and spherical-rectangle sampling's four acos and a sincos per sample cost
+// more than the variance they save. Measured (path 16 spp, two seeds; CPU the fastest of three
+// runs), threshold 0.5 -> 1.0: thin-panels relMSE 3.23e-2 -> 3.26e-2 in 2.86 -> 2.09 s CPU
+// (1.4: 3.33e-2, 1.99 s; area sampling everywhere: 4.09e-2, 1.96 s); specular 8.11e-2 -> 8.22e-2
+// in 1.92 -> 1.60 s; cornell-box 1.86e-2 -> 1.91e-2 in 1.44 -> 1.33 s; room-d 1.29e-2 ->
+// 1.33e-2 at equal time; irrcache's defaults unchanged within noise (thin-panels, cornell-box,
+// room-c). Points closer to a lamp than its diagonal, where area sampling's variance grows
+// without bound, are still sampled by solid angle.
+constexpr float kSphericalRectSize = 1.0f;
 
 bool RectBySolidAngle(const Light& l, const Vec3& p) {
   const Vec3 c = l.corner + (l.edge_u + l.edge_v) * 0.5f;
