@@ -118,32 +118,51 @@ int TargetRecordRays(const RenderSettings& s) {
       std::clamp(base * kCacheErrorAtDefaults / (0.5 * s.target_error), 128.0, 4 * base)));
 }
 
-// Mean over `checks` random pixels of IrrcacheIntegrator::CacheError, clamped at 0.
+// Mean over random pixels of IrrcacheIntegrator::CacheError, clamped at 0: batches of
+// `checks` until the mean's standard error is within kCheckPrecision of it, or
+// kCheckBatches batches (at most kMostChecks checks). The error a cache makes is concentrated in
+// few places (edges of indirect shadows, light through gaps), and one batch of 256 often saw too
+// few of them: on thin-panels at E = 4e-3 one batch estimated the cache's error at 1.6e-3, 16
+// batches at 2.2e-3, against 2.3e-3 measured at 64 spp against the reference.
+constexpr double kCheckPrecision = 0.1;
+constexpr int kCheckBatches = 16;
+constexpr size_t kMostChecks = 8192;
 double EstimateCacheError(const IrrcacheIntegrator& integrator, const Camera& cam, uint64_t seed,
                           uint64_t iteration, int checks, const PixelRect& rect,
                           tbb::task_arena& arena,
                           tbb::enumerable_thread_specific<RenderCounters>& counters) {
-  std::vector<double> errors(size_t(checks), 0);
-  std::vector<uint8_t> ok(size_t(checks), 0);
-  arena.execute([&] {
-    tbb::parallel_for(0, checks, [&](int i) {
-      Rng rng(HashCombine(seed, uint64_t(i)), kStreamCacheCheck + 16 * iteration);
-      const float x = float(rect.x0) + rng.Next() * float(rect.width());
-      const float y = float(rect.y0) + rng.Next() * float(rect.height());
-      const Ray ray{cam.origin(), cam.Direction(x, y), INFINITY};
-      double e = 0;
-      ok[size_t(i)] = integrator.CacheError(ray, rng, counters.local(), &e);
-      errors[size_t(i)] = e;
+  std::vector<double> errors;
+  double sum = 0, sum_sq = 0;
+  int n_ok = 0;
+  for (int batch = 0; batch < kCheckBatches; ++batch) {
+    const size_t first = errors.size();
+    errors.resize(first + size_t(checks), 0);
+    std::vector<uint8_t> ok(size_t(checks), 0);
+    arena.execute([&] {
+      tbb::parallel_for(0, checks, [&](int j) {
+        const uint64_t i = uint64_t(first) + uint64_t(j);
+        Rng rng(HashCombine(seed, i), kStreamCacheCheck + 16 * iteration);
+        const float x = float(rect.x0) + rng.Next() * float(rect.width());
+        const float y = float(rect.y0) + rng.Next() * float(rect.height());
+        const Ray ray{cam.origin(), cam.Direction(x, y), INFINITY};
+        double e = 0;
+        ok[size_t(j)] = integrator.CacheError(ray, rng, counters.local(), &e);
+        errors[first + size_t(j)] = e;
+      });
     });
-  });
-  double sum = 0;
-  int n = 0;
-  for (int i = 0; i < checks; ++i) {
-    sum += errors[size_t(i)];
-    n += ok[size_t(i)];
+    for (int j = 0; j < checks; ++j) {
+      const double e = errors[first + size_t(j)];
+      sum += e;
+      sum_sq += e * e;
+      n_ok += ok[size_t(j)];
+    }
+    const double n = double(errors.size());
+    const double mean = sum / n;
+    const double se = std::sqrt(std::max(0.0, sum_sq / n - mean * mean) / n);
+    if ((mean > 0 && se <= kCheckPrecision * mean) || errors.size() >= kMostChecks) break;
   }
   // Pixels with nothing to check (sky, lights, black) have no cache error: they count as 0.
-  return std::max(0.0, sum / checks) * (n > 0 ? 1.0 : 0.0);
+  return n_ok > 0 ? std::max(0.0, sum / double(errors.size())) : 0.0;
 }
 
 // A random pixel of `rect` (two draws of rng).
