@@ -158,6 +158,7 @@ IrradianceRecord IrradianceCache::Block::Record(int i) const {
   r.radius = std::min(radius()[i], c.clamped.load(std::memory_order_relaxed));
   r.origin = c.origin;
   r.level = c.level;
+  r.occluder = UnpackOccluder(c.occluder);
   return r;
 }
 
@@ -290,6 +291,7 @@ void IrradianceCache::AddToNode(Node* node, const IrradianceRecord& r, std::atom
     c.irradiance = r.irradiance;
     c.origin = r.origin;
     c.level = r.level;
+    c.occluder = PackOccluder(r.occluder);
     c.clamped.store(INFINITY, std::memory_order_relaxed);
     b->ready.fetch_or(uint64_t(1) << i, std::memory_order_release);
     const uint64_t ref = RefOf(b, i);

@@ -48,6 +48,7 @@
 
 #include "cache/irradiance_record.h"
 #include "cache/math.h"
+#include "cache/occluder_plane.h"
 
 namespace irfarm {
 
@@ -167,12 +168,14 @@ class IrradianceCache {
     Vec3 normal;
     Vec3 irradiance;
     uint32_t origin;
-    uint8_t level;  // in what was padding before next_all
-    uint64_t next_all;
     // Neighbour clamping's radius, <= the hot part's R (which stays the octree's and the distance
     // pre-test's upper bound); lowered by later inserts while lookups read it.
     std::atomic<float> clamped{INFINITY};
+    uint64_t next_all;
+    uint8_t level;
+    PackedOccluder occluder;  // in what was padding at the end
   };
+  static_assert(sizeof(Cold) == 48, "a record is at most 64 bytes with its 16 hot ones");
   // Bytes of one record in memory: 4 hot floats (x, y, z, R) and its Cold part.
   static constexpr size_t kRecordBytes = 4 * sizeof(float) + sizeof(Cold);
 

@@ -50,12 +50,14 @@ inline bool IsInFront(const Vec3& x, const Vec3& n, float a, const IrradianceRec
 //   - |x - x_i| < a * R_i (implied by eps < a; tested first because it is cheap and rejects
 //     most candidates of an octree lookup),
 //   - eps_i < a, i.e. Ward's w_i > 1/a with the uncapped weight,
-//   - x_i is not in front of x (IsInFront).
+//   - x_i is not in front of x (IsInFront),
+//   - x is not beyond the record's occluder plane (IrradianceRecord::occluder).
 // Any a <= 0 or NaN makes nothing count.
 inline float RecordWeight(const Vec3& x, const Vec3& n, float a, const IrradianceRecord& r) {
   if (!(Dot(n, r.normal) > 0)) return 0;
   const float reach = a * r.radius;
   if (!(LengthSquared(x - r.position) < reach * reach)) return 0;
+  if (Dot(x - r.position, r.occluder) > LengthSquared(r.occluder)) return 0;
   const float eps = WardEpsilon(x, n, r);
   if (!(eps < a)) return 0;
   if (IsInFront(x, n, a, r)) return 0;

@@ -198,6 +198,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   const Vec3 ng_side = Dot(hit.ng, nf) >= 0 ? hit.ng : -hit.ng;
   double inv_dist_sum = 0;
   float nearest = INFINITY;  // the nearest ray hit (occluder clamp)
+  Vec3 nearest_dir;
   int T = strata_t_, P = strata_p_;
   if (ray_fraction < 1) Strata(ray_fraction, &T, &P);
   const bool cached_rays = level + 1 < settings_.cache_levels;
@@ -240,7 +241,10 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       }
       if (d > 0 && std::isfinite(d)) {
         inv_dist_sum += 1.0 / d;
-        nearest = std::min(nearest, d);
+        if (d < nearest) {
+          nearest = d;
+          nearest_dir = dir;
+        }
       }
       if (grid) {
         grid->dir[i * P + j] = dir;
@@ -287,6 +291,9 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
     const float reach =
         std::max(settings_.occluder_reach * nearest, settings_.occluder_floor_px * pixel_spread);
     r.radius = std::min(r.radius, reach / a_max);
+    // Where the floor keeps the reach past the nearest hit (a record next to a partition), the
+    // occluder plane keeps the record from the partition's other side.
+    r.occluder = nearest_dir * nearest;
   }
   if (!(r.radius > 0) || !std::isfinite(r.radius)) {
     // Degenerate footprint (should not happen): fall back to a small multiple of the offset scale.
