@@ -52,7 +52,7 @@ struct IrradianceCache::Accumulator {
   Vec3 x, n;
   float a;
   int max_level;
-  double weight = 0;
+  double weight = 0, weight_sq = 0;
   double e[3] = {0, 0, 0};
   int count = 0;
   int remote = 0;  // counted records with origin != 0
@@ -65,6 +65,7 @@ struct IrradianceCache::Accumulator {
     const float w = RecordWeight(x, n, a, r);
     if (w > 0) {
       weight += w;
+      weight_sq += double(w) * w;
       for (int k = 0; k < 3; ++k) e[k] += double(w) * r.irradiance[k];
       ++count;
       if (r.origin != 0) ++remote;
@@ -140,6 +141,7 @@ struct IrradianceCache::Accumulator {
     if (info != nullptr) {
       info->records_used = count;
       info->weight_sum = float(weight);
+      info->weight_sq_sum = float(weight_sq);
       info->remote_records_used = remote;
       info->from_region = false;
     }

@@ -67,6 +67,8 @@ struct CacheSettings {
 struct LookupInfo {
   int records_used = 0;         // records that counted
   float weight_sum = 0;         // sum of their weights w_i
+  float weight_sq_sum = 0;      // sum of w_i^2: sum w_i^2 / (sum w_i)^2 is the share of one
+                                // record's variance that the weighted mean keeps
   int remote_records_used = 0;  // of records_used, those with origin != 0 (made elsewhere)
   bool from_region = false;     // LookupNear: answered from the region's records, no walk
 };

@@ -603,7 +603,7 @@ bool IrrcacheIntegrator::FirstDiffuse(const Ray& ray, Rng& rng, RenderCounters& 
 }
 
 bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& counters,
-                                    double* error) const {
+                                    double* error, double* noise) const {
   DiffuseVertex dv;
   if (!FirstDiffuse(ray, rng, counters, &dv)) return false;
   Vec3 interp;
@@ -618,14 +618,20 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
   const Vec3 direct =
       DirectLight(dv.hit, dv.nf, -ray.dir, w, LightStrata{}, rng, counters, nullptr);
   const Vec3 v = direct + w * interp;  // the point's radiance (emission on the way left out)
-  double e = 0;
+  const double kept = info.weight_sum > 0
+                          ? double(info.weight_sq_sum) / (double(info.weight_sum) * info.weight_sum)
+                          : 1.0;
+  double e = 0, nz = 0;
   for (int c = 0; c < 3; ++c) {
     const double d = double(w[c]) * (double(interp[c]) - double(fresh.irradiance[c]));
     // Var(E_fresh) = E[(E_even - E_odd)^2] / 4 for two independent halves.
     const double var = double(w[c]) * w[c] * double(half_diff[c]) * half_diff[c] / 4;
-    e += (d * d - var) / (double(v[c]) * v[c] + 0.01);
+    const double scale = double(v[c]) * v[c] + 0.01;
+    e += (d * d - var) / scale;
+    nz += var * kept / scale;
   }
   *error = e / 3;
+  *noise = nz / 3;
   return true;
 }
 

@@ -151,9 +151,15 @@ class IrrcacheIntegrator {
   // relMSE: ((w (E_interp - E_fresh))^2 - w^2 Var(E_fresh)) / (v^2 + 0.01) per channel,
   // averaged, with w = throughput * albedo / pi, Var(E_fresh) from the difference of the fresh
   // record's two interleaved halves of strata, and v the point's radiance (direct + indirect).
-  // Its mean over random pixels estimates the cache's share of the image's relMSE. False where
-  // there is nothing to check (no diffuse hit, or the lookup fails).
-  bool CacheError(const Ray& ray, Rng& rng, RenderCounters& counters, double* error) const;
+  // Its mean over random pixels estimates the cache's share of the image's relMSE. `noise`
+  // receives the part of it the records' own noise explains: the fresh record's variance
+  // (records made with the same rays have about as much) times the share of it the lookup's
+  // weighted mean keeps, sum w_i^2 / (sum w_i)^2, in the same units. That part falls as 1 / rays
+  // and not with the accuracy (a lookup averages about as many records at any a); the rest is
+  // interpolation error, which falls with a. False where there is nothing to check (no diffuse
+  // hit, or the lookup fails).
+  bool CacheError(const Ray& ray, Rng& rng, RenderCounters& counters, double* error,
+                  double* noise) const;
 
   // Pilot for balancing record rays (render/record_balance.h): computes (does not insert) a
   // record at the first diffuse surface seen along `ray` with the settings' rays, and gives its

@@ -127,16 +127,21 @@ int TargetRecordRays(const RenderSettings& s) {
 constexpr double kCheckPrecision = 0.1;
 constexpr int kCheckBatches = 16;
 constexpr size_t kMostChecks = 8192;
-double EstimateCacheError(const IrrcacheIntegrator& integrator, const Camera& cam, uint64_t seed,
-                          uint64_t iteration, int checks, const PixelRect& rect,
-                          tbb::task_arena& arena,
-                          tbb::enumerable_thread_specific<RenderCounters>& counters) {
-  std::vector<double> errors;
-  double sum = 0, sum_sq = 0;
+struct CacheErrorEstimate {
+  double error = 0;  // clamped at 0
+  double noise = 0;  // the part of it the records' own noise explains (at most `error`)
+};
+CacheErrorEstimate EstimateCacheError(const IrrcacheIntegrator& integrator, const Camera& cam,
+                                      uint64_t seed, uint64_t iteration, int checks,
+                                      const PixelRect& rect, tbb::task_arena& arena,
+                                      tbb::enumerable_thread_specific<RenderCounters>& counters) {
+  std::vector<double> errors, noises;
+  double sum = 0, sum_sq = 0, noise_sum = 0;
   int n_ok = 0;
   for (int batch = 0; batch < kCheckBatches; ++batch) {
     const size_t first = errors.size();
     errors.resize(first + size_t(checks), 0);
+    noises.resize(first + size_t(checks), 0);
     std::vector<uint8_t> ok(size_t(checks), 0);
     arena.execute([&] {
       tbb::parallel_for(0, checks, [&](int j) {
@@ -145,15 +150,17 @@ double EstimateCacheError(const IrrcacheIntegrator& integrator, const Camera& ca
         const float x = float(rect.x0) + rng.Next() * float(rect.width());
         const float y = float(rect.y0) + rng.Next() * float(rect.height());
         const Ray ray{cam.origin(), cam.Direction(x, y), INFINITY};
-        double e = 0;
-        ok[size_t(j)] = integrator.CacheError(ray, rng, counters.local(), &e);
+        double e = 0, nz = 0;
+        ok[size_t(j)] = integrator.CacheError(ray, rng, counters.local(), &e, &nz);
         errors[first + size_t(j)] = e;
+        noises[first + size_t(j)] = nz;
       });
     });
     for (int j = 0; j < checks; ++j) {
       const double e = errors[first + size_t(j)];
       sum += e;
       sum_sq += e * e;
+      noise_sum += noises[first + size_t(j)];
       n_ok += ok[size_t(j)];
     }
     const double n = double(errors.size());
@@ -162,7 +169,11 @@ double EstimateCacheError(const IrrcacheIntegrator& integrator, const Camera& ca
     if ((mean > 0 && se <= kCheckPrecision * mean) || errors.size() >= kMostChecks) break;
   }
   // Pixels with nothing to check (sky, lights, black) have no cache error: they count as 0.
-  return n_ok > 0 ? std::max(0.0, sum / double(errors.size())) : 0.0;
+  CacheErrorEstimate out;
+  if (n_ok == 0) return out;
+  out.error = std::max(0.0, sum / double(errors.size()));
+  out.noise = std::min(out.error, noise_sum / double(errors.size()));
+  return out;
 }
 
 // A random pixel of `rect` (two draws of rng).
@@ -805,8 +816,9 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
         // noise of too few of them (room-b, 16 rays: estimates 0.57x to 0.95x of the measured).
         const int checks = int(std::min<long>(
             4096, 256L * std::max(1, TargetRecordRays(settings) / std::max(1, ic.record_rays))));
-        cache_error = EstimateCacheError(trial, cam, settings.seed, uint64_t(streams), checks, rect,
-                                         arena, counters);
+        const CacheErrorEstimate estimate = EstimateCacheError(
+            trial, cam, settings.seed, uint64_t(streams), checks, rect, arena, counters);
+        cache_error = estimate.error;
         // An easy scene: the first cache is far inside its half of E (below E/8), and the render
         // would end far below E (room-b: 4.8e-4 at E = 4e-3, at 2 spp). Rebuild the cache coarser
         // by the model the first round used (interpolation error ~ a^2, noise ~ 1 / rays), aiming
@@ -865,11 +877,31 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
           break;
         }
         previous_error = cache_error;
-        // Interpolation error grows about as a^2 (Ward's bound is linear in a). Aim at 0.8 of the
-        // cache's share (0.4 E when that is E/2).
-        const double f = std::clamp(std::sqrt(0.8 * cache_budget / cache_error), 0.5, 0.9);
-        ic.accuracy *= float(f);
-        ic.record_rays = std::min(most_rays, int(std::lround(ic.record_rays / (f * f))));
+        // Aim at T = 0.8 of the cache's share (0.4 E when that is E/2) at the least cost. The
+        // error is the records' noise N, which falls as 1 / rays (k times the rays: N / k) and
+        // not with a, plus interpolation error I, which falls about as a^2 (Ward's bound is
+        // linear in a; a times f: I f^2). The cost grows as k / f^2 (rays per record times
+        // records). The least k / f^2 with N / k + I f^2 = T: f^2 = T / (2 I) where I > T / 2
+        // (interpolation and noise get half of T each: k = 2 N / T), else f = 1 and
+        // k = N / (T - I). Before, every round lowered a and raised the rays together
+        // (k = 1 / f^2), which multiplied records where the error was their noise.
+        const double target = 0.8 * cache_budget;
+        const double noise = estimate.noise, interp = std::max(0.0, cache_error - noise);
+        double f2 = 1, k = 1;
+        if (interp > 0.5 * target) {
+          f2 = target / (2 * interp);
+          k = 2 * noise / target;
+        } else {
+          k = noise / std::max(target - interp, 1e-12);
+        }
+        // At most 4x the rays and half the accuracy a round; at least 1.25x the cost, so that a
+        // round is not spent on a change too small to measure.
+        f2 = std::clamp(f2, 0.25, 1.0);
+        k = std::clamp(k, 0.5, 4.0);
+        if (k / f2 < 1.25) k = 1.25 * f2;
+        ic.accuracy *= float(std::sqrt(f2));
+        ic.record_rays =
+            std::clamp(int(std::lround(ic.record_rays * k)), kFewestRecordRays, most_rays);
       }
     } else if (settings.overture) {
       overture(IrrcacheIntegrator(scene, cache, ic), 0);
