@@ -135,44 +135,43 @@ CacheErrorEstimate EstimateCacheError(const IrrcacheIntegrator& integrator, cons
                                       uint64_t seed, uint64_t iteration, int checks,
                                       const PixelRect& rect, tbb::task_arena& arena,
                                       tbb::enumerable_thread_specific<RenderCounters>& counters) {
-  std::vector<double> errors, noises;
+  // One batch's values; the running sums carry the batches before it.
+  std::vector<double> errors(size_t(checks), 0), noises(size_t(checks), 0);
+  std::vector<uint8_t> ok(size_t(checks), 0);
   double sum = 0, sum_sq = 0, noise_sum = 0;
+  size_t total = 0;
   int n_ok = 0;
   for (int batch = 0; batch < kCheckBatches; ++batch) {
-    const size_t first = errors.size();
-    errors.resize(first + size_t(checks), 0);
-    noises.resize(first + size_t(checks), 0);
-    std::vector<uint8_t> ok(size_t(checks), 0);
     arena.execute([&] {
       tbb::parallel_for(0, checks, [&](int j) {
-        const uint64_t i = uint64_t(first) + uint64_t(j);
-        Rng rng(HashCombine(seed, i), kStreamCacheCheck + 16 * iteration);
+        Rng rng(HashCombine(seed, uint64_t(total) + uint64_t(j)),
+                kStreamCacheCheck + 16 * iteration);
         const float x = float(rect.x0) + rng.Next() * float(rect.width());
         const float y = float(rect.y0) + rng.Next() * float(rect.height());
         const Ray ray{cam.origin(), cam.Direction(x, y), INFINITY};
         double e = 0, nz = 0;
         ok[size_t(j)] = integrator.CacheError(ray, rng, counters.local(), &e, &nz);
-        errors[first + size_t(j)] = e;
-        noises[first + size_t(j)] = nz;
+        errors[size_t(j)] = e;
+        noises[size_t(j)] = nz;
       });
     });
-    for (int j = 0; j < checks; ++j) {
-      const double e = errors[first + size_t(j)];
-      sum += e;
-      sum_sq += e * e;
-      noise_sum += noises[first + size_t(j)];
-      n_ok += ok[size_t(j)];
+    for (size_t j = 0; j < size_t(checks); ++j) {
+      sum += errors[j];
+      sum_sq += errors[j] * errors[j];
+      noise_sum += noises[j];
+      n_ok += ok[j];
     }
-    const double n = double(errors.size());
+    total += size_t(checks);
+    const double n = double(total);
     const double mean = sum / n;
     const double se = std::sqrt(std::max(0.0, sum_sq / n - mean * mean) / n);
-    if ((mean > 0 && se <= kCheckPrecision * mean) || errors.size() >= kMostChecks) break;
+    if ((mean > 0 && se <= kCheckPrecision * mean) || total >= kMostChecks) break;
   }
   // Pixels with nothing to check (sky, lights, black) have no cache error: they count as 0.
   CacheErrorEstimate out;
   if (n_ok == 0) return out;
-  out.error = std::max(0.0, sum / double(errors.size()));
-  out.noise = std::min(out.error, noise_sum / double(errors.size()));
+  out.error = std::max(0.0, sum / double(total));
+  out.noise = std::min(out.error, noise_sum / double(total));
   return out;
 }
 
