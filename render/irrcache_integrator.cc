@@ -603,15 +603,20 @@ bool IrrcacheIntegrator::FirstDiffuse(const Ray& ray, Rng& rng, RenderCounters& 
 }
 
 bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& counters,
-                                    double* error, double* noise) const {
+                                    double* error, double* noise, float ray_fraction) const {
   DiffuseVertex dv;
   if (!FirstDiffuse(ray, rng, counters, &dv)) return false;
   Vec3 interp;
   LookupInfo info;
   if (!cache_->Lookup(dv.hit.p, dv.nf, settings_.accuracy, &interp, &info, 0)) return false;
   Vec3 half_diff;
-  const IrradianceRecord fresh = ComputeRecord(
-      dv.hit, dv.nf, dv.depth, scene_.camera().PixelSpread(dv.distance), rng, counters, &half_diff);
+  const IrradianceRecord fresh =
+      ComputeRecord(dv.hit, dv.nf, dv.depth, scene_.camera().PixelSpread(dv.distance), rng,
+                    counters, &half_diff, 0, ray_fraction);
+  // The cache's records have the full rays: their variance is the fresh one's times its share.
+  int T = strata_t_, P = strata_p_;
+  if (ray_fraction < 1) Strata(ray_fraction, &T, &P);
+  const double share = double(T * P) / double(strata_t_ * strata_p_);
   const Bsdf& bsdf = scene_.material(dv.hit.material);
   const ShadingFrame frame = dv.hit.Frame();
   const Vec3 w = dv.beta * bsdf.DiffuseAlbedo(dv.hit.Context(), frame.ToLocal(-ray.dir)) * kInvPi;
@@ -628,7 +633,7 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
     const double var = double(w[c]) * w[c] * double(half_diff[c]) * half_diff[c] / 4;
     const double scale = double(v[c]) * v[c] + 0.01;
     e += (d * d - var) / scale;
-    nz += var * kept / scale;
+    nz += var * share * kept / scale;
   }
   *error = e / 3;
   *noise = nz / 3;

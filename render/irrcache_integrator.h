@@ -158,8 +158,10 @@ class IrrcacheIntegrator {
   // and not with the accuracy (a lookup averages about as many records at any a); the rest is
   // interpolation error, which falls with a. False where there is nothing to check (no diffuse
   // hit, or the lookup fails).
-  bool CacheError(const Ray& ray, Rng& rng, RenderCounters& counters, double* error,
-                  double* noise) const;
+  // `ray_fraction` < 1: the fresh record takes that share of the rays (cheaper checks; its larger
+  // variance is subtracted all the same, and `noise` is scaled back to the records' rays).
+  bool CacheError(const Ray& ray, Rng& rng, RenderCounters& counters, double* error, double* noise,
+                  float ray_fraction = 1) const;
 
   // Pilot for balancing record rays (render/record_balance.h): computes (does not insert) a
   // record at the first diffuse surface seen along `ray` with the settings' rays, and gives its

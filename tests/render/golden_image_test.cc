@@ -216,10 +216,41 @@ TEST(GoldenImageTest, TargetErrorLandsWithinAFactorOfTwo) {
       const RenderOutput out = Render(*s.scene, settings);
       const double err = CompareImages(out.image, ref).relmse;
       RecordProperty(std::string(name) + "_relmse", std::to_string(err));
+      // Their one-level records' noise is far inside the cache's share: one level.
+      EXPECT_EQ(out.stats.cache_levels, 1) << name << " E " << target;
       EXPECT_GT(err, 0.5 * target - ReferenceError(name)) << name << " E " << target;
       EXPECT_LT(err, 2 * target + ReferenceError(name)) << name << " E " << target;
     }
   }
+}
+
+// --target-error on veach-ajar, whose one-level records' noise (light through the door gap, found
+// by few of a record's rays) is many times the error asked: the pilot's one-level noise puts it on
+// two cache levels, and it lands within [E/2, 2E] (at one level, before, it ended at 0.19 against
+// E = 4e-3 at full size: the refinement stalled on the records' noise). The estimate is recorded,
+// not asserted: the two-level bias factor (kTwoLevelCheckBias) is measured at the scenes' own
+// size, and at this size, where a pixel averages over more of the cache's error than a check
+// point does, it is 1.6x to 2.3x high (seeds 5-7; 0.83x to 1.11x at full size).
+TEST(GoldenImageTest, TargetErrorTakesTwoLevelsWhereOneLevelIsTooNoisy) {
+  const char* name = "veach-ajar";
+  const LoadedScene s = LoadQuarter(name);
+  const Image ref = QuarterReference(name);
+  const double target = 4e-3;
+  RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
+  settings.seed = 5;
+  settings.target_error = target;
+  settings.adaptive = true;
+  const RenderOutput out = Render(*s.scene, settings);
+  ASSERT_TRUE(out.stats.balanced);
+  EXPECT_GT(out.stats.balance.one_level_record_noise, target);
+  EXPECT_EQ(out.stats.cache_levels, 2);
+  const double err = CompareImages(out.image, ref).relmse;
+  const double estimate =
+      out.stats.estimated_sampling_relmse + std::max(0.0, out.stats.estimated_cache_relmse);
+  RecordProperty("veach_relmse", std::to_string(err));
+  RecordProperty("veach_estimate", std::to_string(estimate));
+  EXPECT_GT(err, 0.5 * target - ReferenceError(name));
+  EXPECT_LT(err, 2 * target + ReferenceError(name));
 }
 
 // veach-ajar's reference is too noisy for pixel statistics at this size (see its README); it
