@@ -103,9 +103,11 @@ try:
     driver.find_element(By.ID, "use-token").click()
 
     # Fixed record rays: the default balance may pick fewer, and then the job can finish between
-    # two polls with no mid-job state to see.
+    # two polls with no mid-job state to see. Up to 256 spp and a = 0.05 for the same reason: at
+    # the defaults the job took about 3 s and the page saw 28%, 72%, 100% (no poll within
+    # 30-70%); now about 8 s, five or more progress values.
     job = irfarm("submit", SCENE, "-Dresx=160", "-Dresy=160", "--tile-size", "16",
-                 "--record-rays", "1536", "-q").strip()
+                 "--record-rays", "1536", "--spp", "256", "--accuracy", "0.05", "-q").strip()
     wait_for("job row", lambda: driver.find_element(By.ID, "job-" + job))
     print("ok: submitted %s appears in the jobs table" % job)
     driver.find_element(By.ID, "job-" + job).click()  # show its image
