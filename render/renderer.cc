@@ -797,48 +797,48 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
   double cache_error = -1;
   const char* cache_stop = nullptr;  // why the cache's refinement ended above its share
   double cache_budget_final = 0;
-  // A cache that already holds records (--cache-in, the service's) keeps the settings' rays: the
-  // pilot's records would mostly repeat what it has.
-  if (irrcache && settings.target_error <= 0 && ic.balance_record_rays && cache->size() == 0) {
+  // The pilot. At the defaults it balances the record rays and chooses the cache levels. A cache
+  // that already holds records (--cache-in, the service's) keeps the settings' rays: the pilot's
+  // records would mostly repeat what it has.
+  //
+  // --target-error: it chooses only the cache levels, where the settings leave them to the
+  // renderer, from the one-level records' noise N1 (at the settings' rays R0) against the cache's
+  // share. Two levels when one level would need more than the most rays (4 R0) to bring its noise
+  // under half of that share (N1 > 2 x share); the two-level pilot's noise then gives the starting
+  // rays. Measured (N1 at defaults): veach-ajar 2.2e-2 (one level ends at 0.2 against E = 4e-3:
+  // its light comes through a door gap that few of a record's rays find); the other eight scenes
+  // 4e-5 (room-b) to 6e-4 (specular), all one level even at E = 1e-3. And only where the records'
+  // noise is what the image's error is made of (PrefersTwoLevels, as at the defaults):
+  // living-room's N1 is above 2 x share, but its error is its glossy samples' (N1 / S1 0.97), and
+  // two levels took it from 20 s to 300 s at E = 4e-3 for no lower error (2.4e-2 against 3.2e-2
+  // at one level).
+  const bool target_mode = settings.target_error > 0;
+  int pilot_rays = 0;  // target: the two-level pilot's starting rays, when it chose two levels
+  if (irrcache && cache->size() == 0 &&
+      (target_mode ? own_cache != nullptr && ic.choose_cache_levels && ic.cache_levels == 1
+                   : ic.balance_record_rays)) {
     PhaseTimer timer("pilot");
     // Its own counters: its records are not the render's (they stay out of its cache).
     tbb::enumerable_thread_specific<RenderCounters> pilot_counters;
-    BalanceResult b = PilotSettings(scene, settings, rect, arena, pilot_counters, &ic);
-    for (const RenderCounters& c : pilot_counters) b.pilot_records += long(c.records_computed);
-    out.stats.balance = b;
-    out.stats.balanced = true;
-    out.stats.phases.push_back(timer.Stop());
-  }
-  // --target-error: cache levels, where the settings leave them to the renderer: the one-level
-  // pilot's record noise N1 (at the settings' rays R0) against the cache's share. Two levels when
-  // one level would need more than the most rays (4 R0) to bring its noise under half of that share
-  // (N1 > 2 x share); the two-level pilot's noise then gives the starting rays. Measured (N1 at
-  // defaults): veach-ajar 2.2e-2 (one level ends at 0.2 against E = 4e-3: its light comes through a
-  // door gap that few of a record's rays find); the other eight scenes 4e-5 (room-b) to 6e-4
-  // (specular), all one level even at E = 1e-3. And only where the records' noise is what the
-  // image's error is made of (PrefersTwoLevels, as at the defaults): living-room's N1 is above
-  // 2 x share, but its error is its glossy samples' (N1 / S1 0.97), and two levels took it from
-  // 20 s to 300 s at E = 4e-3 for no lower error (2.4e-2 against 3.2e-2 at one level).
-  int pilot_rays = 0;  // the two-level pilot's starting rays, when it chose two levels
-  if (irrcache && settings.target_error > 0 && own_cache != nullptr && cache->size() == 0 &&
-      ic.choose_cache_levels && ic.cache_levels == 1) {
-    const double cache_budget = 0.5 * settings.target_error;  // as the refinement starts
-    PhaseTimer timer("pilot");
-    tbb::enumerable_thread_specific<RenderCounters> pilot_counters;
-    IrrcacheSettings chosen = ic;
-    BalanceResult b =
-        PilotSettings(scene, settings, rect, arena, pilot_counters, &chosen, 2 * cache_budget);
-    if (chosen.cache_levels == 2) {
-      ic.cache_levels = 2;
-      const double base = std::max(4, settings.irrcache.record_rays);
-      // The records' noise at half of the share (two levels' error is mostly interpolation: on
-      // veach-ajar at E = 1e-3 a quarter of it started at 4 R0 rays, and the rounds then lowered
-      // only a, each at 4x the rays of a default render).
-      pilot_rays =
-          int(std::lround(std::clamp(base * b.record_noise / cache_budget, 128.0, 4 * base)));
-      b.record_rays = pilot_rays;
+    BalanceResult b;
+    if (!target_mode) {
+      b = PilotSettings(scene, settings, rect, arena, pilot_counters, &ic);
     } else {
-      b.record_rays = TargetRecordRays(settings);
+      const double cache_budget = 0.5 * settings.target_error;  // as the refinement starts
+      IrrcacheSettings chosen = ic;
+      b = PilotSettings(scene, settings, rect, arena, pilot_counters, &chosen, 2 * cache_budget);
+      if (chosen.cache_levels == 2) {
+        ic.cache_levels = 2;
+        const double base = std::max(4, settings.irrcache.record_rays);
+        // The records' noise at half of the share (two levels' error is mostly interpolation: on
+        // veach-ajar at E = 1e-3 a quarter of it started at 4 R0 rays, and the rounds then
+        // lowered only a, each at 4x the rays of a default render).
+        pilot_rays =
+            int(std::lround(std::clamp(base * b.record_noise / cache_budget, 128.0, 4 * base)));
+        b.record_rays = pilot_rays;
+      } else {
+        b.record_rays = TargetRecordRays(settings);
+      }
     }
     for (const RenderCounters& c : pilot_counters) b.pilot_records += long(c.records_computed);
     out.stats.balance = b;
