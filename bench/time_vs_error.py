@@ -18,6 +18,10 @@ Mitsuba need for the same relMSE, read off their measured curves by log-log inte
 the two measured points around it (never extrapolated: a relMSE outside a curve's measured range
 is reported as '> t_max' or '< t_min'), and the ratios.
 
+With --curve-levels HI,LO it also checks, per scene, that irrcache's curve (the front of its
+default and ladder runs) lies below path's at every error level from HI down to LO, from this
+run's measured points only (a level outside a curve's range is a bound, never an extrapolation).
+
   python3 bench/time_vs_error.py --irfarm build/irfarm --out bench-out [--scenes room-a,...]
       [--mitsuba-live 16,64,256]   # Mitsuba 3 in the same run (pip install mitsuba; llvm_ad_rgb
                                    # needs DRJIT_LIBLLVM_PATH, e.g. Debian's libllvm19)
@@ -68,6 +72,41 @@ def time_for(curve, relmse):
             f = (math.log(relmse) - math.log(e0)) / (math.log(e1) - math.log(e0))
             return math.exp(math.log(t0) + f * (math.log(t1) - math.log(t0))), ""
     return pts[0][0], ""
+
+
+def front(points):
+    """The points no other point beats in both time and error: [(seconds, relmse)] by time."""
+    pts = sorted(points)
+    out = []
+    for t, e in pts:
+        if not out or e < out[-1][1]:
+            out.append((t, e))
+    return out
+
+
+def curve_below(irr, path, hi, lo, levels=13):
+    """Is irrcache's measured curve below path's at every error level from `hi` down to `lo`
+    (log-spaced)? irr and path are [(seconds, relmse)]; irrcache's curve is the front of its
+    settings (the fastest setting for each error). Per level: the seconds each needs, from its
+    measured points only, as bounds where a level lies outside a curve's measured range:
+    irrcache's cheapest run already below the level reaches it in at most that run's time; path's
+    ladder not reaching the level needs more than its slowest run. A level is 'yes' only when
+    irrcache's time (or upper bound) is below path's time (or lower bound); 'unknown' where the
+    bounds point the wrong way (path's cheapest run already below the level, or irrcache not
+    reaching it). Returns (rows, all_yes)."""
+    irr_f = front(irr)
+    rows, ok = [], True
+    for k in range(levels):
+        level = math.exp(math.log(hi) + k / (levels - 1) * (math.log(lo) - math.log(hi)))
+        ti, fi = time_for(irr_f, level)
+        tp, fp = time_for(path, level)
+        if fi == ">" or fp == "<":
+            verdict = "unknown"
+        else:
+            verdict = "yes" if ti < tp else "no"
+        ok = ok and verdict == "yes"
+        rows.append((level, ti, fi, tp, fp, verdict))
+    return rows, ok
 
 
 def mitsuba_curve(scene_dir):
@@ -147,6 +186,9 @@ def main():
     ap.add_argument("--targets", default="4e-3,1e-3")
     ap.add_argument("--irrcache-spp", default="16,64", help="fixed-spp irrcache runs")
     ap.add_argument("--out", default="bench-out")
+    ap.add_argument("--curve-levels", default="",
+                    help="HI,LO: check irrcache's curve below path's at every error level from HI "
+                         "down to LO (issue 9: 1e-2,2e-4), from this run's measured points")
     ap.add_argument("--mitsuba-live", default="",
                     help="render Mitsuba 3 in this run at these spp (e.g. 16,64,256) with "
                          "--mitsuba-variant (needs `pip install mitsuba`) instead of its curve file")
@@ -160,10 +202,11 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     summary = ["| scene | irrcache default: relMSE, s | path time at that relMSE | "
                "Mitsuba time at that relMSE | Mitsuba 256 spp relMSE | "
-               "vs path | vs Mitsuba | baseline default: relMSE, s | target 4e-3 / 1e-3: "
-               "measured (estimate) |",
+               "vs path | vs Mitsuba | baseline default: relMSE, s | targets " +
+               " / ".join(x for x in a.targets.split(",") if x) + ": measured (estimate) |",
                "|---|---|---|---|---|---|---|---|---|"]
     tmp = tempfile.mkdtemp(prefix="irfarm-bench-")
+    curves = []
     for name in names:
         d = os.path.join(a.scenes_dir, name)
         runs = []
@@ -226,7 +269,17 @@ def main():
                                        "mitsuba_seconds": t_mit, "mitsuba_flag": mit_flag}},
                       f, indent=1)
         plot(name, runs, mit, os.path.join(a.out, name + ".png"))
-    text = "\n".join(summary) + "\n"
+        if a.curve_levels and path_curve:
+            hi, lo = (float(x) for x in a.curve_levels.split(","))
+            irr = [(r["seconds"], r["relmse"]) for r in runs
+                   if r["method"] in ("irrcache", "irrcache-target")]
+            rows, ok = curve_below(irr, path_curve, hi, lo)
+            curves.append(f"{name}: irrcache below path at every level {hi:g} .. {lo:g}: "
+                          + ("YES" if ok else "NO"))
+            curves.append("  level      irrcache s   path s      below")
+            for level, ti, fi, tp, fp, verdict in rows:
+                curves.append(f"  {level:.2e}  {fi or ' '}{ti:9.2f}  {fp or ' '}{tp:9.2f}   {verdict}")
+    text = "\n".join(summary) + "\n" + ("\n" + "\n".join(curves) + "\n" if curves else "")
     with open(os.path.join(a.out, "summary.md"), "w") as f:
         f.write(text)
     print(text)
