@@ -255,6 +255,17 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc) {
     }
     s->meshes_.push_back(std::move(mesh));
   }
+  if (s->has_pass_through_ &&
+      rtcGetDeviceProperty(s->device_, RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED) != 0) {
+    s->pass_through_filter_ = true;
+    for (size_t id = 0; id < s->meshes_.size(); ++id) {
+      if (!(s->materials_[size_t(s->meshes_[id].material)]->Flags() & kNullTransmission)) continue;
+      RTCGeometry g = rtcGetGeometry(s->rtc_scene_, unsigned(id));
+      rtcSetGeometryUserData(g, s.get());
+      rtcSetGeometryOccludedFilterFunction(g, &Scene::PassThroughFilter);
+      rtcCommitGeometry(g);
+    }
+  }
   rtcCommitScene(s->rtc_scene_);
   if (!embree_error.empty()) return absl::InternalError(embree_error);
   rtcSetDeviceErrorFunction(s->device_, nullptr, nullptr);  // embree_error goes out of scope
@@ -422,7 +433,7 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
 }
 
 bool Scene::Occluded(const Ray& ray) const {
-  if (has_pass_through_) return OccludedPassThrough(ray);
+  if (has_pass_through_ && !pass_through_filter_) return OccludedPassThrough(ray);
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRay r;
@@ -441,19 +452,65 @@ bool Scene::Occluded(const Ray& ray) const {
   return r.tfar < 0;
 }
 
-// With masks: walk the hits along the segment; each pass-through surface lets the ray on with
-// its pass probability, decided by a hash of the ray and the hit (deterministic, so renders
-// repeat; uncorrelated between rays). The expected visibility is the product of the pass
-// probabilities, as for camera and bounce rays that sample the mask's null lobe.
-bool Scene::OccludedPassThrough(Ray ray) const {
+uint64_t Scene::PassThroughHash(const Vec3& origin, const Vec3& dir) {
   const auto bits = [](float f) {
     uint32_t u;
     std::memcpy(&u, &f, sizeof(u));
     return uint64_t(u);
   };
-  uint64_t h =
-      HashCombine((bits(ray.origin.x) << 32) | bits(ray.origin.y),
-                  (bits(ray.origin.z) << 32) | bits(ray.dir.x + 3 * ray.dir.y + 7 * ray.dir.z));
+  return HashCombine((bits(origin.x) << 32) | bits(origin.y),
+                     (bits(origin.z) << 32) | bits(dir.x + 3 * dir.y + 7 * dir.z));
+}
+
+float Scene::PassProbability(unsigned geom, unsigned prim, float bu, float bv,
+                             const Vec3& p) const {
+  const Mesh& m = meshes_[geom];
+  float u = bu, v = bv;  // without uvs, as Intersect: u = b1, v = b2
+  if (m.sphere) {
+    const Vec3 n = Normalize(p - m.center);
+    const float phi = std::atan2(n.y, n.x);
+    u = (phi < 0 ? phi + 2 * kPi : phi) * (0.5f * kInvPi);
+    v = std::acos(std::clamp(n.z, -1.0f, 1.0f)) * kInvPi;
+  } else if (!m.uvs.empty()) {
+    const uint32_t* tri = &m.indices[3 * size_t(prim)];
+    const float b0 = 1 - bu - bv;
+    u = m.uvs[2 * tri[0]] * b0 + m.uvs[2 * tri[1]] * bu + m.uvs[2 * tri[2]] * bv;
+    v = m.uvs[2 * tri[0] + 1] * b0 + m.uvs[2 * tri[1] + 1] * bu + m.uvs[2 * tri[2] + 1] * bv;
+  }
+  return materials_[size_t(m.material)]->PassThrough(BsdfContext{u, v});
+}
+
+void Scene::PassThroughFilter(const RTCFilterFunctionNArguments* args) {
+  const Scene* s = static_cast<const Scene*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    const Vec3 o(RTCRayN_org_x(args->ray, args->N, i), RTCRayN_org_y(args->ray, args->N, i),
+                 RTCRayN_org_z(args->ray, args->N, i));
+    const Vec3 d(RTCRayN_dir_x(args->ray, args->N, i), RTCRayN_dir_y(args->ray, args->N, i),
+                 RTCRayN_dir_z(args->ray, args->N, i));
+    const unsigned geom = RTCHitN_geomID(args->hit, args->N, i);
+    const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+    // The ray's tfar is the candidate hit's distance while the filter runs.
+    const float t = RTCRayN_tfar(args->ray, args->N, i);
+    const float pass = s->PassProbability(geom, prim, RTCHitN_u(args->hit, args->N, i),
+                                          RTCHitN_v(args->hit, args->N, i), o + d * t);
+    if (!(pass > 0)) continue;  // blocks: the hit stands and the query ends
+    // A sphere is hit twice by a ray through it: the way out is a surface of its own.
+    const Scene::Mesh& m = s->meshes_[geom];
+    const uint64_t out = m.sphere && Dot(d, o + d * t - m.center) > 0 ? 1 : 0;
+    const uint64_t h =
+        HashCombine(HashCombine(PassThroughHash(o, d), (uint64_t(geom) << 32) | prim), out);
+    if (Rng::ToUnitFloat(uint32_t(h >> 32)) < pass) args->valid[i] = 0;  // passes: ignored
+  }
+}
+
+// With masks, where Embree has no filter functions: walk the hits along the segment; each
+// pass-through surface lets the ray on with its pass probability, decided by a hash of the ray and
+// the hit (deterministic, so renders repeat; uncorrelated between rays). The expected visibility is
+// the product of the pass probabilities, as for camera and bounce rays that sample the mask's null
+// lobe.
+bool Scene::OccludedPassThrough(Ray ray) const {
+  uint64_t h = PassThroughHash(ray.origin, ray.dir);
   for (int i = 0; i < 64; ++i) {
     SurfaceHit hit;
     if (!Intersect(ray, &hit)) return false;

@@ -127,6 +127,16 @@ class Scene {
     int material = 0;
     int light = -1;
   };
+  // Shadow rays through pass-through surfaces (masks, null): an Embree occlusion filter on the
+  // geometries whose material lets rays through rejects a hit with the surface's pass
+  // probability, decided by a hash of the ray and the primitive (deterministic, uncorrelated
+  // between rays), so rtcOccluded1 stays one traversal that stops at the first blocking hit.
+  // Where Embree lacks filter functions, OccludedPassThrough walks the hits with Intersect.
+  static void PassThroughFilter(const RTCFilterFunctionNArguments* args);
+  // The chance that a shadow ray passes the surface of geometry `geom` at the hit (primitive
+  // prim, Embree's barycentrics bu, bv, point p).
+  float PassProbability(unsigned geom, unsigned prim, float bu, float bv, const Vec3& p) const;
+  static uint64_t PassThroughHash(const Vec3& origin, const Vec3& dir);
   bool OccludedPassThrough(Ray ray) const;
 
   RTCDevice device_ = nullptr;
@@ -136,6 +146,7 @@ class Scene {
   std::vector<std::unique_ptr<Bsdf>> materials_;  // SceneDesc::bsdfs, built
   LightSampler lights_;                           // local lights first, then environment lights
   bool has_pass_through_ = false;  // some material lets rays through (mask): see Occluded
+  bool pass_through_filter_ = false;  // ... and Embree's occlusion filter handles it
   Camera camera_;
   Bounds3 bounds_;
   SceneStatsCounts counts_;
