@@ -20,16 +20,26 @@ absl::StatusOr<Texture> Texture::Load(const TextureDesc& desc) {
     return absl::InvalidArgumentError(desc.loc.ToString() + ": " +
                                       std::string(image.status().message()));
   Texture t;
-  t.image_ = std::move(*image);
-  if (!desc.raw && !linear)
-    for (Vec3& p : t.image_.pixels)
-      p = Vec3(SrgbToLinear(p.x), SrgbToLinear(p.y), SrgbToLinear(p.z));
+  t.width_ = image->width;
+  t.height_ = image->height;
   t.to_uv_ = desc.to_uv;
   t.bilinear_ = desc.filter_type != "nearest";
   t.wrap_ = desc.wrap_mode == "mirror" ? 1 : (desc.wrap_mode == "clamp" ? 2 : 0);
+  if (linear) {
+    t.image_ = std::move(*image);
+  } else {
+    // ReadImageFile gave byte / 255 exactly: keep the bytes and decode through the table.
+    for (int i = 0; i < 256; ++i)
+      t.decode_[size_t(i)] = desc.raw ? i / 255.0f : SrgbToLinear(i / 255.0f);
+    t.bytes_.resize(3 * image->pixels.size());
+    for (size_t i = 0; i < image->pixels.size(); ++i)
+      for (int c = 0; c < 3; ++c)
+        t.bytes_[3 * i + size_t(c)] = uint8_t(std::lround(image->pixels[i][c] * 255.0f));
+  }
   Vec3 sum;
-  for (const Vec3& p : t.image_.pixels) sum += p;
-  t.average_ = sum / float(std::max<size_t>(1, t.image_.pixels.size()));
+  for (int y = 0; y < t.height_; ++y)
+    for (int x = 0; x < t.width_; ++x) sum += t.Texel(x, y);
+  t.average_ = sum / float(std::max(1, t.width_ * t.height_));
   return t;
 }
 
@@ -59,24 +69,24 @@ Vec3 Texture::Eval(float u, float v) const {
 }
 
 Vec3 Texture::EvalBitmap(float u, float v) const {
-  const int w = image_.width, h = image_.height;
+  const int w = width_, h = height_;
   if (!bilinear_) {
     const int x = Wrap(int(std::floor(u * w)), w), y = Wrap(int(std::floor(v * h)), h);
-    return image_.at(x, y);
+    return Texel(x, y);
   }
   const float fx = u * w - 0.5f, fy = v * h - 0.5f;
   const float x0f = std::floor(fx), y0f = std::floor(fy);
   const float tx = fx - x0f, ty = fy - y0f;
   const int x0 = Wrap(int(x0f), w), x1 = Wrap(int(x0f) + 1, w);
   const int y0 = Wrap(int(y0f), h), y1 = Wrap(int(y0f) + 1, h);
-  return (image_.at(x0, y0) * (1 - tx) + image_.at(x1, y0) * tx) * (1 - ty) +
-         (image_.at(x0, y1) * (1 - tx) + image_.at(x1, y1) * tx) * ty;
+  return (Texel(x0, y0) * (1 - tx) + Texel(x1, y0) * tx) * (1 - ty) +
+         (Texel(x0, y1) * (1 - tx) + Texel(x1, y1) * tx) * ty;
 }
 
 void Texture::Gradient(float u, float v, float* d_du, float* d_dv) const {
   *d_du = *d_dv = 0;
   ToUv(&u, &v);
-  const int w = image_.width, h = image_.height;
+  const int w = width_, h = height_;
   // A checkerboard is flat between its jumps.
   if (checkerboard_ || !bilinear_ || !std::isfinite(u) || !std::isfinite(v)) return;
   const float fx = u * w - 0.5f, fy = v * h - 0.5f;
@@ -86,7 +96,7 @@ void Texture::Gradient(float u, float v, float* d_du, float* d_dv) const {
   const int y0 = Wrap(int(y0f), h), y1 = Wrap(int(y0f) + 1, h);
   // Mitsuba's luminance weights (its RGB variants).
   const auto lum = [&](int x, int y) {
-    const Vec3& c = image_.at(x, y);
+    const Vec3 c = Texel(x, y);
     return 0.212671f * c.x + 0.715160f * c.y + 0.072169f * c.z;
   };
   const float f00 = lum(x0, y0), f10 = lum(x1, y0), f01 = lum(x0, y1), f11 = lum(x1, y1);
