@@ -334,11 +334,13 @@ void IrradianceCache::GrowRadius(std::atomic<float>* max_radius, float radius) {
 }
 
 template <typename F>
-void IrradianceCache::ForEachNeighbour(int tree, const Vec3& x, float radius, F f) const {
+void IrradianceCache::ForEachNeighbour(int tree, const Vec3& x, float alpha, float beta,
+                                       F f) const {
   // The octree walk of Lookup, simpler (once per insert, not per sample): a child is entered when
-  // x lies in its cell grown by max(radius, its largest R) / slope.
+  // x lies in its cell grown by alpha * (its largest R) + beta (alpha >= 0, so no record of the
+  // child reaches farther), and skipped when that is not positive.
   const double g[3] = {ToGrid(x.x, 0), ToGrid(x.y, 1), ToGrid(x.z, 2)};
-  const double scale = grid_scale_ / double(neighbour_slope_) * (1 + kReachSlack);
+  const double scale = grid_scale_;
   struct Item {
     const Node* node;
     double lo[3];
@@ -352,7 +354,32 @@ void IrradianceCache::ForEachNeighbour(int tree, const Vec3& x, float radius, F 
     for (const Block* b = item.node->head.load(std::memory_order_acquire); b != nullptr;
          b = b->next) {
       const uint64_t ready = b->ready.load(std::memory_order_acquire);
-      for (uint64_t bits = ready; bits != 0; bits &= bits - 1) f(b, __builtin_ctzll(bits));
+      // Records at shallow nodes (large R) are scanned by every walk that passes: the distance
+      // test runs 4 at a time on the hot arrays, and f only on the records within reach.
+      uint64_t hits = 0;
+      const int end = ready == 0 ? 0 : 64 - __builtin_clzll(ready);
+      for (int i = 0; i < end; i += 4) {
+        int mask = 0;
+#if defined(__SSE2__)
+        const __m128 dx = _mm_sub_ps(_mm_set1_ps(x.x), _mm_loadu_ps(b->x() + i));
+        const __m128 dy = _mm_sub_ps(_mm_set1_ps(x.y), _mm_loadu_ps(b->y() + i));
+        const __m128 dz = _mm_sub_ps(_mm_set1_ps(x.z), _mm_loadu_ps(b->z() + i));
+        const __m128 reach = _mm_add_ps(
+            _mm_mul_ps(_mm_set1_ps(alpha), _mm_loadu_ps(b->radius() + i)), _mm_set1_ps(beta));
+        const __m128 d2 =
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+        mask = _mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(reach, _mm_setzero_ps()),
+                                          _mm_cmplt_ps(d2, _mm_mul_ps(reach, reach))));
+#else
+        for (int k = 0; k < 4; ++k) {
+          const Vec3 d(x.x - b->x()[i + k], x.y - b->y()[i + k], x.z - b->z()[i + k]);
+          const float reach = alpha * b->radius()[i + k] + beta;
+          mask |= int(reach > 0 && LengthSquared(d) < reach * reach) << k;
+        }
+#endif
+        hits |= uint64_t(mask) << i;
+      }
+      for (hits &= ready; hits != 0; hits &= hits - 1) f(b, __builtin_ctzll(hits));
     }
     if (item.depth == kMaxDepth) continue;
     const Node* children = item.node->children.load(std::memory_order_acquire);
@@ -361,7 +388,9 @@ void IrradianceCache::ForEachNeighbour(int tree, const Vec3& x, float radius, F 
     for (int i = 0; i < 8; ++i) {
       const float child_radius = item.node->child_radius[i].load(std::memory_order_acquire);
       if (!(child_radius > 0)) continue;
-      const double grow = double(std::max(radius, child_radius)) * scale + 1.0;
+      const float distance = alpha * child_radius + beta;
+      if (!(distance > 0)) continue;
+      const double grow = double(distance) * scale + 1.0;
       Item next{&children[i], {0, 0, 0}, item.depth + 1};
       bool enter = true;
       for (int k = 0; k < 3; ++k) {
@@ -373,27 +402,39 @@ void IrradianceCache::ForEachNeighbour(int tree, const Vec3& x, float radius, F 
   }
 }
 
+// A neighbour j lowers r's radius only when R_j + slope d < R, so only within d < R / slope; and
+// r lowers j's only when R + slope d < R_j, so only within d < (R_j - R) / slope, in subtrees
+// whose largest R_j exceeds R. The walks enter only those subtrees and test the distances 4 at a
+// time before anything else (the same result as testing every record; measured on living-room,
+// the clamp's walk over max(R, R_j) / slope calling a test per record was 7% of a render).
 float IrradianceCache::ClampToNeighbours(const IrradianceRecord& r) const {
   float radius = r.radius;
-  ForEachNeighbour(TreeOf(r.level), r.position, r.radius, [&](const Block* b, int i) {
-    const Vec3 xj(b->x()[i], b->y()[i], b->z()[i]);
-    const float rj = std::min(b->radius()[i], b->cold()[i].clamped.load(std::memory_order_relaxed));
-    radius = std::min(radius, rj + neighbour_slope_ * Length(xj - r.position));
-  });
+  const float slack = float(1 + kReachSlack);
+  ForEachNeighbour(TreeOf(r.level), r.position, 0.0f, r.radius / neighbour_slope_ * slack,
+                   [&](const Block* b, int i) {
+                     const Vec3 xj(b->x()[i], b->y()[i], b->z()[i]);
+                     const float rj = std::min(
+                         b->radius()[i], b->cold()[i].clamped.load(std::memory_order_relaxed));
+                     radius = std::min(radius, rj + neighbour_slope_ * Length(xj - r.position));
+                   });
   return radius;
 }
 
 void IrradianceCache::LowerNeighbours(const IrradianceRecord& r) const {
-  ForEachNeighbour(TreeOf(r.level), r.position, r.radius, [&](const Block* b, int i) {
-    const Vec3 xj(b->x()[i], b->y()[i], b->z()[i]);
-    const float bound = r.radius + neighbour_slope_ * Length(xj - r.position);
-    if (!(bound < b->radius()[i])) return;
-    // Lowered only, with a CAS loop: concurrent inserts may both lower the same record.
-    std::atomic<float>& c = const_cast<Block*>(b)->cold()[i].clamped;
-    float old = c.load(std::memory_order_relaxed);
-    while (bound < old && !c.compare_exchange_weak(old, bound, std::memory_order_relaxed)) {
-    }
-  });
+  const float slack = float(1 + kReachSlack);
+  ForEachNeighbour(
+      TreeOf(r.level), r.position, slack / neighbour_slope_, -r.radius / neighbour_slope_ * slack,
+      [&](const Block* b, int i) {
+        const Vec3 xj(b->x()[i], b->y()[i], b->z()[i]);
+        const float bound = r.radius + neighbour_slope_ * Length(xj - r.position);
+        if (!(bound < b->radius()[i])) return;
+        // Lowered only, with a CAS loop: concurrent inserts may both lower the same
+        // record.
+        std::atomic<float>& c = const_cast<Block*>(b)->cold()[i].clamped;
+        float old = c.load(std::memory_order_relaxed);
+        while (bound < old && !c.compare_exchange_weak(old, bound, std::memory_order_relaxed)) {
+        }
+      });
 }
 
 void IrradianceCache::Insert(const IrradianceRecord& in) {

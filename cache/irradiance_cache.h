@@ -241,10 +241,10 @@ class IrradianceCache {
   bool CellOf(const Vec3& x, uint32_t cell[3]) const;
   static void AddToNode(Node* node, const IrradianceRecord& r, std::atomic<uint64_t>* all);
   void InsertUnclamped(const IrradianceRecord& r);
-  // Calls f(block, slot) for every ready record of tree `tree` within distance
-  // max(radius, R_j) / neighbour_slope_ of x (and maybe some farther ones).
+  // Calls f(block, slot) for every ready record j of tree `tree` (every class) closer to x than
+  // alpha * R_j + beta (alpha >= 0; records where that is not positive are skipped).
   template <typename F>
-  void ForEachNeighbour(int tree, const Vec3& x, float radius, F f) const;  // every class
+  void ForEachNeighbour(int tree, const Vec3& x, float alpha, float beta, F f) const;
   // Neighbour clamping of r's radius against its neighbours, then of theirs against r's.
   float ClampToNeighbours(const IrradianceRecord& r) const;
   void LowerNeighbours(const IrradianceRecord& r) const;
