@@ -1,0 +1,184 @@
+#!/usr/bin/env python3
+"""Indirect-only images at equal record count (issue 9): irfarm's irradiance cache against the
+Ward split-sphere cache of main when the issue was filed (the baseline binary, commit f9fc65e,
+built with a two-line bench patch: IRFARM_INDIRECT_ONLY=1 keeps only its cached term).
+
+Per scene (all-diffuse scenes only: the cached term is then exactly what is not direct):
+  - the indirect reference: the scene's Mitsuba reference minus Mitsuba's direct light, rendered
+    here (`mitsuba` package): path with max_depth 2 and the constant sky removed (emission seen
+    and light straight from area and directional lights), plus the sky seen by the camera
+    (max_depth 1, sky only). irfarm caches the sky's light at surfaces, so it is indirect here.
+  - the baseline at its defaults, indirect only: its records and relMSE;
+  - irfarm (build/irfarm) with --aovs, its `indirect` layer, over accuracies 0.05 .. 0.3 at its
+    default rays and levels: relMSE against records, read at the baseline's record count by
+    log-log interpolation between the two runs around it (never extrapolated);
+  - irfarm at its defaults: relMSE and seconds against the baseline's (equal-time comparison).
+
+  python3 bench/indirect_only.py --baseline-bin WARD/irfarm [--scenes cornell-box,...]
+      [--spp 4096] [--out bench-indirect]
+
+Building the baseline: `git worktree add WARD f9fc65e`, the patch in docs/bench/indirect-only/
+ward-indirect-only.patch (`git -C WARD apply`), `cmake -S WARD -B WARD/build -G Ninja && cmake
+--build WARD/build --target irfarm`.
+"""
+import argparse
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+SCENES = ["cornell-box", "sunlit-room", "thin-panels", "veach-ajar", "room-a", "room-b", "room-c",
+          "room-d"]
+
+
+def relmse(x, ref):
+    return float(np.mean((x - ref) ** 2 / (ref ** 2 + 0.01)))
+
+
+def read_rgb(path, layer=""):
+    import OpenEXR
+    f = OpenEXR.File(path)
+    for part in f.parts:
+        ch = part.channels
+        for key in ([layer, layer + ".RGB"] if layer else ["RGB"]):
+            if key in ch:
+                return np.array(ch[key].pixels, dtype=np.float64)[:, :, :3]
+        names = [layer + "." + c if layer else c for c in "RGB"]
+        if all(n in ch for n in names):
+            return np.stack([np.array(ch[n].pixels, dtype=np.float64) for n in names], axis=-1)
+    raise KeyError(f"{path}: no layer '{layer}'")
+
+
+def direct_reference(scene_dir, spp, out):
+    """Mitsuba's direct light as irfarm's irrcache splits it (see the module docstring)."""
+    if os.path.exists(out):
+        return np.load(out)
+    import mitsuba as mi
+    for v in ("llvm_ad_rgb", "scalar_rgb"):
+        try:
+            mi.set_variant(v)
+            break
+        except Exception:
+            continue
+    xml = open(os.path.join(scene_dir, "scene.xml")).read()
+    sky = re.compile(r'<emitter type="constant".*?</emitter>', re.S)
+    no_sky = sky.sub("", xml)
+    # The sky alone: every other emitter removed.
+    emitters = re.compile(r'<emitter type="(?!constant)[a-z]+".*?</emitter>', re.S)
+    sky_only = emitters.sub("", xml)
+
+    # The scene's relative paths (meshes, textures) resolve against its folder.
+    mi.Thread.thread().file_resolver().prepend(os.path.abspath(scene_dir))
+
+    def render(text, depth, n):
+        s = mi.load_string(text, max_depth=depth)
+        chunk = min(n, 256)
+        return np.mean([np.array(mi.render(s, spp=chunk, seed=90000 + k), dtype=np.float64)
+                        [:, :, :3] for k in range(n // chunk)], axis=0)
+
+    d = render(no_sky, 2, spp)
+    if sky.search(xml):
+        d = d + render(sky_only, 1, 64)
+    np.save(out, d)
+    return d
+
+
+def run(binary, scene_dir, args, tmp, tag, env=None):
+    out = os.path.join(tmp, tag + ".exr")
+    stats = os.path.join(tmp, tag + ".json")
+    subprocess.run([binary, "render", os.path.join(scene_dir, "scene.xml"), "-o", out, "--stats",
+                    stats, "-q", "--seed", "7"] + args, check=True, capture_output=True,
+                   env=dict(os.environ, **(env or {})))
+    with open(stats) as f:
+        st = json.load(f)
+    secs = sum(st["seconds"].get(k, 0) for k in ("pilot", "overture", "render"))
+    return out, st["records"]["computed"], secs
+
+
+def at_records(points, n):
+    """relMSE at record count n from [(records, relmse)], log-log between the two around n."""
+    pts = sorted(points)
+    for (r0, e0), (r1, e1) in zip(pts, pts[1:]):
+        if r0 <= n <= r1 and r0 != r1:
+            f = (math.log(n) - math.log(r0)) / (math.log(r1) - math.log(r0))
+            return math.exp(math.log(e0) + f * (math.log(e1) - math.log(e0)))
+    return None
+
+
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--irfarm", default=os.path.join(here, "..", "build", "irfarm"))
+    ap.add_argument("--baseline-bin", required=True)
+    ap.add_argument("--scenes-dir", default=os.path.join(here, "..", "..", "shared", "scenes"))
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--accuracies", default="0.05,0.07,0.1,0.14,0.2,0.3,0.4")
+    ap.add_argument("--spp", type=int, default=4096, help="Mitsuba direct-light spp")
+    ap.add_argument("--out", default="bench-indirect")
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    tmp = tempfile.mkdtemp(prefix="irfarm-indirect-")
+    rows = []
+    for name in a.scenes.split(","):
+        d = os.path.join(a.scenes_dir, name)
+        ref = read_rgb(os.path.join(d, "reference.exr"))
+        direct = direct_reference(d, a.spp, os.path.join(a.out, name + "-direct.npy"))
+        ind_ref = ref - direct
+        img, n_base, t_base = run(a.baseline_bin, d, [], tmp, name + "-base",
+                                  {"IRFARM_INDIRECT_ONLY": "1"})
+        e_base = relmse(read_rgb(img), ind_ref)
+        print(f"{name:12s} baseline      records {n_base:7d} {t_base:7.2f} s relMSE {e_base:.3e}",
+              flush=True)
+        img, n_def, t_def = run(a.irfarm, d, ["--aovs"], tmp, name + "-def")
+        e_def = relmse(read_rgb(img, "indirect"), ind_ref)
+        print(f"{name:12s} irfarm default records {n_def:7d} {t_def:7.2f} s relMSE {e_def:.3e}",
+              flush=True)
+        pts = [(n_def, e_def)]
+        timed = [(t_def, e_def)]
+        for acc in a.accuracies.split(","):
+            img, n, t = run(a.irfarm, d, ["--aovs", "--accuracy", acc], tmp, name + "-a" + acc)
+            e = relmse(read_rgb(img, "indirect"), ind_ref)
+            pts.append((n, e))
+            timed.append((t, e))
+            print(f"{name:12s} irfarm a={acc:5s} records {n:7d} {t:7.2f} s relMSE {e:.3e}",
+                  flush=True)
+        e_eq = at_records(pts, n_base)
+        # Equal time: the lowest relMSE of the runs that took no longer than the baseline.
+        within = [e for t, e in timed if t <= t_base]
+        e_time = min(within) if within else None
+        rows.append({"scene": name, "baseline_records": n_base, "baseline_seconds": t_base,
+                     "baseline_relmse": e_base, "irfarm_default_records": n_def,
+                     "irfarm_default_seconds": t_def, "irfarm_default_relmse": e_def,
+                     "irfarm_at_baseline_records": e_eq, "irfarm_within_baseline_time": e_time,
+                     "points": pts, "timed": timed})
+    lines = ["| scene | baseline (Ward, f9fc65e): records, s, relMSE | irfarm at the baseline's "
+             "records: relMSE (ratio) | irfarm in at most the baseline's time: best relMSE (ratio) "
+             "| irfarm default: records, s, relMSE (ratio) |",
+             "|---|---|---|---|---|"]
+    for r in rows:
+        eq = r["irfarm_at_baseline_records"]
+        et = r["irfarm_within_baseline_time"]
+        lines.append(
+            f"| {r['scene']} | {r['baseline_records']}, {r['baseline_seconds']:.2f} s, "
+            f"{r['baseline_relmse']:.2e} | " +
+            (f"{eq:.2e} ({eq / r['baseline_relmse']:.2f})" if eq else "outside the measured "
+             "records") + " | " +
+            (f"{et:.2e} ({et / r['baseline_relmse']:.2f})" if et else "no run that fast") + " | " +
+            f"{r['irfarm_default_records']}, {r['irfarm_default_seconds']:.2f} s, "
+            f"{r['irfarm_default_relmse']:.2e} "
+            f"({r['irfarm_default_relmse'] / r['baseline_relmse']:.2f}) |")
+    text = "\n".join(lines) + "\n"
+    with open(os.path.join(a.out, "summary.md"), "w") as f:
+        f.write(text)
+    with open(os.path.join(a.out, "runs.json"), "w") as f:
+        json.dump(rows, f, indent=1)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
