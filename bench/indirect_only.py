@@ -15,7 +15,7 @@ Per scene (all-diffuse scenes only: the cached term is then exactly what is not 
   - irfarm at its defaults: relMSE and seconds against the baseline's (equal-time comparison).
 
   python3 bench/indirect_only.py --baseline-bin WARD/irfarm [--scenes cornell-box,...]
-      [--spp 4096] [--out bench-indirect]
+      [--spp 4096] [--out bench-indirect] [--irfarm-args "--spacing hessian"]
 
 Building the baseline: `git worktree add WARD f9fc65e`, the patch in docs/bench/indirect-only/
 ward-indirect-only.patch (`git -C WARD apply`), `cmake -S WARD -B WARD/build -G Ninja && cmake
@@ -54,7 +54,7 @@ def read_rgb(path, layer=""):
     raise KeyError(f"{path}: no layer '{layer}'")
 
 
-def direct_reference(scene_dir, spp, out):
+def direct_reference(scene_dir, spp, out, seed_base=90000):
     """Mitsuba's direct light as irfarm's irrcache splits it (see the module docstring)."""
     if os.path.exists(out):
         return np.load(out)
@@ -78,7 +78,7 @@ def direct_reference(scene_dir, spp, out):
     def render(text, depth, n):
         s = mi.load_string(text, max_depth=depth)
         chunk = min(n, 256)
-        return np.mean([np.array(mi.render(s, spp=chunk, seed=90000 + k), dtype=np.float64)
+        return np.mean([np.array(mi.render(s, spp=chunk, seed=seed_base + k), dtype=np.float64)
                         [:, :, :3] for k in range(n // chunk)], axis=0)
 
     d = render(no_sky, 2, spp)
@@ -86,6 +86,47 @@ def direct_reference(scene_dir, spp, out):
         d = d + render(sky_only, 1, 64)
     np.save(out, d)
     return d
+
+
+def reference_floor(scene_dir, ind_ref, n, cache, direct=None, direct_spp=0, out_dir="."):
+    """The indirect reference's own noise in this measure: the relMSE (indirect denominators) that
+    its noise adds to any image compared with it. Two independent parts, each from an independent
+    Mitsuba render at n spp compared with what it estimates, E[(m - r)^2] = var_m + var_r with
+    var_m = var_r * spp_r / n, so r's part is that relMSE / (1 + spp_r / n): the scene's reference
+    (against a full render) and the direct render `direct` at direct_spp (against a direct render
+    with other seeds). Cached in `cache`."""
+    if os.path.exists(cache):
+        with open(cache) as f:
+            return json.load(f)["floor"]
+    import mitsuba as mi
+    for v in ("llvm_ad_rgb", "scalar_rgb"):
+        try:
+            mi.set_variant(v)
+            break
+        except Exception:
+            continue
+    with open(os.path.join(scene_dir, "reference.json")) as f:
+        spp_ref = json.load(f)["spp"]
+    s = mi.load_file(os.path.join(scene_dir, "scene.xml"))
+    chunk = min(n, 256)
+    m = np.mean([np.array(mi.render(s, spp=chunk, seed=70000 + k), dtype=np.float64)[:, :, :3]
+                 for k in range(n // chunk)], axis=0)
+    ref = read_rgb(os.path.join(scene_dir, "reference.exr"))
+    e = float(np.mean((m - ref) ** 2 / (ind_ref ** 2 + 0.01)))
+    floor_ref = e / (1 + spp_ref / n)
+    floor_direct = 0.0
+    if direct is not None:
+        name = os.path.basename(os.path.normpath(scene_dir))
+        d2 = direct_reference(scene_dir, n, os.path.join(out_dir, name + "-direct-check.npy"),
+                              seed_base=190000)
+        e2 = float(np.mean((d2 - direct) ** 2 / (ind_ref ** 2 + 0.01)))
+        floor_direct = e2 / (1 + direct_spp / n)
+    floor = floor_ref + floor_direct
+    with open(cache, "w") as f:
+        json.dump({"floor": floor, "reference_part": floor_ref, "direct_part": floor_direct,
+                   "mitsuba_spp": n, "reference_spp": spp_ref, "direct_spp": direct_spp,
+                   "relmse_mitsuba_vs_reference": e}, f)
+    return floor
 
 
 def run(binary, scene_dir, args, tmp, tag, env=None):
@@ -119,12 +160,22 @@ def main():
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--accuracies", default="0.05,0.07,0.1,0.14,0.2,0.3,0.4")
     ap.add_argument("--spp", type=int, default=4096, help="Mitsuba direct-light spp")
+    ap.add_argument("--noise-spp", type=int, default=0,
+                    help="estimate the reference's own noise in this measure from a Mitsuba "
+                         "render at this spp, and report ratios with it subtracted")
+    ap.add_argument("--summarize", metavar="RUNS_JSON",
+                    help="no renders: the table from an earlier run's runs.json")
+    ap.add_argument("--irfarm-args", default="",
+                    help="extra irfarm render arguments, e.g. '--spacing hessian'")
     ap.add_argument("--out", default="bench-indirect")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     tmp = tempfile.mkdtemp(prefix="irfarm-indirect-")
     rows = []
-    for name in a.scenes.split(","):
+    if a.summarize:
+        with open(a.summarize) as f:
+            rows = json.load(f)
+    for name in ([] if a.summarize else a.scenes.split(",")):
         d = os.path.join(a.scenes_dir, name)
         ref = read_rgb(os.path.join(d, "reference.exr"))
         direct = direct_reference(d, a.spp, os.path.join(a.out, name + "-direct.npy"))
@@ -134,14 +185,16 @@ def main():
         e_base = relmse(read_rgb(img), ind_ref)
         print(f"{name:12s} baseline      records {n_base:7d} {t_base:7.2f} s relMSE {e_base:.3e}",
               flush=True)
-        img, n_def, t_def = run(a.irfarm, d, ["--aovs"], tmp, name + "-def")
+        extra = a.irfarm_args.split()
+        img, n_def, t_def = run(a.irfarm, d, ["--aovs"] + extra, tmp, name + "-def")
         e_def = relmse(read_rgb(img, "indirect"), ind_ref)
         print(f"{name:12s} irfarm default records {n_def:7d} {t_def:7.2f} s relMSE {e_def:.3e}",
               flush=True)
         pts = [(n_def, e_def)]
         timed = [(t_def, e_def)]
         for acc in a.accuracies.split(","):
-            img, n, t = run(a.irfarm, d, ["--aovs", "--accuracy", acc], tmp, name + "-a" + acc)
+            img, n, t = run(a.irfarm, d, ["--aovs", "--accuracy", acc] + extra, tmp,
+                            name + "-a" + acc)
             e = relmse(read_rgb(img, "indirect"), ind_ref)
             pts.append((n, e))
             timed.append((t, e))
@@ -156,10 +209,20 @@ def main():
                      "irfarm_default_seconds": t_def, "irfarm_default_relmse": e_def,
                      "irfarm_at_baseline_records": e_eq, "irfarm_within_baseline_time": e_time,
                      "points": pts, "timed": timed})
+    for r in rows:
+        if a.noise_spp:
+            d = os.path.join(a.scenes_dir, r["scene"])
+            direct = direct_reference(d, a.spp, os.path.join(a.out, r["scene"] + "-direct.npy"))
+            ind = read_rgb(os.path.join(d, "reference.exr")) - direct
+            r["reference_floor"] = reference_floor(
+                d, ind, a.noise_spp, os.path.join(a.out, r["scene"] + "-floor.json"), direct,
+                a.spp, a.out)
+            print(f"{r['scene']:12s} reference floor {r['reference_floor']:.3e}", flush=True)
     lines = ["| scene | baseline (Ward, f9fc65e): records, s, relMSE | irfarm at the baseline's "
              "records: relMSE (ratio) | irfarm in at most the baseline's time: best relMSE (ratio) "
-             "| irfarm default: records, s, relMSE (ratio) |",
-             "|---|---|---|---|---|"]
+             "| irfarm default: records, s, relMSE (ratio) | reference floor: equal-records "
+             "ratio with it subtracted |",
+             "|---|---|---|---|---|---|"]
     for r in rows:
         eq = r["irfarm_at_baseline_records"]
         et = r["irfarm_within_baseline_time"]
@@ -171,11 +234,15 @@ def main():
             (f"{et:.2e} ({et / r['baseline_relmse']:.2f})" if et else "no run that fast") + " | " +
             f"{r['irfarm_default_records']}, {r['irfarm_default_seconds']:.2f} s, "
             f"{r['irfarm_default_relmse']:.2e} "
-            f"({r['irfarm_default_relmse'] / r['baseline_relmse']:.2f}) |")
+            f"({r['irfarm_default_relmse'] / r['baseline_relmse']:.2f}) | " +
+            (f"{r['reference_floor']:.2e}: " + (
+                f"{(eq - r['reference_floor']) / (r['baseline_relmse'] - r['reference_floor']):.2f}"
+                if eq else "-") if r.get("reference_floor") is not None else "-") + " |")
     text = "\n".join(lines) + "\n"
     with open(os.path.join(a.out, "summary.md"), "w") as f:
         f.write(text)
-    with open(os.path.join(a.out, "runs.json"), "w") as f:
+    with open(os.path.join(a.out, "runs.json" if not a.summarize else "runs-floor.json"),
+              "w") as f:
         json.dump(rows, f, indent=1)
     print(text)
 
