@@ -54,10 +54,8 @@ def read_rgb(path, layer=""):
     raise KeyError(f"{path}: no layer '{layer}'")
 
 
-def direct_reference(scene_dir, spp, out, seed_base=90000):
-    """Mitsuba's direct light as irfarm's irrcache splits it (see the module docstring)."""
-    if os.path.exists(out):
-        return np.load(out)
+def mitsuba():
+    """The mitsuba module with its fastest variant that loads here."""
     import mitsuba as mi
     for v in ("llvm_ad_rgb", "scalar_rgb"):
         try:
@@ -65,6 +63,14 @@ def direct_reference(scene_dir, spp, out, seed_base=90000):
             break
         except Exception:
             continue
+    return mi
+
+
+def direct_reference(scene_dir, spp, out, seed_base=90000):
+    """Mitsuba's direct light as irfarm's irrcache splits it (see the module docstring)."""
+    if os.path.exists(out):
+        return np.load(out)
+    mi = mitsuba()
     xml = open(os.path.join(scene_dir, "scene.xml")).read()
     sky = re.compile(r'<emitter type="constant".*?</emitter>', re.S)
     no_sky = sky.sub("", xml)
@@ -98,13 +104,7 @@ def reference_floor(scene_dir, ind_ref, n, cache, direct=None, direct_spp=0, out
     if os.path.exists(cache):
         with open(cache) as f:
             return json.load(f)["floor"]
-    import mitsuba as mi
-    for v in ("llvm_ad_rgb", "scalar_rgb"):
-        try:
-            mi.set_variant(v)
-            break
-        except Exception:
-            continue
+    mi = mitsuba()
     with open(os.path.join(scene_dir, "reference.json")) as f:
         spp_ref = json.load(f)["spp"]
     s = mi.load_file(os.path.join(scene_dir, "scene.xml"))
