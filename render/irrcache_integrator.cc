@@ -1,10 +1,10 @@
 #include "render/irrcache_integrator.h"
 
-#include <chrono>
 #include <cmath>
 #include <optional>
 
 #include "render/irradiance_hessian.h"
+#include "render/render_stats.h"
 
 namespace irfarm {
 namespace {
@@ -190,7 +190,8 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
                                                    float pixel_spread, Rng& rng,
                                                    RenderCounters& counters, Vec3* half_difference,
                                                    int level, float ray_fraction) const {
-  const auto start = std::chrono::steady_clock::now();
+  // Thread CPU time (see PilotSettings' figures, which use it); nested records are inside it.
+  const double start = counters.record_nesting == 0 ? ThreadCpuSeconds() : 0.0;
   ++counters.record_nesting;
   Vec3 s, t;
   MakeFrame(nf, &s, &t);
@@ -302,9 +303,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   ++counters.records_computed;
   if (level > 0) ++counters.records_secondary;
   // A record made for another record's rays is part of that record's time.
-  if (--counters.record_nesting == 0)
-    counters.record_seconds +=
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (--counters.record_nesting == 0) counters.record_seconds += ThreadCpuSeconds() - start;
   return r;
 }
 

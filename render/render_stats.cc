@@ -1,5 +1,7 @@
 #include "render/render_stats.h"
 
+#include <ctime>
+
 #include <sys/resource.h>
 
 #include <chrono>
@@ -45,6 +47,12 @@ double ProcessCpuSeconds() {
   getrusage(RUSAGE_SELF, &ru);
   return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
          1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
+double ThreadCpuSeconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
 }
 
 double PeakRssMiB() {

@@ -56,6 +56,10 @@ struct RenderStats {
 
 // CPU seconds of this process so far (user + system) and peak resident set size in MiB.
 double ProcessCpuSeconds();
+// CPU seconds of the calling thread (CLOCK_THREAD_CPUTIME_ID): the time a piece of work took
+// without the time the thread waited to run, so costs compared on a loaded machine (the pilot's
+// records against its samples) are not skewed by when other processes got the CPU.
+double ThreadCpuSeconds();
 double PeakRssMiB();
 
 // Measures one phase: wall and process CPU seconds from construction to Stop().

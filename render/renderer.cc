@@ -262,7 +262,9 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
   pilot.pixels.resize(kPilotPixels);
   std::vector<IrrcacheIntegrator::PilotRecord> records(kPilotPixels);
   std::vector<double> record_seconds(kPilotPixels, 0), sample_seconds(kPilotPixels, 0);
-  using Clock = std::chrono::steady_clock;
+  // Thread CPU time, not wall time: under load a wall-clock interval also holds the time the
+  // thread waited for the CPU, and the rays chosen varied with it (veach-ajar at quarter size,
+  // two CPU-bound processes beside: the two-level image 0.006 to 0.017).
   IrradianceCache scratch(CacheSettingsFor(scene, settings));
   const IrrcacheIntegrator full(scene, &scratch, settings.irrcache);
   IrrcacheSettings quarter = settings.irrcache;
@@ -279,18 +281,17 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
       Rng rng(HashCombine(settings.seed, uint64_t(i)), kStreamPilot);
       int x, y;
       RandomPixel(rect, rng, &x, &y);
-      const auto t0 = Clock::now();
+      const double t0 = ThreadCpuSeconds();
       const Ray centre{cam.origin(), cam.Direction(x + 0.5f, y + 0.5f), INFINITY};
       pilot.pixels[size_t(i)].has_record = integrator.Pilot(centre, rng, c, &records[size_t(i)]);
       if (pilot.pixels[size_t(i)].has_record) scratch.Insert(records[size_t(i)].record);
-      const auto t1 = Clock::now();
+      const double t1 = ThreadCpuSeconds();
       const double made_before = c.record_seconds;
       SamplePixel(integrator, cam, x, y, kPilotSamples, light_samples, rng, c, &film, size_t(i));
-      record_seconds[size_t(i)] = std::chrono::duration<double>(t1 - t0).count();
+      record_seconds[size_t(i)] = t1 - t0;
       // Records the samples made (glossy paths reaching new surfaces) count as record time.
       const double made = c.record_seconds - made_before;
-      sample_seconds[size_t(i)] =
-          std::max(0.0, std::chrono::duration<double>(Clock::now() - t1).count() - made);
+      sample_seconds[size_t(i)] = std::max(0.0, ThreadCpuSeconds() - t1 - made);
       record_seconds[size_t(i)] += made;
     });
   });
@@ -723,6 +724,7 @@ RenderOutput Render(const Scene& scene, const RenderSettings& settings, Irradian
 RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, IrradianceCache* cache,
                         const PixelRect& rect) {
   const auto start_time = std::chrono::steady_clock::now();
+  const double cpu_start = ProcessCpuSeconds();  // --target-error weighs its rounds' work by it
   RenderOutput out;
   const Camera& cam = scene.camera();
   const int w = cam.width();
@@ -914,9 +916,13 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
         // cache error is its records' noise, light found through the door gap by few of a
         // record's rays, and falls only as 1 / rays: 2.3e-2 at a = 0.1 and 1536 rays, 8.2e-3 at
         // 6144 rays in 3.7x the time).
-        if (iteration == 0) first_round = elapsed;
-        const bool too_costly = elapsed + 4 * (elapsed - round_start) > 10 * first_round;
-        round_start = elapsed;
+        // Measured in the process's CPU seconds, not wall time: on a loaded machine a round's wall
+        // time also holds the time its threads waited for the CPU, and the stop came at random
+        // (veach-ajar at quarter size, E = 4e-3, beside two CPU-bound processes: 3.9e-3 to 8.1e-3).
+        const double work = ProcessCpuSeconds() - cpu_start;
+        if (iteration == 0) first_round = work;
+        const bool too_costly = work + 4 * (work - round_start) > 10 * first_round;
+        round_start = work;
         const bool out_of_time = settings.time_limit > 0 && elapsed >= 0.5 * settings.time_limit;
         if (cache_error <= cache_budget || iteration >= 3 || stalled || too_costly || out_of_time) {
           cache_budget_final = cache_budget;
