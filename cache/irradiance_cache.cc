@@ -428,8 +428,7 @@ void IrradianceCache::LowerNeighbours(const IrradianceRecord& r) const {
         const Vec3 xj(b->x()[i], b->y()[i], b->z()[i]);
         const float bound = r.radius + neighbour_slope_ * Length(xj - r.position);
         if (!(bound < b->radius()[i])) return;
-        // Lowered only, with a CAS loop: concurrent inserts may both lower the same
-        // record.
+        // Lowered only, with a CAS loop: concurrent inserts may both lower one record.
         std::atomic<float>& c = const_cast<Block*>(b)->cold()[i].clamped;
         float old = c.load(std::memory_order_relaxed);
         while (bound < old && !c.compare_exchange_weak(old, bound, std::memory_order_relaxed)) {

@@ -18,6 +18,21 @@ float TriangleArea(const Vec3& a, const Vec3& b, const Vec3& c) {
   return 0.5f * Length(Cross(b - a, c - a));
 }
 
+// Mitsuba's sphere uv at unit normal n: u = phi / 2 pi with phi = atan2(y, x) in [0, 2 pi),
+// v = theta / pi.
+void SphereUv(const Vec3& n, float* u, float* v) {
+  const float phi = std::atan2(n.y, n.x);
+  *u = (phi < 0 ? phi + 2 * kPi : phi) * (0.5f * kInvPi);
+  *v = std::acos(std::clamp(n.z, -1.0f, 1.0f)) * kInvPi;
+}
+
+// The per-vertex uvs of triangle `tri` interpolated at barycentrics (b0, b1, b2).
+void TriangleUv(const std::vector<float>& uvs, const uint32_t* tri, float b0, float b1, float b2,
+                float* u, float* v) {
+  *u = uvs[2 * tri[0]] * b0 + uvs[2 * tri[1]] * b1 + uvs[2 * tri[2]] * b2;
+  *v = uvs[2 * tri[0] + 1] * b0 + uvs[2 * tri[1] + 1] * b1 + uvs[2 * tri[2] + 1] * b2;
+}
+
 // What MakeAreaLight needs of a built mesh (Scene::Mesh is private to Scene).
 struct MeshView {
   bool sphere = false, flip = false;
@@ -366,10 +381,7 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
     hit->p = m.center + n * m.radius;
     hit->ng = m.flip ? -n : n;
     hit->ns = hit->ng;
-    // Mitsuba's sphere uv: u = phi / 2 pi with phi = atan2(y, x) in [0, 2 pi), v = theta / pi.
-    const float phi = std::atan2(n.y, n.x);
-    hit->u = (phi < 0 ? phi + 2 * kPi : phi) * (0.5f * kInvPi);
-    hit->v = std::acos(std::clamp(n.z, -1.0f, 1.0f)) * kInvPi;
+    SphereUv(n, &hit->u, &hit->v);
     // d/du turns around z (u = phi / 2 pi), d/dv runs from the +z pole down (v = theta / pi).
     const float rxy = std::sqrt(n.x * n.x + n.y * n.y);
     hit->dpdu = Vec3(-n.y, n.x, 0) * (2 * kPi * m.radius);
@@ -413,8 +425,7 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
   hit->dpdu = e1;
   hit->dpdv = e2;
   if (!m.uvs.empty()) {
-    hit->u = m.uvs[2 * tri[0]] * b0 + m.uvs[2 * tri[1]] * b1 + m.uvs[2 * tri[2]] * b2;
-    hit->v = m.uvs[2 * tri[0] + 1] * b0 + m.uvs[2 * tri[1] + 1] * b1 + m.uvs[2 * tri[2] + 1] * b2;
+    TriangleUv(m.uvs, tri, b0, b1, b2, &hit->u, &hit->v);
     const float du1 = m.uvs[2 * tri[1]] - m.uvs[2 * tri[0]];
     const float dv1 = m.uvs[2 * tri[1] + 1] - m.uvs[2 * tri[0] + 1];
     const float du2 = m.uvs[2 * tri[2]] - m.uvs[2 * tri[0]];
@@ -466,17 +477,10 @@ float Scene::PassProbability(unsigned geom, unsigned prim, float bu, float bv,
                              const Vec3& p) const {
   const Mesh& m = meshes_[geom];
   float u = bu, v = bv;  // without uvs, as Intersect: u = b1, v = b2
-  if (m.sphere) {
-    const Vec3 n = Normalize(p - m.center);
-    const float phi = std::atan2(n.y, n.x);
-    u = (phi < 0 ? phi + 2 * kPi : phi) * (0.5f * kInvPi);
-    v = std::acos(std::clamp(n.z, -1.0f, 1.0f)) * kInvPi;
-  } else if (!m.uvs.empty()) {
-    const uint32_t* tri = &m.indices[3 * size_t(prim)];
-    const float b0 = 1 - bu - bv;
-    u = m.uvs[2 * tri[0]] * b0 + m.uvs[2 * tri[1]] * bu + m.uvs[2 * tri[2]] * bv;
-    v = m.uvs[2 * tri[0] + 1] * b0 + m.uvs[2 * tri[1] + 1] * bu + m.uvs[2 * tri[2] + 1] * bv;
-  }
+  if (m.sphere)
+    SphereUv(Normalize(p - m.center), &u, &v);
+  else if (!m.uvs.empty())
+    TriangleUv(m.uvs, &m.indices[3 * size_t(prim)], 1 - bu - bv, bu, bv, &u, &v);
   return materials_[size_t(m.material)]->PassThrough(BsdfContext{u, v});
 }
 
@@ -491,13 +495,13 @@ void Scene::PassThroughFilter(const RTCFilterFunctionNArguments* args) {
     const unsigned geom = RTCHitN_geomID(args->hit, args->N, i);
     const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
     // The ray's tfar is the candidate hit's distance while the filter runs.
-    const float t = RTCRayN_tfar(args->ray, args->N, i);
+    const Vec3 p = o + d * RTCRayN_tfar(args->ray, args->N, i);
     const float pass = s->PassProbability(geom, prim, RTCHitN_u(args->hit, args->N, i),
-                                          RTCHitN_v(args->hit, args->N, i), o + d * t);
+                                          RTCHitN_v(args->hit, args->N, i), p);
     if (!(pass > 0)) continue;  // blocks: the hit stands and the query ends
     // A sphere is hit twice by a ray through it: the way out is a surface of its own.
     const Scene::Mesh& m = s->meshes_[geom];
-    const uint64_t out = m.sphere && Dot(d, o + d * t - m.center) > 0 ? 1 : 0;
+    const uint64_t out = m.sphere && Dot(d, p - m.center) > 0 ? 1 : 0;
     const uint64_t h =
         HashCombine(HashCombine(PassThroughHash(o, d), (uint64_t(geom) << 32) | prim), out);
     if (Rng::ToUnitFloat(uint32_t(h >> 32)) < pass) args->valid[i] = 0;  // passes: ignored
