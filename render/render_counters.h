@@ -27,6 +27,10 @@ struct RenderCounters {
   // outermost one adds its time to record_seconds. Not summed.
   int record_nesting = 0;
 
+  // Rays traced and cache queries: the work a render did, counted, not timed (a time measured on a
+  // shared machine moves with the other processes' load; these are the same on any machine).
+  uint64_t Work() const { return camera_rays + bounce_rays + shadow_rays + record_rays + lookups; }
+
   void Add(const RenderCounters& o) {
     camera_rays += o.camera_rays;
     bounce_rays += o.bounce_rays;

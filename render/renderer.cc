@@ -724,7 +724,6 @@ RenderOutput Render(const Scene& scene, const RenderSettings& settings, Irradian
 RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, IrradianceCache* cache,
                         const PixelRect& rect) {
   const auto start_time = std::chrono::steady_clock::now();
-  const double cpu_start = ProcessCpuSeconds();  // --target-error weighs its rounds' work by it
   RenderOutput out;
   const Camera& cam = scene.camera();
   const int w = cam.width();
@@ -816,6 +815,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
   // at one level).
   const bool target_mode = settings.target_error > 0;
   int pilot_rays = 0;  // target: the two-level pilot's starting rays, when it chose two levels
+  uint64_t pilot_work = 0;  // its rays and lookups (RenderCounters::Work)
   if (irrcache && cache->size() == 0 &&
       (target_mode ? own_cache != nullptr && ic.choose_cache_levels && ic.cache_levels == 1
                    : ic.balance_record_rays)) {
@@ -842,7 +842,10 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
         b.record_rays = TargetRecordRays(settings);
       }
     }
-    for (const RenderCounters& c : pilot_counters) b.pilot_records += long(c.records_computed);
+    for (const RenderCounters& c : pilot_counters) {
+      b.pilot_records += long(c.records_computed);
+      pilot_work += c.Work();
+    }
     out.stats.balance = b;
     out.stats.balanced = true;
     out.stats.phases.push_back(timer.Stop());
@@ -916,10 +919,14 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
         // cache error is its records' noise, light found through the door gap by few of a
         // record's rays, and falls only as 1 / rays: 2.3e-2 at a = 0.1 and 1536 rays, 8.2e-3 at
         // 6144 rays in 3.7x the time).
-        // Measured in the process's CPU seconds, not wall time: on a loaded machine a round's wall
-        // time also holds the time its threads waited for the CPU, and the stop came at random
-        // (veach-ajar at quarter size, E = 4e-3, beside two CPU-bound processes: 3.9e-3 to 8.1e-3).
-        const double work = ProcessCpuSeconds() - cpu_start;
+        // Work counted in rays traced and cache lookups (the pilot's, the rounds' and their
+        // checks'), not timed: the stop must not move with the machine's load. Timed in wall
+        // seconds, beside two CPU-bound processes, veach-ajar at quarter size and E = 4e-3 ended
+        // at 3.9e-3 to 8.1e-3; in the process's CPU seconds it still varied (8.1e-3 in a CI
+        // run, 6.3e-3 idle, seed 5): a loaded machine's cores also run each instruction slower.
+        uint64_t counted = pilot_work;
+        for (const RenderCounters& c : counters) counted += c.Work();
+        const double work = double(counted);
         if (iteration == 0) first_round = work;
         const bool too_costly = work + 4 * (work - round_start) > 10 * first_round;
         round_start = work;
