@@ -38,7 +38,7 @@ struct RenderArgs {
   int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
   float accuracy = 0, min_spacing = 0, max_spacing = 0;
   uint64_t seed = 0;
-  bool no_overture = false, quiet = false;
+  bool no_overture = false, quiet = false, caustics = false;
   bool aovs = false;     // write the AOV layers (render/aov.h) into the output EXR
   bool denoise = false;  // OUT.exr denoised (render/denoiser.h), OUT.noisy.exr as rendered
   // Default "image" for both integrators (bench/denoise_bench.py, 10 scenes with living-room):
@@ -123,6 +123,7 @@ int RunRender(const RenderArgs& args) {
   s.threads = args.threads;
   s.seed = args.seed;
   s.overture = !args.no_overture;
+  s.caustics = args.caustics;
   s.record_map = !args.record_map.empty();
   s.sample_map = !args.sample_map.empty();
   if (!args.adaptive.empty()) s.adaptive = args.adaptive == "on";
@@ -314,6 +315,9 @@ int main(int argc, char** argv) {
   render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
   render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
   render->add_flag("--no-overture", ra.no_overture, "irrcache: skip the cache-filling prepass");
+  render->add_flag("--caustics", ra.caustics,
+                   "irrcache: caustics (light through mirrors and smooth glass) from a photon map "
+                   "instead of the records");
   render->add_option("--threads", ra.threads, "threads (default: all cores)");
   render->add_option("--seed", ra.seed, "random seed");
   render->add_option("--stats", ra.stats, "write the stats JSON here");

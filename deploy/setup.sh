@@ -5,7 +5,7 @@
 set -euo pipefail
 packages=(
   cmake ninja-build g++ pkg-config
-  libembree-dev libtbb-dev libopenexr-dev libpugixml-dev libstb-dev
+  libembree-dev libtbb-dev libopenexr-dev libpugixml-dev libstb-dev libnanoflann-dev
   libspdlog-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
   libhiredis-dev redis-server python3-yaml

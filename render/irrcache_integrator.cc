@@ -212,6 +212,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   // cornell-box and sunlit-room: 1536 rays with early roulette beat 1024 without it.
   PathSettings record_path = settings_.path;
   record_path.rr_depth = std::min(record_path.rr_depth, depth + 1);
+  record_path.skip_caustic_emission = settings_.caustics != nullptr;
   // Hessian spacing keeps each stratum's ray; split-sphere records do not fill (or zero) it.
   std::optional<StrataRays> grid;
   if (settings_.spacing == RecordSpacing::kHessian && T * P <= kMaxHessianStrata) grid.emplace();
@@ -325,18 +326,22 @@ Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int d
                                kRegionAngle, region, &E, &info, level)
           : cache_->Lookup(hit.p, nf, a, &E, &info, level);
   counters.region_lookups += uint64_t(info.from_region);
+  // The records leave caustics out (their rays skip them); the photon map's estimate takes their
+  // place at every level.
+  const Vec3 caustic =
+      settings_.caustics != nullptr ? settings_.caustics->Irradiance(hit.p, nf) : Vec3();
   if (found || (relax && cache_->Lookup(hit.p, nf, std::min(1.0f, a * settings_.relaxed_factor), &E,
                                         &info, level))) {
     ++counters.lookup_hits;
     counters.records_used += uint64_t(info.records_used);
     counters.remote_records_used += uint64_t(info.remote_records_used);
-    return E;
+    return E + caustic;
   }
   const IrradianceRecord r = ComputeRecord(hit, nf, depth, scene_.camera().PixelSpread(distance),
                                            rng, counters, nullptr, level, ray_fraction);
   cache_->Insert(r);
   *made = true;
-  return r.irradiance;
+  return r.irradiance + caustic;
 }
 
 Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float footprint,
@@ -350,6 +355,7 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
   float prev_pdf = 0;
   Vec3 prev_p, prev_n;
   *first_distance = INFINITY;
+  bool delta_chain = true;  // every bounce so far a delta lobe: emission then is a caustic
   for (int i = 0; i < kMaxSpecularChain; ++i, ++depth) {
     SurfaceHit hit;
     if (!scene_.Intersect(ray, &hit)) {
@@ -362,7 +368,9 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     if (i == 0) *first_distance = hit.t;
     footprint += hit.t * cone;
     const Vec3 wo = -ray.dir;
-    if (hit.light >= 0 && i > 0) {  // at the first hit: the record point's direct light
+    // At the first hit: the record point's direct light; past delta bounces only: a caustic,
+    // the photon map's when there is one.
+    if (hit.light >= 0 && i > 0 && !(settings_.caustics != nullptr && delta_chain)) {
       const Vec3 le = scene_.Emitted(hit, wo);
       if (!IsBlack(le)) {
         const float w = AreaLightMisWeight(prev_pdf, prev_p, prev_n, hit, ray.dir);
@@ -404,6 +412,7 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
     ++counters.bounce_rays;
     if (bs.lobe == kNullTransmission) continue;  // through a mask: MIS state unchanged
+    delta_chain = delta_chain && bs.IsDelta();
     const float q = std::min(MaxComponent(beta), 0.95f);
     if (rng.Next() >= q) break;
     beta /= q;

@@ -22,6 +22,7 @@
 
 #include "cache/irradiance_cache.h"
 #include "render/aov.h"
+#include "render/caustic_map.h"
 #include "render/path_tracer.h"
 #include "render/pixel_sampler.h"
 #include "render/scene.h"
@@ -85,6 +86,10 @@ struct IrrcacheSettings {
   // given (scene, --record-rays, the job's settings) and with --target-error.
   bool balance_record_rays = true;
   PathSettings path;
+  // Caustics (light from area and point lights through delta bounces only) from this photon map
+  // instead of the records, which then leave that light out (see render/caustic_map.h). Built per
+  // render by RenderRect (RenderSettings::caustics); not owned; null: the records keep it.
+  const CausticMap* caustics = nullptr;
 };
 
 struct IrrcacheShade {

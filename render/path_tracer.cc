@@ -10,6 +10,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
   Vec3 prev_p, prev_n;  // the previous vertex and the normal it selected lights with
   float eta_scale = 1;
   bool first = true;
+  bool delta_chain = true;  // every bounce so far was a delta lobe (see skip_caustic_emission)
   const LightSampler& lights = scene.light_sampler();
   // AOVs: depth of the first non-specular vertex (-1: not reached yet), and the path length so
   // far. A contribution made at vertex `d` is direct up to one vertex past that one.
@@ -39,7 +40,8 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     if (first && first_distance) *first_distance = hit.t;
     path_length += hit.t;
     const Vec3 wo = -ray.dir;
-    if (hit.light >= 0 && !(first && skip_first_local_emission)) {
+    if (hit.light >= 0 && !(first && skip_first_local_emission) &&
+        !(settings.skip_caustic_emission && delta_chain && !first)) {
       const Vec3 le = scene.Emitted(hit, wo);
       if (!IsBlack(le)) {
         const float w =
@@ -99,6 +101,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       continue;
     }
     eta_scale *= bs.eta * bs.eta;
+    delta_chain = delta_chain && bs.IsDelta();
     prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
     if (IsBlack(beta)) break;
     if (depth >= settings.rr_depth) {

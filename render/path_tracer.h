@@ -24,6 +24,10 @@ struct PathSettings {
   // 0.0061 for 1.5x; irrcache room-a 7.4e-4 -> 5.1e-4 (the reference's own error is about
   // 3.2e-4 of that), room-d 5.9e-4 -> 4.5e-4 in the same time; one-lamp scenes unchanged.
   bool all_lights = true;
+  // Area-light emission reached from the path's start by delta bounces only (mirror, smooth
+  // glass, smooth coatings; a mask's pass-through does not break the chain) is not counted: a
+  // caustic at the start point, which a CausticMap supplies instead (irradiance records).
+  bool skip_caustic_emission = false;
 };
 
 // Radiance arriving at the ray's origin along `ray`, whose first hit is path vertex `depth`.

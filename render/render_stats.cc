@@ -116,6 +116,8 @@ std::string RenderStats::ToJson() const {
     << ", \"records_per_hit\": "
     << Num(c.lookup_hits ? double(c.records_used) / double(c.lookup_hits) : 0)
     << ", \"glossy_bounces\": " << c.glossy_bounces << "},\n";
+  o << "  \"caustics\": {\"photons\": " << caustic_photons
+    << ", \"emitted\": " << caustic_photons_emitted << "},\n";
   o << "  \"sampling\": {\"spp_min\": " << spp_min << ", \"spp_mean\": " << Num(spp_mean)
     << ", \"spp_max\": " << spp_max << ", \"pixels_stopped_early\": " << pixels_stopped_early
     << ", \"adaptive_rounds\": " << adaptive_rounds

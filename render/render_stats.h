@@ -32,6 +32,7 @@ struct RenderStats {
   uint64_t records_received = 0;  // from other processes (the service), 0 for a local render
   uint64_t records_in_cache = 0;
   uint64_t records_overture = 0;  // of records computed, those made by the overture
+  long caustic_photons = 0, caustic_photons_emitted = 0;  // the photon map's (0: none built)
   int tiles = 0, tile_size = 0;
   Vec3 mean_rgb;
   long nonfinite_pixels = 0;

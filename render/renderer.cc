@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "absl/strings/numbers.h"
+#include "render/caustic_map.h"
 #include "render/path_tracer.h"
 #include "render/pixel_sampler.h"
 #include "render/record_balance.h"
@@ -93,6 +94,8 @@ constexpr double kCacheErrorAtDefaults = 2.2e-4;
 // max_spacing_px anyway); 16 rays are 2 x 8 strata, the fewest for two half-records of 8 rays.
 constexpr float kCoarsestAccuracy = 0.5f;
 constexpr int kFewestRecordRays = 16;
+// Caustic photons stored: two per pixel of the image, within these bounds.
+constexpr long kFewestCausticPhotons = 50000, kMostCausticPhotons = 1000000;
 
 // --target-error: the samples every pixel gets before adaptive rounds, from the sampling error
 // at 16 spp on the shared scenes (0.9e-4 to 3.3e-4 of relMSE, falling as 1 / spp) and the half
@@ -721,16 +724,39 @@ RenderOutput Render(const Scene& scene, const RenderSettings& settings, Irradian
   return RenderRect(scene, settings, cache, PixelRect{0, 0, cam.width(), cam.height()});
 }
 
-RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, IrradianceCache* cache,
-                        const PixelRect& rect) {
+RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
+                        IrradianceCache* cache, const PixelRect& rect) {
   const auto start_time = std::chrono::steady_clock::now();
   RenderOutput out;
   const Camera& cam = scene.camera();
   const int w = cam.width();
   const int rw = rect.width(), rh = rect.height();
-  const bool irrcache = settings.integrator == "irrcache";
-  const int threads = settings.threads > 0 ? settings.threads
-                                           : int(std::max(1u, std::thread::hardware_concurrency()));
+  const bool irrcache = settings_in.integrator == "irrcache";
+  const int threads = settings_in.threads > 0
+                          ? settings_in.threads
+                          : int(std::max(1u, std::thread::hardware_concurrency()));
+  tbb::task_arena arena(threads);
+  // Caustics from a photon map (render/caustic_map.h), where the scene has a delta surface and an
+  // area or point light and paths are unbounded (a bounded depth would cut photons' paths where
+  // the records' would not be cut). Its size follows the whole image, not this rect, so that every
+  // worker of a job builds the same map from the same seed.
+  RenderSettings settings = settings_in;
+  std::unique_ptr<CausticMap> caustics;
+  if (irrcache && settings.caustics && settings.irrcache.path.max_depth < 0 &&
+      CausticMap::SceneHasCaustics(scene)) {
+    PhaseTimer timer("caustics");
+    CausticMapSettings cs;
+    cs.seed = settings.seed;
+    cs.target_photons =
+        std::clamp(2L * cam.width() * cam.height(), kFewestCausticPhotons, kMostCausticPhotons);
+    cs.max_emitted = 40 * cs.target_photons;
+    CausticMapStats cst;
+    caustics = CausticMap::Build(scene, cs, arena, &cst);
+    settings.irrcache.caustics = caustics.get();
+    out.stats.caustic_photons = cst.stored;
+    out.stats.caustic_photons_emitted = cst.emitted;
+    out.stats.phases.push_back(timer.Stop());
+  }
   std::unique_ptr<IrradianceCache> own_cache;
   if (irrcache && !cache) {
     own_cache = std::make_unique<IrradianceCache>(CacheSettingsFor(scene, settings));
@@ -741,7 +767,6 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings, Irra
   if (settings.aovs) out.aovs = AovImages(rw, rh);
   std::vector<uint8_t> marks(settings.record_map ? size_t(rw) * rh : 0);
   tbb::enumerable_thread_specific<RenderCounters> counters;
-  tbb::task_arena arena(threads);
   const std::vector<Tile> tiles = MakeTiles(rect, settings.tile_size);
   const bool tty = settings.progress && isatty(STDERR_FILENO);
 

@@ -46,6 +46,9 @@ struct RenderSettings {
   // (the same expected image, ~3x the variance, but no noise shared between neighbours: what a
   // denoiser expects; `irfarm render --denoise` turns it off).
   bool splat = true;
+  // irrcache: caustics from a photon map where the scene has any (render/caustic_map.h). Off by
+  // default: on specular it lowers the error but costs more time than that is worth (README).
+  bool caustics = false;
   IrrcacheSettings irrcache;  // its `path` member is used by both integrators
 };
 

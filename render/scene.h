@@ -94,6 +94,7 @@ class Scene {
 
   const Camera& camera() const { return camera_; }
   const Bsdf& material(int i) const { return *materials_[size_t(i)]; }
+  int num_materials() const { return int(materials_.size()); }
   const std::vector<Light>& lights() const { return lights_.lights(); }
   const LightSampler& light_sampler() const { return lights_; }
   bool has_environment() const { return lights_.has_environment(); }

@@ -1,0 +1,286 @@
+#include "render/caustic_map.h"
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <nanoflann.hpp>
+
+#include "render/bsdfs/bsdf.h"
+#include "render/sampling.h"
+#include "render/scene.h"
+
+namespace irfarm {
+namespace {
+
+// Photons on the other side of a thin wall, or around a corner, do not count.
+constexpr float kNormalCos = 0.9f;
+// Delta bounces a photon may take (glass spheres take two per pass).
+constexpr int kMaxChain = 16;
+constexpr uint64_t kPhotonStream = 0xca05714c;
+// Photons emitted per batch: the stop is checked between batches.
+constexpr long kBatch = 1 << 16;
+constexpr int kGrid = 64;  // occupancy grid cells per axis
+
+struct Emitter {
+  int light = 0;
+  Vec3 flux;  // W
+  float pick = 0;
+};
+
+bool HasDeltaBsdf(const Scene& scene) {
+  for (int i = 0; i < scene.num_materials(); ++i)
+    if ((scene.material(i).Flags() & (kDeltaReflection | kDeltaTransmission)) != 0) return true;
+  return false;
+}
+
+std::vector<Emitter> Emitters(const Scene& scene) {
+  std::vector<Emitter> out;
+  const std::vector<Light>& lights = scene.lights();
+  for (int i = 0; i < int(lights.size()); ++i) {
+    const Light& l = lights[size_t(i)];
+    Vec3 flux;
+    if (l.type == LightType::kArea) {
+      const float area =
+          l.shape == AreaShape::kSphere ? 4 * kPi * l.radius * l.radius : std::max(0.0f, l.area);
+      if (l.shape == AreaShape::kMesh && l.cdf.empty()) continue;
+      flux = l.radiance * (kPi * area);
+    } else if (l.type == LightType::kPoint) {
+      flux = l.intensity * (4 * kPi);
+    } else {
+      continue;  // spot, directional, environment: their caustics stay with the records
+    }
+    if (!(Luminance(flux) > 0) || !IsFinite(flux)) continue;
+    out.push_back(Emitter{i, flux, 0});
+  }
+  double total = 0;
+  for (const Emitter& e : out) total += Luminance(e.flux);
+  for (Emitter& e : out) e.pick = float(Luminance(e.flux) / total);
+  return out;
+}
+
+// A photon leaving emitter e: origin, its offset normal and scale, direction, and power (flux over
+// the emitter's pick probability; the count emitted divides it at the end).
+bool Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power) {
+  const Light& l = scene.lights()[size_t(e.light)];
+  const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next(), u4 = rng.Next();
+  Vec3 p, n;
+  float scale = l.error_scale;
+  if (l.type == LightType::kPoint) {
+    *ray = Ray{l.position, UniformSphere(u1, u2), INFINITY};
+    *power = e.flux / e.pick;
+    return true;
+  }
+  if (l.shape == AreaShape::kRect) {
+    p = l.corner + l.edge_u * u1 + l.edge_v * u2;
+    n = l.normal;
+  } else if (l.shape == AreaShape::kSphere) {
+    const Vec3 d = UniformSphere(u1, u2);
+    p = l.center + d * l.radius;
+    n = l.flip ? -d : d;
+  } else {
+    const float target = u1 * l.area;
+    size_t ti = size_t(std::upper_bound(l.cdf.begin(), l.cdf.end(), target) - l.cdf.begin());
+    ti = std::min(ti, l.cdf.size() - 1);
+    const LightTriangle& t = l.triangles[ti];
+    float b0, b1;
+    UniformTriangle(rng.Next(), u2, &b0, &b1);
+    p = t.p0 * b0 + t.p1 * b1 + t.p2 * (1 - b0 - b1);
+    n = t.ng;
+    scale = t.error_scale;
+  }
+  Vec3 s, t;
+  MakeFrame(n, &s, &t);
+  const Vec3 local = CosineHemisphere(u3, u4);
+  const Vec3 dir = s * local.x + t * local.y + n * local.z;
+  *ray = Scene::SpawnRay(p, n, scale, dir);
+  *power = e.flux / e.pick;
+  return true;
+}
+
+// Follows one photon; appends it (unscaled) to *out at every diffuse surface it reaches after a
+// delta bounce.
+void Trace(const Scene& scene, Ray ray, Vec3 power, Rng& rng,
+           std::vector<CausticMap::Photon>* out) {
+  int bounces = 0;  // delta scattering events so far (a mask's pass-through is not one)
+  for (int i = 0; i < kMaxChain; ++i) {
+    SurfaceHit hit;
+    if (!scene.Intersect(ray, &hit)) return;
+    const Bsdf& bsdf = scene.material(hit.material);
+    const BsdfContext ctx = hit.Context();
+    const ShadingFrame frame = hit.Frame();
+    const Vec3 wo = -ray.dir;
+    const Vec3 wo_l = frame.ToLocal(wo);
+    if (bounces > 0 && !IsBlack(bsdf.DiffuseAlbedo(ctx, wo_l)))
+      out->push_back(CausticMap::Photon{hit.p, wo_l.z >= 0 ? hit.ns : -hit.ns, power});
+    if (!bsdf.HasNonDiffuse()) return;
+    const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+    const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3, kNonDiffuseLobes);
+    if (IsBlack(bs.weight) || !bs.IsDelta()) return;  // a glossy lobe: the records keep it
+    const Vec3 wi = frame.ToWorld(bs.wi);
+    if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) return;
+    // The weight is radiance's: a refraction scales radiance by 1 / eta^2, flux not at all.
+    Vec3 w = bs.weight * (bs.eta * bs.eta);
+    if (bs.lobe != kNullTransmission) ++bounces;
+    const float q = std::min(1.0f, MaxComponent(w));
+    if (!(q > 0)) return;
+    if (q < 1) {
+      if (rng.Next() >= q) return;
+      w = w / q;
+    }
+    power *= w;
+    ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
+  }
+}
+
+}  // namespace
+
+struct CausticMap::Index {
+  struct Cloud {
+    const std::vector<Photon>* photons;
+    size_t kdtree_get_point_count() const { return photons->size(); }
+    float kdtree_get_pt(size_t i, size_t dim) const {
+      const Vec3& p = (*photons)[i].p;
+      return dim == 0 ? p.x : dim == 1 ? p.y : p.z;
+    }
+    template <class Box>
+    bool kdtree_get_bbox(Box&) const {
+      return false;
+    }
+  };
+  using Tree =
+      nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud>, Cloud, 3>;
+  Cloud cloud;
+  Tree tree;
+  explicit Index(const std::vector<Photon>* photons)
+      : cloud{photons}, tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
+};
+
+CausticMap::CausticMap() = default;
+CausticMap::~CausticMap() = default;
+
+bool CausticMap::SceneHasCaustics(const Scene& scene) {
+  return HasDeltaBsdf(scene) && !Emitters(scene).empty();
+}
+
+std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
+                                              const CausticMapSettings& settings,
+                                              tbb::task_arena& arena, CausticMapStats* stats) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CausticMapStats st;
+  std::unique_ptr<CausticMap> map;
+  const std::vector<Emitter> emitters = Emitters(scene);
+  if (HasDeltaBsdf(scene) && !emitters.empty()) {
+    std::vector<float> cdf;
+    float acc = 0;
+    for (const Emitter& e : emitters) cdf.push_back(acc += e.pick);
+    std::vector<Photon> photons;
+    constexpr long kChunk = 1024;
+    std::vector<std::vector<Photon>> chunks(kBatch / kChunk);
+    while (long(photons.size()) < settings.target_photons && st.emitted < settings.max_emitted) {
+      const long first = st.emitted;
+      arena.execute([&] {
+        tbb::parallel_for(size_t(0), chunks.size(), [&](size_t c) {
+          chunks[c].clear();
+          for (long k = 0; k < kChunk; ++k) {
+            const long index = first + long(c) * kChunk + k;
+            Rng rng(HashCombine(settings.seed, kPhotonStream), uint64_t(index));
+            const float u = rng.Next() * acc;
+            size_t ei = size_t(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin());
+            ei = std::min(ei, emitters.size() - 1);
+            Ray ray;
+            Vec3 power;
+            if (Emit(scene, emitters[ei], rng, &ray, &power))
+              Trace(scene, ray, power, rng, &chunks[c]);
+          }
+        });
+      });
+      st.emitted += kBatch;
+      for (const std::vector<Photon>& c : chunks) photons.insert(photons.end(), c.begin(), c.end());
+    }
+    if (!photons.empty()) {
+      const float inv = 1.0f / float(st.emitted);
+      for (Photon& p : photons) p.power *= inv;
+      map.reset(new CausticMap());
+      map->photons_ = std::move(photons);
+      map->index_ = std::make_unique<Index>(&map->photons_);
+      // Photons farther than this (1/50 of the scene's diagonal) never make an estimate: a
+      // sparse caustic is blurred at most that far.
+      const Vec3 extent = scene.bounds().hi - scene.bounds().lo;
+      const float max_r = 0.02f * Length(extent);
+      const float max_r2 = max_r * max_r;
+      const size_t k = size_t(std::max(1, settings.gather));
+      map->estimates_.resize(map->photons_.size());
+      arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, map->photons_.size(), 256),
+                          [&](const tbb::blocked_range<size_t>& r) {
+                            std::vector<uint32_t> idx(k);
+                            std::vector<float> d2(k);
+                            for (size_t i = r.begin(); i < r.end(); ++i) {
+                              const Photon& ph = map->photons_[i];
+                              const float q[3] = {ph.p.x, ph.p.y, ph.p.z};
+                              const size_t n =
+                                  map->index_->tree.knnSearch(q, k, idx.data(), d2.data());
+                              float r2 = n > 0 ? std::min(d2[n - 1], max_r2) : max_r2;
+                              if (n < k) r2 = max_r2;  // fewer photons than k in the whole map
+                              Vec3 sum;
+                              for (size_t j = 0; j < n; ++j) {
+                                const Photon& o = map->photons_[idx[j]];
+                                if (d2[j] <= r2 && Dot(o.n, ph.n) >= kNormalCos) sum += o.power;
+                              }
+                              map->estimates_[i] = Estimate{sum / (kPi * r2), r2};
+                            }
+                          });
+      });
+      // Occupancy: a cell is marked where a photon's disc reaches it.
+      Vec3 lo(INFINITY), hi(-INFINITY);
+      for (const Photon& p : map->photons_) {
+        lo = Min(lo, p.p);
+        hi = Max(hi, p.p);
+      }
+      lo = lo - Vec3(max_r);
+      hi = hi + Vec3(max_r);
+      map->grid_n_ = kGrid;
+      map->grid_lo_ = lo;
+      const Vec3 size = Max(hi - lo, Vec3(1e-6f));
+      map->grid_scale_ = Vec3(kGrid / size.x, kGrid / size.y, kGrid / size.z);
+      map->grid_.assign(size_t(kGrid) * kGrid * kGrid, 0);
+      for (size_t i = 0; i < map->photons_.size(); ++i) {
+        const float r = std::sqrt(map->estimates_[i].radius2);
+        const Vec3 a = (map->photons_[i].p - Vec3(r) - lo) * map->grid_scale_;
+        const Vec3 b = (map->photons_[i].p + Vec3(r) - lo) * map->grid_scale_;
+        const auto cell = [](float v) { return std::clamp(int(v), 0, kGrid - 1); };
+        for (int z = cell(a.z); z <= cell(b.z); ++z)
+          for (int y = cell(a.y); y <= cell(b.y); ++y)
+            for (int x = cell(a.x); x <= cell(b.x); ++x)
+              map->grid_[(size_t(z) * kGrid + y) * kGrid + x] = 1;
+      }
+      st.stored = long(map->photons_.size());
+    }
+  }
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (stats) *stats = st;
+  return map;
+}
+
+Vec3 CausticMap::Irradiance(const Vec3& p, const Vec3& n) const {
+  const Vec3 g = (p - grid_lo_) * grid_scale_;
+  if (!(g.x >= 0 && g.y >= 0 && g.z >= 0 && g.x < grid_n_ && g.y < grid_n_ && g.z < grid_n_))
+    return Vec3();
+  if (!grid_[(size_t(g.z) * grid_n_ + size_t(g.y)) * grid_n_ + size_t(g.x)]) return Vec3();
+  constexpr size_t kNearest = 2;
+  std::array<uint32_t, kNearest> idx;
+  std::array<float, kNearest> d2;
+  const float q[3] = {p.x, p.y, p.z};
+  const size_t found = index_->tree.knnSearch(q, kNearest, idx.data(), d2.data());
+  for (size_t j = 0; j < found; ++j) {
+    const Estimate& e = estimates_[idx[j]];
+    if (d2[j] <= e.radius2 && Dot(photons_[idx[j]].n, n) >= kNormalCos) return e.irradiance;
+  }
+  return Vec3();
+}
+
+}  // namespace irfarm

@@ -1,0 +1,130 @@
+// The caustic photon map (render/caustic_map.h) against a caustic with a closed form, and the
+// records' side of the split: paths that reach a lamp through delta bounces only are left out
+// when the map supplies them, and only those.
+//
+// The scene: a perfect mirror (conductor, material none, reflectance 1) filling the plane z = 0,
+// a 0.5 x 0.5 lamp at z = 1 facing down at it, and a diffuse ceiling at z = 3 facing down. The
+// ceiling gets no light from the lamp directly; what the mirror sends it is the light of the
+// lamp's mirror image (z = -1, facing up): E = L * (projected solid angle of the image), by
+// Lambert's formula. The lamp's own back blocks the reflected light over the ceiling near the
+// axis only (|x|, |y| below about 1); the checks are at 1.5 to 3.
+#include <gtest/gtest.h>
+
+#include <tbb/task_arena.h>
+
+#include <cmath>
+#include <memory>
+
+#include "render/caustic_map.h"
+#include "render/path_tracer.h"
+#include "render/sampling.h"
+#include "render/scene.h"
+#include "render/scene_loader.h"
+#include "render/solid_angle.h"
+
+namespace irfarm {
+namespace {
+
+constexpr float kRadiance = 10;
+
+constexpr char kScene[] = R"(<scene version="3.0.0">
+  <sensor type="perspective"/>
+  <bsdf type="diffuse" id="white"/>
+  <bsdf type="conductor" id="mirror"><string name="material" value="none"/></bsdf>
+  <shape type="rectangle">
+    <transform name="to_world"><scale x="10" y="10"/></transform>
+    <ref id="mirror"/>
+  </shape>
+  <shape type="rectangle">
+    <transform name="to_world"><scale x="0.25" y="0.25"/><rotate x="1" angle="180"/><translate z="1"/></transform>
+    <ref id="white"/>
+    <emitter type="area"><rgb name="radiance" value="10, 10, 10"/></emitter>
+  </shape>
+  <shape type="rectangle">
+    <transform name="to_world"><scale x="10" y="10"/><rotate x="1" angle="180"/><translate z="3"/></transform>
+    <ref id="white"/>
+  </shape>
+</scene>)";
+
+std::unique_ptr<Scene> Build() {
+  absl::StatusOr<SceneDesc> desc = LoadSceneString(kScene, "caustic.xml", {});
+  EXPECT_TRUE(desc.ok()) << desc.status();
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
+  EXPECT_TRUE(scene.ok()) << scene.status();
+  return scene.ok() ? std::move(*scene) : nullptr;
+}
+
+// Irradiance at ceiling point (x, y, 3), facing down, from the lamp's mirror image.
+double Analytic(float x, float y) {
+  const Vec3 image[4] = {Vec3(-0.25f, -0.25f, -1), Vec3(0.25f, -0.25f, -1), Vec3(0.25f, 0.25f, -1),
+                         Vec3(-0.25f, 0.25f, -1)};
+  return kRadiance * PolygonProjectedSolidAngle(Vec3(x, y, 3), Vec3(0, 0, -1), image, 4);
+}
+
+TEST(CausticMapTest, MirrorCausticMatchesItsClosedForm) {
+  const std::unique_ptr<Scene> scene = Build();
+  ASSERT_NE(scene, nullptr);
+  ASSERT_TRUE(CausticMap::SceneHasCaustics(*scene));
+  tbb::task_arena arena(2);
+  CausticMapSettings settings;
+  settings.target_photons = 200000;
+  settings.seed = 7;
+  CausticMapStats stats;
+  const std::unique_ptr<CausticMap> map = CausticMap::Build(*scene, settings, arena, &stats);
+  ASSERT_NE(map, nullptr);
+  EXPECT_GE(stats.stored, settings.target_photons);
+  // Over [1.5, 3]^2 (a quadrant of the ring the image lights evenly), 16 x 16 points. Each
+  // estimate averages 64 photons (relative standard deviation 1/8); neighbouring estimates share
+  // photons, and the region holds about area / (pi r^2) = 2.25 / (pi 0.14^2) = 36 independent
+  // ones (r: the 64th photon's distance at the map's density, about 1000 photons per unit area
+  // there), so the mean's standard error is about 2%: 6% is three of them. A wrong flux (pi, the
+  // emitted count) or a photon stored at the wrong side is off by far more.
+  double sum_map = 0, sum_exact = 0;
+  for (int i = 0; i < 16; ++i)
+    for (int j = 0; j < 16; ++j) {
+      const float x = 1.5f + 1.5f * (i + 0.5f) / 16, y = 1.5f + 1.5f * (j + 0.5f) / 16;
+      sum_map += Luminance(map->Irradiance(Vec3(x, y, 3), Vec3(0, 0, -1)));
+      sum_exact += Analytic(x, y);
+    }
+  EXPECT_NEAR(sum_map / sum_exact, 1.0, 0.06)
+      << "map " << sum_map / 256 << " exact " << sum_exact / 256;
+  // The other side of the ceiling gets nothing; nor does the mirror (its photons go on).
+  EXPECT_EQ(Luminance(map->Irradiance(Vec3(2, 2, 3), Vec3(0, 0, 1))), 0.0f);
+  EXPECT_EQ(Luminance(map->Irradiance(Vec3(2, 2, 0), Vec3(0, 0, 1))), 0.0f);
+}
+
+// From the ceiling, rays towards the mirror reach the lamp by one delta bounce: counted without
+// the map (their mean is the closed form's irradiance / pi per unit cosine-weighted sample),
+// skipped with it (skip_caustic_emission), so records plus map count that light once.
+TEST(CausticMapTest, RecordPathsSkipOnlyDeltaChainEmission) {
+  const std::unique_ptr<Scene> scene = Build();
+  ASSERT_NE(scene, nullptr);
+  const Vec3 x(2, 2, 3 - 1e-3f);
+  constexpr int kRays = 1000000;
+  double with = 0, without = 0;
+  for (const bool skip : {false, true}) {
+    PathSettings path;
+    path.skip_caustic_emission = skip;
+    Rng rng(3, skip ? 1 : 2);
+    RenderCounters counters;
+    double sum = 0;
+    for (int i = 0; i < kRays; ++i) {
+      const Vec3 l = CosineHemisphere(rng.Next(), rng.Next());
+      const Ray ray{x, Vec3(l.x, l.y, -l.z), INFINITY};
+      sum += Luminance(TracePath(*scene, ray, 1, true, path, rng, counters));
+    }
+    (skip ? with : without) = sum / kRays;
+  }
+  // Cosine-weighted rays: E = pi * mean radiance. Of that, the lamp through the mirror is the
+  // closed form; the rest is light the ceiling's other points send via the mirror to themselves
+  // (the ceiling, lit, reflected), which stays with the records.
+  // A ray finds the image with probability p = E / (pi L) (about 0.2%): the count's relative
+  // standard deviation is 1 / sqrt(N p), about 2%; four of them.
+  const double caustic = Analytic(2, 2);
+  const double p = caustic / (kPi * kRadiance);
+  EXPECT_NEAR(kPi * (without - with), caustic, 4 * caustic / std::sqrt(kRays * p));
+  EXPECT_LT(kPi * with, 0.5 * caustic);
+}
+
+}  // namespace
+}  // namespace irfarm
