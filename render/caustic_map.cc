@@ -64,7 +64,7 @@ std::vector<Emitter> Emitters(const Scene& scene) {
 
 // A photon leaving emitter e: origin, its offset normal and scale, direction, and power (flux over
 // the emitter's pick probability; the count emitted divides it at the end).
-bool Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power) {
+void Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power) {
   const Light& l = scene.lights()[size_t(e.light)];
   const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next(), u4 = rng.Next();
   Vec3 p, n;
@@ -72,7 +72,7 @@ bool Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power)
   if (l.type == LightType::kPoint) {
     *ray = Ray{l.position, UniformSphere(u1, u2), INFINITY};
     *power = e.flux / e.pick;
-    return true;
+    return;
   }
   if (l.shape == AreaShape::kRect) {
     p = l.corner + l.edge_u * u1 + l.edge_v * u2;
@@ -98,7 +98,6 @@ bool Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power)
   const Vec3 dir = s * local.x + t * local.y + n * local.z;
   *ray = Scene::SpawnRay(p, n, scale, dir);
   *power = e.flux / e.pick;
-  return true;
 }
 
 // Follows one photon; appends it (unscaled) to *out at every diffuse surface it reaches after a
@@ -193,8 +192,8 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
             ei = std::min(ei, emitters.size() - 1);
             Ray ray;
             Vec3 power;
-            if (Emit(scene, emitters[ei], rng, &ray, &power))
-              Trace(scene, ray, power, rng, &chunks[c]);
+            Emit(scene, emitters[ei], rng, &ray, &power);
+            Trace(scene, ray, power, rng, &chunks[c]);
           }
         });
       });
