@@ -17,13 +17,14 @@
 // ends the photon, and such light stays with the records. Photon i draws its numbers from its own
 // stream, and batches are appended in order, so the map does not depend on the thread count.
 //
-// Irradiance is precomputed at every stored photon (Christensen 1999): the k nearest photons on
-// the same side (normals within kNormalCos) over the disc that holds them. A lookup takes, of the
+// Irradiance is precomputed at every 8th stored photon (Christensen 1999, who used a subset too):
+// the k nearest photons on the same side (normals within kNormalCos) over the disc that holds
+// them. A lookup takes, of the
 // two photons nearest the point, the first whose disc contains it and whose normal agrees; none:
 // no caustic there. The k-d tree is nanoflann's.
 //
-// Off by default (RenderSettings::caustics, `irfarm render --caustics`): measured on specular
-// (README), it lowers the error but costs more time than the error it saves.
+// Off by default (RenderSettings::caustics, `irfarm render --caustics`): it changes every scene
+// with mirrors or glass, and the ten-scene bench has not been run with it (README).
 #pragma once
 
 #include <tbb/task_arena.h>
@@ -67,7 +68,7 @@ class CausticMap {
   // Allocates nothing.
   Vec3 Irradiance(const Vec3& p, const Vec3& n) const;
 
-  size_t size() const { return photons_.size(); }
+  size_t sites() const { return photons_.size(); }  // photons with an estimate (every 8th)
 
   struct Photon {
     Vec3 p, n;  // where, and the normal on the side it arrived from
