@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <nanoflann.hpp>
 
@@ -88,10 +87,7 @@ void Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power)
     p = l.center + d * l.radius;
     n = l.flip ? -d : d;
   } else {
-    const float target = u1 * l.area;
-    size_t ti = size_t(std::upper_bound(l.cdf.begin(), l.cdf.end(), target) - l.cdf.begin());
-    ti = std::min(ti, l.cdf.size() - 1);
-    const LightTriangle& t = l.triangles[ti];
+    const LightTriangle& t = l.PickTriangle(u1);
     float b0, b1;
     UniformTriangle(rng.Next(), u2, &b0, &b1);
     p = t.p0 * b0 + t.p1 * b1 + t.p2 * (1 - b0 - b1);
@@ -174,7 +170,6 @@ bool CausticMap::SceneHasCaustics(const Scene& scene) {
 std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
                                               const CausticMapSettings& settings,
                                               tbb::task_arena& arena, CausticMapStats* stats) {
-  const auto t0 = std::chrono::steady_clock::now();
   CausticMapStats st;
   std::unique_ptr<CausticMap> map;
   const std::vector<Emitter> emitters = Emitters(scene);
@@ -267,7 +262,6 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
       map->index_ = std::make_unique<Index>(&map->photons_);
     }
   }
-  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (stats) *stats = st;
   return map;
 }

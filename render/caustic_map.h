@@ -19,9 +19,8 @@
 //
 // Irradiance is precomputed at every 8th stored photon (Christensen 1999, who used a subset too):
 // the k nearest photons on the same side (normals within kNormalCos) over the disc that holds
-// them. A lookup takes, of the
-// two photons nearest the point, the first whose disc contains it and whose normal agrees; none:
-// no caustic there. The k-d tree is nanoflann's.
+// them. A lookup takes, of the two sites nearest the point, the first whose disc contains it and
+// whose normal agrees; none: no caustic there. The k-d trees are nanoflann's.
 //
 // Off by default (RenderSettings::caustics, `irfarm render --caustics`): it changes every scene
 // with mirrors or glass, and the ten-scene bench has not been run with it (README).
@@ -48,7 +47,6 @@ struct CausticMapSettings {
 
 struct CausticMapStats {
   long emitted = 0, stored = 0;
-  double seconds = 0;
 };
 
 class CausticMap {

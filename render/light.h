@@ -3,6 +3,7 @@
 // directional) are sampled explicitly; environment lights (constant, envmap) act as one.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -51,6 +52,12 @@ struct Light {
   Mat4 world_to_env;
   float scale = 1;
   Vec3 average_radiance;  // environment: mean radiance over the sphere (selection weights)
+
+  // The triangle u in [0, 1) picks by area (kMesh; cdf not empty).
+  const LightTriangle& PickTriangle(float u) const {
+    const size_t i = size_t(std::upper_bound(cdf.begin(), cdf.end(), u * area) - cdf.begin());
+    return triangles[std::min(i, cdf.size() - 1)];
+  }
 
   bool IsDelta() const {
     return type == LightType::kPoint || type == LightType::kSpot || type == LightType::kDirectional;

@@ -203,10 +203,7 @@ bool LightSampler::SampleOne(int i, const Vec3& p, float u1, float u2, float u3,
           pdf = -1;
         }
       } else {
-        const float target = u1 * l.area;
-        size_t ti = size_t(std::upper_bound(l.cdf.begin(), l.cdf.end(), target) - l.cdf.begin());
-        ti = std::min(ti, l.cdf.size() - 1);
-        const LightTriangle& t = l.triangles[ti];
+        const LightTriangle& t = l.PickTriangle(u1);
         if (t.area <= 0 || Dot(p - t.p0, t.ng) <= 0) return false;
         const float pick = t.area / l.area;
         SphericalTriangle st;

@@ -742,8 +742,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   // worker of a job builds the same map from the same seed.
   RenderSettings settings = settings_in;
   std::unique_ptr<CausticMap> caustics;
-  if (irrcache && settings.caustics && settings.irrcache.path.max_depth < 0 &&
-      CausticMap::SceneHasCaustics(scene)) {
+  if (irrcache && settings.caustics && settings.irrcache.path.max_depth < 0) {
     PhaseTimer timer("caustics");
     CausticMapSettings cs;
     cs.seed = settings.seed;
@@ -755,7 +754,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
     settings.irrcache.caustics = caustics.get();
     out.stats.caustic_photons = cst.stored;
     out.stats.caustic_photons_emitted = cst.emitted;
-    out.stats.phases.push_back(timer.Stop());
+    if (cst.emitted > 0) out.stats.phases.push_back(timer.Stop());  // none: nothing to time
   }
   std::unique_ptr<IrradianceCache> own_cache;
   if (irrcache && !cache) {
