@@ -38,7 +38,7 @@ struct RenderArgs {
   int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
   float accuracy = 0, min_spacing = 0, max_spacing = 0;
   uint64_t seed = 0;
-  bool no_overture = false, quiet = false, caustics = false;
+  bool no_overture = false, quiet = false, caustics = true;
   bool aovs = false;     // write the AOV layers (render/aov.h) into the output EXR
   bool denoise = false;  // OUT.exr denoised (render/denoiser.h), OUT.noisy.exr as rendered
   // Default "image" for both integrators (bench/denoise_bench.py, 10 scenes with living-room):
@@ -315,9 +315,10 @@ int main(int argc, char** argv) {
   render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
   render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
   render->add_flag("--no-overture", ra.no_overture, "irrcache: skip the cache-filling prepass");
-  render->add_flag("--caustics", ra.caustics,
-                   "irrcache: caustics (light through mirrors and smooth glass) from a photon map "
-                   "instead of the records");
+  render->add_flag(
+      "--caustics,!--no-caustics", ra.caustics,
+      "irrcache: caustics (light through mirrors and smooth glass) from a photon map "
+      "instead of the records (the default; --no-caustics leaves them to the records)");
   render->add_option("--threads", ra.threads, "threads (default: all cores)");
   render->add_option("--seed", ra.seed, "random seed");
   render->add_option("--stats", ra.stats, "write the stats JSON here");

@@ -17,6 +17,16 @@ namespace {
 
 // Photons on the other side of a thin wall, or around a corner, do not count.
 constexpr float kNormalCos = 0.9f;
+// CausticReuse: an answer holds within this fraction of its site's gather radius (the radius
+// holds `gather` photons, one in kSiteStride of them a site, so a site's cell is about a third
+// of it across) or, where no site's disc holds the point, of the distance to the nearest site; and
+// for normals within about 8 degrees.
+constexpr float kReuseReach = 0.1f;
+constexpr float kReuseNormalCos = 0.99f;
+// Lookups search approximately (nanoflann's eps: a site found may be up to twice as far as the
+// true nearest): any site whose disc holds the point gives an estimate of the same density, and
+// the search is 12% faster (327 against 375 ns on specular's record-ray hits).
+constexpr float kSearchEps = 1.0f;
 // Delta bounces a photon may take (glass spheres take two per pass).
 constexpr int kMaxChain = 16;
 constexpr uint64_t kPhotonStream = 0xca05714c;
@@ -266,21 +276,34 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
   return map;
 }
 
-Vec3 CausticMap::Irradiance(const Vec3& p, const Vec3& n) const {
+Vec3 CausticMap::Irradiance(const Vec3& p, const Vec3& n, CausticReuse* reuse) const {
   const Vec3 g = (p - grid_lo_) * grid_scale_;
   if (!(g.x >= 0 && g.y >= 0 && g.z >= 0 && g.x < grid_n_ && g.y < grid_n_ && g.z < grid_n_))
     return Vec3();
   if (!grid_[(size_t(g.z) * grid_n_ + size_t(g.y)) * grid_n_ + size_t(g.x)]) return Vec3();
+  if (reuse != nullptr && LengthSquared(p - reuse->p) <= reuse->reach2 &&
+      Dot(n, reuse->n) >= kReuseNormalCos)
+    return reuse->value;
   constexpr size_t kNearest = 2;
   std::array<uint32_t, kNearest> idx;
   std::array<float, kNearest> d2;
   const float q[3] = {p.x, p.y, p.z};
-  const size_t found = index_->tree.knnSearch(q, kNearest, idx.data(), d2.data());
+  nanoflann::KNNResultSet<float, uint32_t> result(kNearest);
+  result.init(idx.data(), d2.data());
+  index_->tree.findNeighbors(result, q, nanoflann::SearchParams(32, kSearchEps));
+  const size_t found = result.size();
+  Vec3 value;
+  float reach2 = found > 0 ? kReuseReach * kReuseReach * d2[0] : -1.0f;
   for (size_t j = 0; j < found; ++j) {
     const Estimate& e = estimates_[idx[j]];
-    if (d2[j] <= e.radius2 && Dot(photons_[idx[j]].n, n) >= kNormalCos) return e.irradiance;
+    if (d2[j] <= e.radius2 && Dot(photons_[idx[j]].n, n) >= kNormalCos) {
+      value = e.irradiance;
+      reach2 = kReuseReach * kReuseReach * e.radius2;
+      break;
+    }
   }
-  return Vec3();
+  if (reuse != nullptr) *reuse = CausticReuse{p, n, value, reach2};
+  return value;
 }
 
 }  // namespace irfarm

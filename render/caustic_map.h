@@ -19,11 +19,12 @@
 //
 // Irradiance is precomputed at every 8th stored photon (Christensen 1999, who used a subset too):
 // the k nearest photons on the same side (normals within kNormalCos) over the disc that holds
-// them. A lookup takes, of the two sites nearest the point, the first whose disc contains it and
-// whose normal agrees; none: no caustic there. The k-d trees are nanoflann's.
+// them. A lookup takes, of the two sites nearest the point (approximately), the first whose disc
+// contains it and whose normal agrees; none: no caustic there. The k-d trees are nanoflann's.
 //
-// Off by default (RenderSettings::caustics, `irfarm render --caustics`): it changes every scene
-// with mirrors or glass, and the ten-scene bench has not been run with it (README).
+// On by default where the integrator is irrcache and paths are unbounded
+// (RenderSettings::caustics; `irfarm render --no-caustics` turns it off); a scene with no delta
+// BSDF or no area or point light builds nothing.
 #pragma once
 
 #include <tbb/task_arena.h>
@@ -45,6 +46,14 @@ struct CausticMapSettings {
   uint64_t seed = 0;
 };
 
+// What consecutive lookups of one render thread (a pixel's samples, its neighbours) may reuse: a
+// lookup's answer is the estimate of the site nearest the point, constant over that site's cell,
+// so a point within `reach` of the last one, with the same normal, gets the same answer.
+struct CausticReuse {
+  Vec3 p, n, value;
+  float reach2 = -1;  // squared; negative: nothing to reuse
+};
+
 struct CausticMapStats {
   long emitted = 0, stored = 0;
 };
@@ -63,8 +72,8 @@ class CausticMap {
   CausticMap& operator=(const CausticMap&) = delete;
 
   // Caustic irradiance arriving at p on the side of unit normal n (0 where there is none).
-  // Allocates nothing.
-  Vec3 Irradiance(const Vec3& p, const Vec3& n) const;
+  // Allocates nothing. With `reuse`, the last answer is taken again within its reach.
+  Vec3 Irradiance(const Vec3& p, const Vec3& n, CausticReuse* reuse = nullptr) const;
 
   size_t sites() const { return photons_.size(); }  // photons with an estimate (every 8th)
 

@@ -311,7 +311,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
 Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth,
                                     float distance, bool relax, Rng& rng, RenderCounters& counters,
                                     bool* made, int level, float ray_fraction,
-                                    LookupRegion* region) const {
+                                    PixelReuse* reuse) const {
   Vec3 E;
   LookupInfo info;
   ++counters.lookups;
@@ -321,15 +321,17 @@ Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int d
   // (curved surfaces).
   constexpr float kRegionPixels = 2.0f, kRegionAngle = 0.1f;
   const bool found =
-      region != nullptr
+      reuse != nullptr
           ? cache_->LookupNear(hit.p, nf, a, kRegionPixels * scene_.camera().PixelSpread(distance),
-                               kRegionAngle, region, &E, &info, level)
+                               kRegionAngle, &reuse->region, &E, &info, level)
           : cache_->Lookup(hit.p, nf, a, &E, &info, level);
   counters.region_lookups += uint64_t(info.from_region);
   // The records leave caustics out (their rays skip them); the photon map's estimate takes their
   // place at every level.
   const Vec3 caustic =
-      settings_.caustics != nullptr ? settings_.caustics->Irradiance(hit.p, nf) : Vec3();
+      settings_.caustics != nullptr
+          ? settings_.caustics->Irradiance(hit.p, nf, reuse != nullptr ? &reuse->caustic : nullptr)
+          : Vec3();
   if (found || (relax && cache_->Lookup(hit.p, nf, std::min(1.0f, a * settings_.relaxed_factor), &E,
                                         &info, level))) {
     ++counters.lookup_hits;
@@ -594,7 +596,7 @@ Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, con
   if (max_depth < 0 || depth + 2 <= max_depth) {
     bool made = false;
     const Vec3 E = Irradiance(hit, nf, depth, distance, true, rng, counters, &made, level,
-                              ray_fraction, level == 0 && shade ? shade->region : nullptr);
+                              ray_fraction, level == 0 && shade ? shade->reuse : nullptr);
     if (shade) shade->made_record = shade->made_record || made;
     *cached = beta * albedo * E * kInvPi;
     L += *cached;

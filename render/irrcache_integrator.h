@@ -92,11 +92,17 @@ struct IrrcacheSettings {
   const CausticMap* caustics = nullptr;
 };
 
+// What the lookups of camera-visible surfaces may reuse across a pixel's samples and its
+// neighbours (the caller keeps one per render thread): gathered records
+// (IrradianceCache::LookupNear) and the caustic map's last answer.
+struct PixelReuse {
+  LookupRegion region;
+  CausticReuse caustic;
+};
+
 struct IrrcacheShade {
   bool made_record = false;
-  // In: where the lookups of camera-visible surfaces may reuse gathered records (the caller keeps
-  // one per render thread across a pixel's samples; see IrradianceCache::LookupNear). Optional.
-  LookupRegion* region = nullptr;
+  PixelReuse* reuse = nullptr;  // in, optional
 };
 
 // Direct light from lights with a closed-form unoccluded irradiance (rectangles), kept apart per
@@ -252,7 +258,7 @@ class IrrcacheIntegrator {
                     RenderCounters& counters) const;
   Vec3 Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth, float distance, bool relax,
                   Rng& rng, RenderCounters& counters, bool* made, int level = 0,
-                  float ray_fraction = 1, LookupRegion* region = nullptr) const;
+                  float ray_fraction = 1, PixelReuse* reuse = nullptr) const;
   // Radiance arriving at a record along one of its rays (first hit: path vertex `depth`; light
   // from local emitters at that hit excluded, it is the record point's explicit direct light),
   // with the diffuse lobes it reaches shaded from the cache at `level` (cache_levels > 1).

@@ -204,14 +204,14 @@ void RandomPixel(const PixelRect& rect, Rng& rng, int* x, int* y) {
 void SamplePixel(const IrrcacheIntegrator& integrator, const Camera& cam, int x, int y, int spp,
                  int light_samples, Rng& rng, RenderCounters& c, SampleFilm* film, size_t i) {
   PixelSampler film_points(spp, rng), light_points(spp * light_samples, rng);
-  LookupRegion region;
+  PixelReuse reuse;
   for (int s = 0; s < spp; ++s) {
     float fu, fv;
     film_points.Get(s, &fu, &fv);
     Ray ray;
     cam.LensRay(cam.SampleDirection(x, y, fu, fv), rng, &ray.origin, &ray.dir);
     IrrcacheShade shade;
-    shade.region = &region;
+    shade.reuse = &reuse;
     DirectTerms terms;
     Vec3 L =
         integrator.Li(ray, LightStrata{&light_points, s * light_samples}, rng, c, &shade, &terms);
@@ -417,12 +417,12 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   SampleFilm film(npix, irrcache ? integrator.ratio_slots() : 0);
   std::vector<PixelAovSum> aov_sums(settings.aovs ? npix : 0);
 
-  // Samples [from, to) of pixel q of src; `region` is the calling thread's (see IrrcacheShade).
+  // Samples [from, to) of pixel q of src; `reuse` is the calling thread's (see PixelReuse).
   // `splat`: the first round's samples with g > 0 (see above); otherwise the samples stay in
   // their pixel, which must then be in rect.
   const float splat_weight = g > 0 ? float(filter.SplatSampleWeight()) : 1.0f;
   auto render_pixel = [&](size_t q, int from, int to, bool splat, RenderCounters& c,
-                          LookupRegion* region) {
+                          PixelReuse* reuse) {
     const int x = src.x0 + int(q % size_t(sw)), y = src.y0 + int(q / size_t(sw));
     const bool inside = x >= rect.x0 && x < rect.x1 && y >= rect.y0 && y < rect.y1;
     const size_t own = inside ? size_t(y - rect.y0) * rw + size_t(x - rect.x0) : 0;
@@ -446,7 +446,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       DirectTerms terms;
       if (irrcache) {
         IrrcacheShade shade;
-        shade.region = region;
+        shade.reuse = reuse;
         L = integrator.Li(ray, LightStrata{&ps.lights, s * light_samples}, ps.rng, c, &shade,
                           &terms, aov);
         made |= shade.made_record;
@@ -515,11 +515,10 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
         tbb::parallel_for(size_t(0), batch.size(), [&](size_t i) {
           const Tile& tile = tiles[batch[i]];
           RenderCounters& c = counters.local();
-          LookupRegion region;
+          PixelReuse reuse;
           for (int y = tile.y0; y < tile.y1; ++y)
             for (int x = tile.x0; x < tile.x1; ++x)
-              render_pixel(size_t(y - src.y0) * sw + size_t(x - src.x0), from, to, true, c,
-                           &region);
+              render_pixel(size_t(y - src.y0) * sw + size_t(x - src.x0), from, to, true, c, &reuse);
           if (progress) progress->Tick();
         });
       });
@@ -591,11 +590,11 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates.size(), 16),
                         [&](const tbb::blocked_range<size_t>& r) {
                           RenderCounters& c = counters.local();
-                          LookupRegion region;
+                          PixelReuse reuse;
                           for (size_t i = r.begin(); i < r.end(); ++i) {
                             const size_t q = src_index(candidates[i]);
                             const int n = taken[q];
-                            render_pixel(q, n, std::min(2 * n, max_spp), false, c, &region);
+                            render_pixel(q, n, std::min(2 * n, max_spp), false, c, &reuse);
                           }
                         });
     });
@@ -838,7 +837,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   // two levels took it from 20 s to 300 s at E = 4e-3 for no lower error (2.4e-2 against 3.2e-2
   // at one level).
   const bool target_mode = settings.target_error > 0;
-  int pilot_rays = 0;  // target: the two-level pilot's starting rays, when it chose two levels
+  int pilot_rays = 0;       // target: the two-level pilot's starting rays, when it chose two levels
   uint64_t pilot_work = 0;  // its rays and lookups (RenderCounters::Work)
   if (irrcache && cache->size() == 0 &&
       (target_mode ? own_cache != nullptr && ic.choose_cache_levels && ic.cache_levels == 1

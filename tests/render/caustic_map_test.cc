@@ -93,6 +93,45 @@ TEST(CausticMapTest, MirrorCausticMatchesItsClosedForm) {
   EXPECT_EQ(Luminance(map->Irradiance(Vec3(2, 2, 0), Vec3(0, 0, 1))), 0.0f);
 }
 
+// A render thread's lookups reuse the last answer within a tenth of its site's radius
+// (CausticReuse): over a raster of the ceiling at a pixel's spacing, swept in scanlines as a tile
+// is, the answers are fresh lookups' except near the edges of sites' cells, where a neighbouring
+// site's estimate (from mostly the same 64 photons) is taken instead. Their sums agree within 1%
+// (a tenth of a site's radius past each cell edge changes sites: 7% of the points here, whose
+// estimates differ by a few percent; measured 0.08%); and a reused answer never crosses to the
+// other side of a surface or to another surface. Reuse within the whole radius changes 66% of
+// the answers and the sum by 1.2%.
+TEST(CausticMapTest, ReuseGivesTheAnswersOfFreshLookups) {
+  const std::unique_ptr<Scene> scene = Build();
+  ASSERT_NE(scene, nullptr);
+  tbb::task_arena arena(2);
+  CausticMapSettings settings;
+  settings.target_photons = 200000;
+  settings.seed = 7;
+  CausticMapStats stats;
+  const std::unique_ptr<CausticMap> map = CausticMap::Build(*scene, settings, arena, &stats);
+  ASSERT_NE(map, nullptr);
+  CausticReuse reuse;
+  double sum_fresh = 0, sum_reused = 0;
+  long differ = 0, n = 0;
+  for (int j = 0; j < 300; ++j)
+    for (int i = 0; i < 300; ++i, ++n) {
+      const Vec3 p(1.5f + 0.005f * float(i), 1.5f + 0.005f * float(j), 3);
+      const float fresh = Luminance(map->Irradiance(p, Vec3(0, 0, -1)));
+      const float reused = Luminance(map->Irradiance(p, Vec3(0, 0, -1), &reuse));
+      sum_fresh += fresh;
+      sum_reused += reused;
+      differ += fresh != reused;
+    }
+  ASSERT_GT(sum_fresh, 0);
+  EXPECT_NEAR(sum_reused / sum_fresh, 1.0, 0.01) << differ << " of " << n << " answers differ";
+  EXPECT_LT(differ, n / 2) << differ;
+  ASSERT_GT(Luminance(map->Irradiance(Vec3(2, 2, 3), Vec3(0, 0, -1), &reuse)), 0.0f);
+  EXPECT_EQ(Luminance(map->Irradiance(Vec3(2, 2, 3), Vec3(0, 0, 1), &reuse)), 0.0f);
+  ASSERT_GT(Luminance(map->Irradiance(Vec3(2, 2, 3), Vec3(0, 0, -1), &reuse)), 0.0f);
+  EXPECT_EQ(Luminance(map->Irradiance(Vec3(2, 2, 0), Vec3(0, 0, -1), &reuse)), 0.0f);
+}
+
 // From the ceiling, rays towards the mirror reach the lamp by one delta bounce: counted without
 // the map (their mean is the closed form's irradiance / pi per unit cosine-weighted sample),
 // skipped with it (skip_caustic_emission), so records plus map count that light once.
