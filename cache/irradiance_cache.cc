@@ -355,28 +355,41 @@ void IrradianceCache::ForEachNeighbour(int tree, const Vec3& x, float alpha, flo
          b = b->next) {
       const uint64_t ready = b->ready.load(std::memory_order_acquire);
       // Records at shallow nodes (large R) are scanned by every walk that passes: the distance
-      // test runs 4 at a time on the hot arrays, and f only on the records within reach.
+      // test runs 4 at a time on the hot arrays, and f only on the records within reach. Only
+      // ready slots are read (as Accumulator::Scan): a group of 4 all ready at once, the ready
+      // ones of a partial group one by one; a slot not yet ready may be being written by another
+      // thread's insert (a data race, found by ThreadSanitizer in the worker, where records from
+      // the coordinator are inserted while the render inserts its own).
       uint64_t hits = 0;
       const int end = ready == 0 ? 0 : 64 - __builtin_clzll(ready);
+      const auto within1 = [&](int j) {
+        const Vec3 d(x.x - b->x()[j], x.y - b->y()[j], x.z - b->z()[j]);
+        const float reach = alpha * b->radius()[j] + beta;
+        return reach > 0 && LengthSquared(d) < reach * reach;
+      };
       for (int i = 0; i < end; i += 4) {
+        const uint64_t group = (ready >> i) & 0xF;
         int mask = 0;
+        if (group != 0xF) {
+          for (uint64_t g = group; g != 0; g &= g - 1) {
+            const int j = i + __builtin_ctzll(g);
+            mask |= int(within1(j)) << (j - i);
+          }
+        } else {
 #if defined(__SSE2__)
-        const __m128 dx = _mm_sub_ps(_mm_set1_ps(x.x), _mm_loadu_ps(b->x() + i));
-        const __m128 dy = _mm_sub_ps(_mm_set1_ps(x.y), _mm_loadu_ps(b->y() + i));
-        const __m128 dz = _mm_sub_ps(_mm_set1_ps(x.z), _mm_loadu_ps(b->z() + i));
-        const __m128 reach = _mm_add_ps(
-            _mm_mul_ps(_mm_set1_ps(alpha), _mm_loadu_ps(b->radius() + i)), _mm_set1_ps(beta));
-        const __m128 d2 =
-            _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
-        mask = _mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(reach, _mm_setzero_ps()),
-                                          _mm_cmplt_ps(d2, _mm_mul_ps(reach, reach))));
+          const __m128 dx = _mm_sub_ps(_mm_set1_ps(x.x), _mm_loadu_ps(b->x() + i));
+          const __m128 dy = _mm_sub_ps(_mm_set1_ps(x.y), _mm_loadu_ps(b->y() + i));
+          const __m128 dz = _mm_sub_ps(_mm_set1_ps(x.z), _mm_loadu_ps(b->z() + i));
+          const __m128 reach = _mm_add_ps(
+              _mm_mul_ps(_mm_set1_ps(alpha), _mm_loadu_ps(b->radius() + i)), _mm_set1_ps(beta));
+          const __m128 d2 =
+              _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+          mask = _mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(reach, _mm_setzero_ps()),
+                                            _mm_cmplt_ps(d2, _mm_mul_ps(reach, reach))));
 #else
-        for (int k = 0; k < 4; ++k) {
-          const Vec3 d(x.x - b->x()[i + k], x.y - b->y()[i + k], x.z - b->z()[i + k]);
-          const float reach = alpha * b->radius()[i + k] + beta;
-          mask |= int(reach > 0 && LengthSquared(d) < reach * reach) << k;
-        }
+          for (int k = 0; k < 4; ++k) mask |= int(within1(i + k)) << k;
 #endif
+        }
         hits |= uint64_t(mask) << i;
       }
       for (hits &= ready; hits != 0; hits &= hits - 1) f(b, __builtin_ctzll(hits));
