@@ -389,6 +389,8 @@ int main(int argc, char** argv) {
   submit->add_option("--seed", sa.seed, "random seed");
   submit->add_flag("--no-share", sa.no_share, "do not share records between workers");
   submit->add_flag("--no-overture", sa.no_overture, "irrcache: skip the per-tile prepass");
+  submit->add_flag("--no-caustics", sa.no_caustics,
+                   "irrcache: leave caustics to the records (default: a photon map per job)");
   submit
       ->add_option("--target-error", sa.target_error,
                    "each tile stops adding samples when its estimated relMSE reaches this")

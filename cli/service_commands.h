@@ -34,7 +34,7 @@ struct SubmitArgs {
   int spp = 0, record_rays = 0, tile_size = 0;
   float accuracy = 0;
   uint64_t seed = 0;
-  bool no_share = false, shared_path = false, no_overture = false;
+  bool no_share = false, shared_path = false, no_overture = false, no_caustics = false;
   bool denoise = false;                          // the coordinator denoises the assembled image
   double target_error = 0, tile_time_limit = 0;  // adaptive sampling towards an error, per tile
   std::vector<std::string> defines;

@@ -699,15 +699,31 @@ CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& setting
   return cs;
 }
 
+namespace {
+// The render's threads: the settings', or all cores. Under ThreadSanitizer (.ci/sanitizers thread)
+// one: Debian's oneTBB is not instrumented, so TBB handing a parallel loop's tasks to its worker
+// threads is invisible to TSan, and every loop would be reported as a race on the data its body
+// reads. There TSan checks the service's own threads (sessions, publishers, stores, leases and
+// the render thread against them); the cache's concurrent inserts and lookups are checked by
+// cache_tests on std::threads.
+int RenderThreads(const RenderSettings& settings) {
+#if defined(__SANITIZE_THREAD__)
+  (void)settings;
+  return 1;
+#else
+  return settings.threads > 0 ? settings.threads
+                              : int(std::max(1u, std::thread::hardware_concurrency()));
+#endif
+}
+}  // namespace
+
 RenderSettings BalancedSettings(const Scene& scene, const RenderSettings& settings,
                                 IrradianceCache* cache, BalanceResult* result) {
   RenderSettings out = settings;
   if (settings.integrator != "irrcache" || settings.target_error > 0 ||
       !settings.irrcache.balance_record_rays || cache == nullptr || cache->size() > 0)
     return out;
-  const int threads = settings.threads > 0 ? settings.threads
-                                           : int(std::max(1u, std::thread::hardware_concurrency()));
-  tbb::task_arena arena(threads);
+  tbb::task_arena arena(RenderThreads(settings));
   tbb::enumerable_thread_specific<RenderCounters> counters;
   const Camera& cam = scene.camera();
   const BalanceResult b = PilotSettings(scene, settings, PixelRect{0, 0, cam.width(), cam.height()},
@@ -716,6 +732,29 @@ RenderSettings BalancedSettings(const Scene& scene, const RenderSettings& settin
   out.irrcache.choose_cache_levels = false;
   if (result) *result = b;
   return out;
+}
+
+namespace {
+std::unique_ptr<CausticMap> BuildCausticMap(const Scene& scene, const RenderSettings& settings,
+                                            tbb::task_arena& arena, CausticMapStats* stats) {
+  *stats = CausticMapStats();
+  if (settings.integrator != "irrcache" || !settings.caustics ||
+      settings.irrcache.path.max_depth >= 0)
+    return nullptr;
+  const Camera& cam = scene.camera();
+  CausticMapSettings cs;
+  cs.seed = settings.seed;
+  cs.target_photons =
+      std::clamp(2L * cam.width() * cam.height(), kFewestCausticPhotons, kMostCausticPhotons);
+  cs.max_emitted = 40 * cs.target_photons;
+  return CausticMap::Build(scene, cs, arena, stats);
+}
+}  // namespace
+
+std::unique_ptr<CausticMap> BuildCausticMap(const Scene& scene, const RenderSettings& settings,
+                                            CausticMapStats* stats) {
+  tbb::task_arena arena(RenderThreads(settings));
+  return BuildCausticMap(scene, settings, arena, stats);
 }
 
 RenderOutput Render(const Scene& scene, const RenderSettings& settings, IrradianceCache* cache) {
@@ -731,25 +770,18 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   const int w = cam.width();
   const int rw = rect.width(), rh = rect.height();
   const bool irrcache = settings_in.integrator == "irrcache";
-  const int threads = settings_in.threads > 0
-                          ? settings_in.threads
-                          : int(std::max(1u, std::thread::hardware_concurrency()));
+  const int threads = RenderThreads(settings_in);
   tbb::task_arena arena(threads);
   // Caustics from a photon map (render/caustic_map.h), where the scene has a delta surface and an
   // area or point light and paths are unbounded (a bounded depth would cut photons' paths where
-  // the records' would not be cut). Its size follows the whole image, not this rect, so that every
-  // worker of a job builds the same map from the same seed.
+  // the records' would not be cut), unless the caller built it (BuildCausticMap: a job, once for
+  // all of its tiles).
   RenderSettings settings = settings_in;
   std::unique_ptr<CausticMap> caustics;
-  if (irrcache && settings.caustics && settings.irrcache.path.max_depth < 0) {
+  if (settings.irrcache.caustics == nullptr) {
     PhaseTimer timer("caustics");
-    CausticMapSettings cs;
-    cs.seed = settings.seed;
-    cs.target_photons =
-        std::clamp(2L * cam.width() * cam.height(), kFewestCausticPhotons, kMostCausticPhotons);
-    cs.max_emitted = 40 * cs.target_photons;
     CausticMapStats cst;
-    caustics = CausticMap::Build(scene, cs, arena, &cst);
+    caustics = BuildCausticMap(scene, settings, arena, &cst);
     settings.irrcache.caustics = caustics.get();
     out.stats.caustic_photons = cst.stored;
     out.stats.caustic_photons_emitted = cst.emitted;

@@ -7,11 +7,13 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 
 #include "absl/status/statusor.h"
 #include "cache/irradiance_cache.h"
 #include "render/aov.h"
+#include "render/caustic_map.h"
 #include "render/image.h"
 #include "render/irrcache_integrator.h"
 #include "render/render_stats.h"
@@ -86,6 +88,14 @@ struct PixelRect {
 // rays). Otherwise, or for a cache that already holds records, `settings` come back unchanged.
 RenderSettings BalancedSettings(const Scene& scene, const RenderSettings& settings,
                                 IrradianceCache* cache, BalanceResult* result = nullptr);
+
+// The caustic photon map (render/caustic_map.h) a render with `settings` uses, or nullptr where
+// it uses none (integrator path, caustics off, a bounded max_depth, or a scene with nothing that
+// makes caustics). Sized by the whole image and seeded by the settings, so every worker of a job
+// builds the same one. RenderRect builds it itself unless settings.irrcache.caustics is set: a
+// job builds it once for all of its tiles (worker/job_context.cc).
+std::unique_ptr<CausticMap> BuildCausticMap(const Scene& scene, const RenderSettings& settings,
+                                            CausticMapStats* stats);
 
 // Renders the pixels of `rect` only (the overture too covers only `rect`); the output images
 // are rect-sized. A pixel's value does not depend on the rect it was rendered in (its random

@@ -47,6 +47,7 @@ absl::StatusOr<RenderSettings> MakeRenderSettings(const SceneDesc& desc,
   s->seed = settings.seed();
   s->threads = threads;
   s->overture = !settings.no_overture();
+  s->caustics = !settings.no_caustics();
   if (settings.target_error() > 0) {
     s->target_error = settings.target_error();
     s->adaptive = true;

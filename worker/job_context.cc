@@ -29,6 +29,9 @@ absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec
   absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
   if (!scene.ok()) return scene.status();
   c->scene_ = std::move(*scene);
+  CausticMapStats caustic_stats;
+  c->caustics_ = BuildCausticMap(*c->scene_, c->settings_, &caustic_stats);
+  c->settings_.irrcache.caustics = c->caustics_.get();
   c->cache_ = std::make_unique<IrradianceCache>(CacheSettingsFor(*c->scene_, c->settings_));
   // Default rays: balanced once per job over the whole image, so every tile uses the same; a
   // seeded job keeps the settings' rays (its cache is mostly there already).

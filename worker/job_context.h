@@ -43,6 +43,9 @@ class JobContext {
   JobContext() = default;
   std::string job_id_, dir_;
   std::unique_ptr<Scene> scene_;
+  // The job's caustic photon map, built once for all of its tiles (settings_.irrcache.caustics
+  // points here); null where the job uses none.
+  std::unique_ptr<CausticMap> caustics_;
   RenderSettings settings_;
   std::unique_ptr<IrradianceCache> cache_;
   std::mutex publish_mu_;

@@ -515,7 +515,10 @@ TEST_F(AttackTest, HijackedLeasesNanPixelsAndForgedStatsAreRefused) {
     EXPECT_LT(w.records_computed(), 1000000000000ull);
     EXPECT_GE(w.render_seconds(), 0);
   }
-  // The finished job released its uploaded bundle (in the store too).
+  // The finished job released its uploaded bundle (in the store too, once the job's last writes
+  // reached it: the store is written by its own thread, and reading it as soon as the job was
+  // final saw the bundle still there once in a full ctest run).
+  ASSERT_TRUE(manager_->FlushStore(std::chrono::seconds(10)));
   absl::StatusOr<std::vector<v1::StoredJob>> stored = store_.LoadJobs();
   ASSERT_TRUE(stored.ok());
   size_t bundle_bytes = 0, jobs_seen = 0;

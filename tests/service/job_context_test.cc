@@ -1,0 +1,68 @@
+// A worker's per-job state (worker/job_context.h): the caustic photon map is built once per job,
+// and it is the map a single-process render of the same settings builds, so a tile rendered with
+// it equals the same rect rendered alone.
+#include <gtest/gtest.h>
+
+#include "irfarm/v1/worker.pb.h"
+#include "render/image.h"
+#include "render/renderer.h"
+#include "service/scene_bundle.h"
+#include "worker/job_context.h"
+
+namespace irfarm {
+namespace {
+
+v1::JobSpec Spec(const std::string& scene, bool no_caustics) {
+  v1::JobSpec spec;
+  spec.set_job_id("job-1");
+  absl::StatusOr<v1::SceneBundle> bundle =
+      MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/" + scene + "/scene.xml");
+  EXPECT_TRUE(bundle.ok()) << bundle.status();
+  if (bundle.ok()) *spec.mutable_scene()->mutable_bundle() = *bundle;
+  (*spec.mutable_settings()->mutable_defines())["resx"] = "48";
+  (*spec.mutable_settings()->mutable_defines())["resy"] = "48";
+  spec.mutable_settings()->set_spp(4);
+  spec.mutable_settings()->set_seed(3);
+  spec.mutable_settings()->set_no_caustics(no_caustics);
+  return spec;
+}
+
+TEST(JobContextTest, CausticMapIsBuiltOncePerJobAsARenderWouldBuildIt) {
+  absl::StatusOr<std::unique_ptr<JobContext>> job = JobContext::Create(Spec("specular", false), 1);
+  ASSERT_TRUE(job.ok()) << job.status();
+  const RenderSettings& s = (*job)->settings();
+  ASSERT_NE(s.irrcache.caustics, nullptr);
+  EXPECT_GT(s.irrcache.caustics->sites(), 0u);
+  const PixelRect rect{8, 16, 40, 40};
+  // A tile with the job's map does not build another.
+  IrradianceCache tile_cache(CacheSettingsFor((*job)->scene(), s));
+  const RenderOutput tile = RenderRect((*job)->scene(), s, &tile_cache, rect);
+  EXPECT_EQ(tile.stats.caustic_photons, 0);
+  // The same rect rendered alone (one thread: the same records in the same order) builds its
+  // own map from the same seed and image size: the same map, so the same image.
+  RenderSettings alone_settings = s;
+  alone_settings.irrcache.caustics = nullptr;
+  IrradianceCache alone_cache(CacheSettingsFor((*job)->scene(), alone_settings));
+  const RenderOutput alone = RenderRect((*job)->scene(), alone_settings, &alone_cache, rect);
+  EXPECT_GT(alone.stats.caustic_photons, 0);
+  EXPECT_EQ(CompareImages(tile.image, alone.image).relmse, 0.0);
+  // And the map matters there: without it the rect differs.
+  alone_settings.caustics = false;
+  IrradianceCache none_cache(CacheSettingsFor((*job)->scene(), alone_settings));
+  const RenderOutput none = RenderRect((*job)->scene(), alone_settings, &none_cache, rect);
+  EXPECT_GT(CompareImages(tile.image, none.image).relmse, 0.0);
+}
+
+TEST(JobContextTest, NoCausticsAndScenesWithoutCausticsHaveNoMap) {
+  absl::StatusOr<std::unique_ptr<JobContext>> off = JobContext::Create(Spec("specular", true), 1);
+  ASSERT_TRUE(off.ok()) << off.status();
+  EXPECT_EQ((*off)->settings().irrcache.caustics, nullptr);
+  EXPECT_FALSE((*off)->settings().caustics);
+  absl::StatusOr<std::unique_ptr<JobContext>> cornell =
+      JobContext::Create(Spec("cornell-box", false), 1);
+  ASSERT_TRUE(cornell.ok()) << cornell.status();
+  EXPECT_EQ((*cornell)->settings().irrcache.caustics, nullptr);
+}
+
+}  // namespace
+}  // namespace irfarm
