@@ -81,7 +81,7 @@ class RedisJobStore : public JobStore {
   RedisJobStore(std::string host, int port, const RedisOptions& options)
       : host_(std::move(host)), port_(port), options_(options), prefix_(options.prefix) {}
   // Takes mu_ within options_.timeout, or UNAVAILABLE (another call holds the connection).
-  absl::StatusOr<std::unique_lock<std::timed_mutex>> Lock();
+  absl::StatusOr<std::unique_lock<std::mutex>> Lock();
   absl::Status EnsureConnected();  // mu_ held
   void Drop();                     // mu_ held: forget a broken connection
   // mu_ held, connected: sets the deadline of the commands that follow.
@@ -97,7 +97,7 @@ class RedisJobStore : public JobStore {
   const int port_;
   const RedisOptions options_;
   const std::string prefix_;
-  std::timed_mutex mu_;
+  std::mutex mu_;
   redisContext* ctx_ = nullptr;
 };
 
