@@ -57,17 +57,15 @@ std::vector<Emitter> Emitters(const Scene& scene) {
   const std::vector<Light>& lights = scene.lights();
   for (int i = 0; i < int(lights.size()); ++i) {
     const Light& l = lights[size_t(i)];
-    Vec3 flux;
-    if (l.type == LightType::kArea) {
-      const float area =
-          l.shape == AreaShape::kSphere ? 4 * kPi * l.radius * l.radius : std::max(0.0f, l.area);
-      if (l.shape == AreaShape::kMesh && l.cdf.empty()) continue;
-      flux = l.radiance * (kPi * area);
-    } else if (l.type == LightType::kPoint) {
-      flux = l.intensity * (4 * kPi);
-    } else {
-      continue;  // spot, directional, environment: their caustics stay with the records
-    }
+    // Area lights only. Point, spot and directional lights are delta lights: no path from the
+    // camera through delta bounces reaches them, so neither our path integrator nor Mitsuba's
+    // renders their caustics, and a map holding them would add light the references lack (and
+    // make irrcache disagree with path).
+    if (l.type != LightType::kArea) continue;
+    const float area =
+        l.shape == AreaShape::kSphere ? 4 * kPi * l.radius * l.radius : std::max(0.0f, l.area);
+    if (l.shape == AreaShape::kMesh && l.cdf.empty()) continue;
+    const Vec3 flux = l.radiance * (kPi * area);
     if (!(Luminance(flux) > 0) || !IsFinite(flux)) continue;
     out.push_back(Emitter{i, flux, 0});
   }
@@ -84,11 +82,6 @@ void Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power)
   const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next(), u4 = rng.Next();
   Vec3 p, n;
   float scale = l.error_scale;
-  if (l.type == LightType::kPoint) {
-    *ray = Ray{l.position, UniformSphere(u1, u2), INFINITY};
-    *power = e.flux / e.pick;
-    return;
-  }
   if (l.shape == AreaShape::kRect) {
     p = l.corner + l.edge_u * u1 + l.edge_v * u2;
     n = l.normal;

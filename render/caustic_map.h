@@ -10,7 +10,8 @@
 // adds the map's estimate at its point instead (IrrcacheIntegrator::Irradiance), at every cache
 // level, so the two never overlap and nothing is counted twice.
 //
-// Photons are emitted from area lights (rectangles, spheres, meshes) and point lights in
+// Photons are emitted from area lights (rectangles, spheres, meshes; not from delta lights, whose
+// caustics no path tracer renders, Mitsuba's included) in
 // proportion to their power, followed through delta lobes only, and stored at each surface with
 // a diffuse lobe after at least one delta bounce; a photon whose first hit is not a delta surface
 // is direct light (the integrators' next-event estimation) and is dropped. A glossy (rough) lobe
@@ -24,7 +25,7 @@
 //
 // On by default where the integrator is irrcache and paths are unbounded
 // (RenderSettings::caustics; `irfarm render --no-caustics` turns it off); a scene with no delta
-// BSDF or no area or point light builds nothing.
+// BSDF or no area light builds nothing.
 #pragma once
 
 #include <tbb/task_arena.h>

@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <memory>
+#include <string>
 
 #include "render/caustic_map.h"
 #include "render/path_tracer.h"
@@ -131,6 +132,29 @@ TEST(CausticMapTest, ReuseGivesTheAnswersOfFreshLookups) {
   EXPECT_EQ(Luminance(map->Irradiance(Vec3(2, 2, 3), Vec3(0, 0, 1), &reuse)), 0.0f);
   ASSERT_GT(Luminance(map->Irradiance(Vec3(2, 2, 3), Vec3(0, 0, -1), &reuse)), 0.0f);
   EXPECT_EQ(Luminance(map->Irradiance(Vec3(2, 2, 0), Vec3(0, 0, -1), &reuse)), 0.0f);
+}
+
+// The same mirror lit by a point light instead: a delta light seen through a delta bounce, which
+// no path from the camera can reach (neither irfarm's path integrator nor Mitsuba's renders that
+// caustic), so the map leaves it out too and the scene builds none.
+TEST(CausticMapTest, DeltaLightsMakeNoCaustics) {
+  std::string xml = kScene;
+  const std::string lamp =
+      xml.substr(xml.find("<emitter type=\"area\">"),
+                 xml.find("</emitter>") + 10 - xml.find("<emitter type=\"area\">"));
+  xml.replace(xml.find(lamp), lamp.size(), "");
+  xml.replace(xml.rfind("</scene>"), 8,
+              "<emitter type=\"point\"><point name=\"position\" x=\"0\" y=\"0\" z=\"1\"/>"
+              "<rgb name=\"intensity\" value=\"10\"/></emitter></scene>");
+  absl::StatusOr<SceneDesc> desc = LoadSceneString(xml, "point.xml", {});
+  ASSERT_TRUE(desc.ok()) << desc.status();
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ((*scene)->lights().size(), 1u);
+  EXPECT_FALSE(CausticMap::SceneHasCaustics(**scene));
+  CausticMapStats stats;
+  EXPECT_EQ(BuildMap(**scene, &stats), nullptr);
+  EXPECT_EQ(stats.emitted, 0);
 }
 
 // From the ceiling, rays towards the mirror reach the lamp by one delta bounce: counted without
