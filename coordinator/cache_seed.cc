@@ -29,7 +29,8 @@ bool CanSeed(const v1::StoredJob& from, const v1::StoredJob& to) {
   return a.id() != b.id() && a.scene_hash() == b.scene_hash() && IsIrrcache(a.settings()) &&
          IsIrrcache(b.settings()) && b.settings().share_records() &&
          from.max_accuracy() == to.max_accuracy() &&
-         a.settings().record_rays() == b.settings().record_rays();
+         a.settings().record_rays() == b.settings().record_rays() &&
+         a.settings().no_caustics() == b.settings().no_caustics();
 }
 
 void SeedSet::Add(const std::vector<IrradianceRecord>& records) {
