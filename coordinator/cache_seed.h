@@ -19,8 +19,7 @@ namespace irfarm {
 
 // True when `from`'s records are valid in `to`: both irradiance-cache jobs of the same
 // sensor-free scene with the same accuracy, record rays and caustics setting, and `to` shares
-// records (a job
-// submitted with sharing off is a measurement of isolated workers and takes none).
+// records (a job submitted with sharing off is a measurement of isolated workers and takes none).
 bool CanSeed(const v1::StoredJob& from, const v1::StoredJob& to);
 
 class SeedSet {

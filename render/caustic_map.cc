@@ -60,7 +60,8 @@ std::vector<Emitter> Emitters(const Scene& scene) {
     // Area lights only. Point, spot and directional lights are delta lights: no path from the
     // camera through delta bounces reaches them, so neither our path integrator nor Mitsuba's
     // renders their caustics, and a map holding them would add light the references lack (and
-    // make irrcache disagree with path).
+    // make irrcache disagree with path). Environment light through glass stays with the records
+    // (their rays skip only area-light emission).
     if (l.type != LightType::kArea) continue;
     const float area =
         l.shape == AreaShape::kSphere ? 4 * kPi * l.radius * l.radius : std::max(0.0f, l.area);

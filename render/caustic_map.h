@@ -1,6 +1,6 @@
 // Caustic photon map (Jensen 1996; the companion of the irradiance cache in Mitsuba 0.5's
-// photon mapper and in Jensen's book): light that reaches a diffuse surface from an area or point
-// light through one or more delta (mirror, smooth glass, smooth coating) bounces.
+// photon mapper and in Jensen's book): light that reaches a diffuse surface from an area light
+// through one or more delta (mirror, smooth glass, smooth coating) bounces.
 //
 // Such light is found by a record's hemisphere rays only where a ray happens to leave through the
 // mirror or the glass towards the lamp: a small, bright solid angle, so records near a caustic
@@ -11,12 +11,13 @@
 // level, so the two never overlap and nothing is counted twice.
 //
 // Photons are emitted from area lights (rectangles, spheres, meshes; not from delta lights, whose
-// caustics no path tracer renders, Mitsuba's included) in
-// proportion to their power, followed through delta lobes only, and stored at each surface with
-// a diffuse lobe after at least one delta bounce; a photon whose first hit is not a delta surface
-// is direct light (the integrators' next-event estimation) and is dropped. A glossy (rough) lobe
-// ends the photon, and such light stays with the records. Photon i draws its numbers from its own
-// stream, and batches are appended in order, so the map does not depend on the thread count.
+// caustics no path tracer renders, Mitsuba's included; environment light through glass stays with
+// the records) in proportion to their power, followed through delta lobes only, and stored at each
+// surface with a diffuse lobe after at least one delta bounce; a photon whose first hit is not a
+// delta surface is direct light (the integrators' next-event estimation) and is dropped. A glossy
+// (rough) lobe ends the photon, and such light stays with the records. Photon i draws its numbers
+// from its own stream, and batches are appended in order, so the map does not depend on the thread
+// count.
 //
 // Irradiance is precomputed at every 8th stored photon (Christensen 1999, who used a subset too):
 // the k nearest photons on the same side (normals within kNormalCos) over the disc that holds
@@ -61,8 +62,8 @@ struct CausticMapStats {
 
 class CausticMap {
  public:
-  // nullptr when the scene has nothing that makes caustics (no delta BSDF, or no area or point
-  // light) or when no emitted photon found one.
+  // nullptr when the scene has nothing that makes caustics (no delta BSDF, or no area light) or
+  // when no emitted photon found one.
   static std::unique_ptr<CausticMap> Build(const Scene& scene, const CausticMapSettings& settings,
                                            tbb::task_arena& arena, CausticMapStats* stats);
   // Whether a scene has what a caustic map needs (cheap; Build checks it too).

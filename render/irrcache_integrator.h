@@ -86,9 +86,10 @@ struct IrrcacheSettings {
   // given (scene, --record-rays, the job's settings) and with --target-error.
   bool balance_record_rays = true;
   PathSettings path;
-  // Caustics (light from area and point lights through delta bounces only) from this photon map
-  // instead of the records, which then leave that light out (see render/caustic_map.h). Built per
-  // render by RenderRect (RenderSettings::caustics); not owned; null: the records keep it.
+  // Caustics (light from area lights through delta bounces only) from this photon map instead of
+  // the records, which then leave that light out (see render/caustic_map.h). Built by
+  // BuildCausticMap (RenderSettings::caustics): per render by RenderRect, or once per job by the
+  // worker's JobContext; not owned; null: the records keep it.
   const CausticMap* caustics = nullptr;
 };
 

@@ -778,7 +778,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   const int threads = RenderThreads(settings_in);
   tbb::task_arena arena(threads);
   // Caustics from a photon map (render/caustic_map.h), where the scene has a delta surface and an
-  // area or point light and paths are unbounded (a bounded depth would cut photons' paths where
+  // area light and paths are unbounded (a bounded depth would cut photons' paths where
   // the records' would not be cut), unless the caller built it (BuildCausticMap: a job, once for
   // all of its tiles).
   RenderSettings settings = settings_in;

@@ -50,7 +50,7 @@ struct RenderSettings {
   bool splat = true;
   // irrcache: caustics from a photon map where the scene has any (render/caustic_map.h). On by
   // default: on specular it takes a quarter off the error for an eighth more time, and a scene
-  // without mirrors or smooth glass lit by an area or point light skips it (README).
+  // without mirrors or smooth glass lit by an area light skips it (README).
   bool caustics = true;
   IrrcacheSettings irrcache;  // its `path` member is used by both integrators
 };
