@@ -32,7 +32,7 @@ std::string StripExtension(const std::string& path) {
 struct RenderArgs {
   std::string scene, output = "out.exr", stats, record_map, sample_map;
   std::string adaptive;  // "on", "off" or "" (the integrator's default)
-  int min_spp = 0;
+  int min_spp = 0, max_spp = 0;
   double target_error = 0, time_limit = 0, sampling_error = 0;
   std::string integrator, spacing, light_sampling;
   int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
@@ -128,6 +128,7 @@ int RunRender(const RenderArgs& args) {
   s.sample_map = !args.sample_map.empty();
   if (!args.adaptive.empty()) s.adaptive = args.adaptive == "on";
   if (args.min_spp > 0) s.min_spp = args.min_spp;
+  if (args.max_spp > 0) s.max_spp = args.max_spp;
   if (args.sampling_error > 0) s.sampling_error = args.sampling_error;
   if (args.time_limit > 0) s.time_limit = args.time_limit;
   if (args.target_error > 0) {
@@ -291,7 +292,8 @@ int main(int argc, char** argv) {
   render->add_option("-o,--output", ra.output, "output EXR (a PNG preview is written beside it)");
   render->add_option("--integrator", ra.integrator, "path or irrcache (default irrcache)")
       ->check(CLI::IsMember({"path", "irrcache"}));
-  render->add_option("--spp", ra.spp, "samples per pixel")->check(CLI::PositiveNumber);
+  render->add_option("--spp", ra.spp, "samples per pixel (adaptive: on average)")
+      ->check(CLI::PositiveNumber);
   render->add_option("--accuracy", ra.accuracy, "irrcache: Ward's a (default 0.1)");
   render->add_option("--record-rays", ra.record_rays, "irrcache: hemisphere rays per record")
       ->check(CLI::PositiveNumber);
@@ -330,6 +332,11 @@ int main(int argc, char** argv) {
                    "adaptive sampling on|off (default: on for irrcache, off for path)")
       ->check(CLI::IsMember({"on", "off"}));
   render->add_option("--min-spp", ra.min_spp, "adaptive: samples every pixel gets first (16)")
+      ->check(CLI::PositiveNumber);
+  render
+      ->add_option("--max-spp", ra.max_spp,
+                   "adaptive: the most samples one pixel gets (default 16 x --spp; with "
+                   "--target-error, --spp)")
       ->check(CLI::PositiveNumber);
   render
       ->add_option("--sampling-error", ra.sampling_error,

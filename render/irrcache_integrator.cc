@@ -192,6 +192,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
                                                    int level, float ray_fraction) const {
   // Thread CPU time (see PilotSettings' figures, which use it); nested records are inside it.
   const double start = counters.record_nesting == 0 ? ThreadCpuSeconds() : 0.0;
+  const uint64_t work_start = counters.Work();
   ++counters.record_nesting;
   Vec3 s, t;
   MakeFrame(nf, &s, &t);
@@ -304,7 +305,10 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   ++counters.records_computed;
   if (level > 0) ++counters.records_secondary;
   // A record made for another record's rays is part of that record's time.
-  if (--counters.record_nesting == 0) counters.record_seconds += ThreadCpuSeconds() - start;
+  if (--counters.record_nesting == 0) {
+    counters.record_seconds += ThreadCpuSeconds() - start;
+    counters.record_work += counters.Work() - work_start;
+  }
   return r;
 }
 

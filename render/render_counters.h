@@ -23,6 +23,7 @@ struct RenderCounters {
   uint64_t records_used = 0;         // records summed over successful queries
   uint64_t remote_records_used = 0;  // of records_used, those computed by another process
   double record_seconds = 0;         // thread time spent computing records
+  uint64_t record_work = 0;          // of Work(), what computing records took
   // Records being computed on this thread right now (a record's rays can make others): only the
   // outermost one adds its time to record_seconds. Not summed.
   int record_nesting = 0;
@@ -48,6 +49,7 @@ struct RenderCounters {
     records_used += o.records_used;
     remote_records_used += o.remote_records_used;
     record_seconds += o.record_seconds;
+    record_work += o.record_work;
   }
 };
 

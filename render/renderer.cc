@@ -395,9 +395,14 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   const size_t npix = size_t(rw) * rh;
   const bool irrcache = settings.integrator == "irrcache";
   const int light_samples = std::max(1, settings.irrcache.light_samples);
-  const int max_spp = std::max(1, settings.spp);
-  const bool adaptive = settings.adaptive && max_spp > 2;
-  const int min_spp = adaptive ? std::clamp(settings.min_spp, 2, max_spp) : max_spp;
+  const int spp = std::max(1, settings.spp);
+  const bool adaptive = settings.adaptive && spp > 2;
+  // Without a target error the adaptive samples have a budget, spp per pixel of the rect on
+  // average, and one pixel may take up to max_spp of it.
+  const bool budgeted = adaptive && !(settings.target_error > 0);
+  const int max_spp =
+      budgeted ? std::max(spp, settings.max_spp > 0 ? settings.max_spp : kMaxSppFactor * spp) : spp;
+  const int min_spp = adaptive ? std::clamp(settings.min_spp, 2, spp) : spp;
   const double goal = settings.target_error > 0 ? settings.target_error : settings.sampling_error;
   const PathSettings& path = settings.irrcache.path;
 
@@ -419,6 +424,10 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     streams.emplace_back(HashCombine(settings.seed, uint64_t(y) * w + x), max_spp, light_samples);
   }
   std::vector<int> taken(nsrc, 0);  // samples each pixel of src has had
+  // Rays traced and cache queries those samples took, the records they made left out (a record
+  // is made once, not per sample): the cost of a pixel's next samples for the adaptive rounds.
+  std::vector<double> work(nsrc, 0);
+  const auto sample_work = [](const RenderCounters& c) { return double(c.Work() - c.record_work); };
   SampleFilm film(npix, irrcache ? integrator.ratio_slots() : 0);
   std::vector<PixelAovSum> aov_sums(settings.aovs ? npix : 0);
 
@@ -433,6 +442,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     const size_t own = inside ? size_t(y - rect.y0) * rw + size_t(x - rect.x0) : 0;
     splat = splat && g > 0;
     PixelStreams& ps = streams[q];
+    const double work_before = sample_work(c);
     bool made = false;
     SampleAov sample_aov;
     SampleAov* aov = settings.aovs && inside ? &sample_aov : nullptr;
@@ -485,6 +495,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       if (aov) aov_sums[own].Add(L, *aov);
     }
     taken[q] = std::max(taken[q], to);
+    work[q] += sample_work(c) - work_before;
     if (made && inside && !marks->empty()) (*marks)[own] = 1;
   };
 
@@ -538,7 +549,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   bool even = true;
 
   // Adaptive rounds.
-  std::vector<double> err(npix), smooth(npix);
+  std::vector<double> err(npix), smooth(npix), share(npix), cost_per_sample(npix);
   double estimate = 0;
   int rounds = 0;
   for (;;) {
@@ -550,13 +561,18 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count() >=
             settings.time_limit)
       break;
-    // Each pixel ranked by the mean estimate over its 3 x 3 neighbourhood: one pixel's two
-    // halves can agree by chance; its neighbours rarely all do.
-    std::vector<size_t> candidates;
+    // Each pixel's error taken as the mean estimate over its 3 x 3 neighbourhood: one pixel's
+    // two halves can agree by chance; its neighbours rarely all do.
+    // The budget is the work spp samples of every pixel would take at each pixel's measured
+    // cost per sample (a sample through glass or a glossy chain costs several on a diffuse wall).
+    double used = 0, budget = 0;
     for (int y = 0; y < rh; ++y)
       for (int x = 0; x < rw; ++x) {
         const size_t p = size_t(y) * rw + x;
-        if (taken[src_index(p)] >= max_spp) continue;
+        const size_t q = src_index(p);
+        cost_per_sample[p] = std::max(1.0, work[q] / std::max(1, taken[q]));
+        used += taken[q] * cost_per_sample[p];
+        budget += spp * cost_per_sample[p];
         double acc = 0;
         int n = 0;
         for (int dy = -1; dy <= 1; ++dy)
@@ -567,21 +583,60 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
             ++n;
           }
         smooth[p] = acc / n;
-        candidates.push_back(p);
       }
+    // With a budget, each pixel's share of it: for a fixed work sum c_p n_p the sum of the
+    // pixels' errors v_p / n_p (v_p: error per sample, c_p: work per sample) is least at n_p
+    // proportional to sqrt(v_p / c_p) (Neyman allocation), here within [the samples it has,
+    // max_spp]; lambda is found by bisection. A pixel is a candidate when its share is at least
+    // 1.5x what it has (doubling is the nearest step).
+    const double left = budget - used;
+    if (budgeted && left < 1) break;
+    if (budgeted) {
+      const auto planned = [&](double lambda) {
+        double total = 0;
+        for (size_t p = 0; p < npix; ++p) {
+          const double n = taken[src_index(p)];
+          share[p] = std::clamp(lambda * std::sqrt(smooth[p] * n / cost_per_sample[p]), n,
+                                double(max_spp));
+          total += share[p] * cost_per_sample[p];
+        }
+        return total;
+      };
+      double lo = 0, hi = 1;
+      while (planned(hi) < budget && hi < 1e30) hi *= 2;
+      for (int i = 0; i < 60 && hi > 1.0001 * lo; ++i) {
+        const double mid = lo > 0 ? std::sqrt(lo * hi) : 0.5 * hi;
+        (planned(mid) < budget ? lo : hi) = mid;
+      }
+      planned(lo);
+    }
+    std::vector<size_t> candidates;
+    for (size_t p = 0; p < npix; ++p) {
+      const int n = taken[src_index(p)];
+      if (n < max_spp && (!budgeted || share[p] >= 1.5 * n)) candidates.push_back(p);
+    }
     if (candidates.empty()) break;
+    // Doubling a pixel's samples halves its error: take the pixels where that removes the most
+    // error per unit of work until it covers the excess over the goal (at least 1/16 of the
+    // candidates, so every round does real work), or the budget is spent.
+    const auto per_work = [&](size_t p) {
+      return smooth[p] / (taken[src_index(p)] * cost_per_sample[p]);
+    };
     std::sort(candidates.begin(), candidates.end(),
-              [&](size_t a, size_t b) { return smooth[a] > smooth[b]; });
-    // Doubling a pixel's samples halves its error: take the worst pixels until that covers the
-    // excess over the goal (at least 1/16 of the candidates, so every round does real work).
+              [&](size_t a, size_t b) { return per_work(a) > per_work(b); });
     const double excess = (estimate - goal) * double(npix);
-    double gain = 0;
+    double gain = 0, cost = 0;
     size_t k = 0;
     const size_t at_least = std::max<size_t>(1, candidates.size() / 16);
     while (k < candidates.size() && (gain < excess || k < at_least)) {
+      const int n = taken[src_index(candidates[k])];
+      const double c = (std::min(2 * n, max_spp) - n) * cost_per_sample[candidates[k]];
+      if (budgeted && cost + c > 1.000001 * left) break;
+      cost += c;
       gain += 0.5 * std::max(err[candidates[k]], smooth[candidates[k]]);
       ++k;
     }
+    if (k == 0) break;
     candidates.resize(k);
     if (even && g > 0 && k == npix) {
       const int n = taken[0];
@@ -623,7 +678,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       // The rectangles' ratio estimate (DirectTerms) is formed per pixel: direct light too.
       out->aovs.direct.at(x, y) += out->image.pixels[p] - film.SampleMean(p);
     }
-    early += n < max_spp;
+    early += n < spp;
     spp_sum += n;
     st.spp_min = std::min(st.spp_min, n);
     st.spp_max = std::max(st.spp_max, n);

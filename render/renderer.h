@@ -21,9 +21,14 @@
 
 namespace irfarm {
 
+// Adaptive sampling's default cap on one pixel's samples, as a multiple of the average (spp).
+inline constexpr int kMaxSppFactor = 16;
+
 struct RenderSettings {
   std::string integrator = "irrcache";  // "path" or "irrcache"
-  int spp = 64;     // samples per pixel; with adaptive sampling the most a pixel gets
+  // Samples per pixel. Adaptive sampling without a target error: at most this many on average
+  // over the rect, and one pixel up to max_spp; with a target error: the most a pixel gets.
+  int spp = 64;
   int threads = 0;  // 0 = all cores
   uint64_t seed = 0;
   int tile_size = 16;
@@ -31,11 +36,14 @@ struct RenderSettings {
   bool record_map = false;  // also produce an image marking where records were computed
   bool progress = false;    // progress line on stderr
   // Adaptive sampling of the final pass: every pixel gets min_spp samples; then rounds double
-  // the samples of the pixels with the largest estimated error (from their two interleaved
-  // half-images, SampleFilm) until the image's estimated sampling error (relMSE) is at most
-  // sampling_error, every pixel has spp samples, or time_limit is reached.
+  // the samples of the pixels with the largest estimated error per sample (from their two
+  // interleaved half-images, SampleFilm) until the image's estimated sampling error (relMSE) is
+  // at most sampling_error, the samples reach spp per pixel on average (no target error) or
+  // every pixel its most, or time_limit is reached. Where the average is what stops them, the
+  // samples go where they remove the most error (FinalPass).
   bool adaptive = false;
   int min_spp = 16;
+  int max_spp = 0;  // adaptive, no target error: the most one pixel gets; 0 = kMaxSppFactor x spp
   double sampling_error = 1e-4;
   // > 0: --target-error, the image's total relMSE to reach (cache + sampling); overrides
   // sampling_error and the cache's accuracy (see TargetErrorPlan in renderer.cc).

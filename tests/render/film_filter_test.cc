@@ -116,6 +116,7 @@ TEST_P(FilmFilterTest, AdaptiveRoundsOverEveryPixelSplatToo) {
   settings.adaptive = true;
   settings.min_spp = 16;
   settings.sampling_error = 1e-12;
+  settings.max_spp = kSpp;  // every pixel's share of the budget is then all of it
   const RenderOutput rounds = Render(*scene.scene, settings);
   EXPECT_EQ(rounds.stats.adaptive_rounds, 4);
   EXPECT_EQ(rounds.stats.spp_min, kSpp);
