@@ -48,8 +48,9 @@ def render(irfarm, scene_dir, args, tmp, tag):
         st = json.load(f)
     cmp = json.loads(run([irfarm, "compare", out, os.path.join(scene_dir, "reference.exr")])
                      .stdout)
-    secs = (st["seconds"].get("pilot", 0) + st["seconds"].get("overture", 0) +
-            st["seconds"].get("render", 0))
+    # The render pipeline's work: the caustic map, the pilot, the overture and the final pass
+    # (not loading and building the scene, which Mitsuba's timing leaves out too).
+    secs = sum(st["seconds"].get(k, 0) for k in ("caustics", "pilot", "overture", "render"))
     est = st.get("error_estimate", {}).get("relmse")
     spp = st.get("sampling", {}).get("spp_mean", st.get("spp"))
     return {"seconds": secs, "relmse": cmp["relmse"], "estimate": est, "spp_mean": spp,
@@ -185,6 +186,8 @@ def main():
     ap.add_argument("--path-spp", default="16,64,256")
     ap.add_argument("--targets", default="4e-3,1e-3")
     ap.add_argument("--irrcache-spp", default="16,64", help="fixed-spp irrcache runs")
+    ap.add_argument("--irrcache-budgets", default="",
+                    help="irrcache runs with adaptive sampling at these --spp (the average)")
     ap.add_argument("--out", default="bench-out")
     ap.add_argument("--curve-levels", default="",
                     help="HI,LO: check irrcache's curve below path's at every error level from HI "
@@ -223,6 +226,8 @@ def main():
             for spp in [x for x in a.irrcache_spp.split(",") if x]:
                 add("irrcache", render(a.irfarm, d, ["--spp", spp, "--adaptive", "off"], tmp,
                                        name + "-irr" + spp))
+            for spp in [x for x in a.irrcache_budgets.split(",") if x]:
+                add("irrcache", render(a.irfarm, d, ["--spp", spp], tmp, name + "-irrb" + spp))
             for t in [x for x in a.targets.split(",") if x]:
                 add("irrcache-target", render(a.irfarm, d, ["--target-error", t], tmp,
                                               name + "-t" + t))

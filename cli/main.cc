@@ -335,8 +335,7 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   render
       ->add_option("--max-spp", ra.max_spp,
-                   "adaptive: the most samples one pixel gets (default 16 x --spp; with "
-                   "--target-error, --spp)")
+                   "adaptive: the most samples one pixel gets (default 16 x --spp)")
       ->check(CLI::PositiveNumber);
   render
       ->add_option("--sampling-error", ra.sampling_error,
@@ -344,8 +343,8 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   render
       ->add_option("--target-error", ra.target_error,
-                   "stop when the estimated relMSE (cache + sampling) reaches this; "
-                   "--spp is then the most a pixel may get")
+                   "stop when the estimated relMSE (cache + sampling) reaches this (or "
+                   "--time-limit); no sample budget then")
       ->check(CLI::PositiveNumber);
   render->add_option("--time-limit", ra.time_limit, "stop adding samples after this many seconds")
       ->check(CLI::PositiveNumber);

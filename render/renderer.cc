@@ -398,10 +398,11 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   const int spp = std::max(1, settings.spp);
   const bool adaptive = settings.adaptive && spp > 2;
   // Without a target error the adaptive samples have a budget, spp per pixel of the rect on
-  // average, and one pixel may take up to max_spp of it.
+  // average; with one, they go on until the estimate reaches it. One pixel may take up to
+  // max_spp.
   const bool budgeted = adaptive && !(settings.target_error > 0);
   const int max_spp =
-      budgeted ? std::max(spp, settings.max_spp > 0 ? settings.max_spp : kMaxSppFactor * spp) : spp;
+      adaptive ? std::max(spp, settings.max_spp > 0 ? settings.max_spp : kMaxSppFactor * spp) : spp;
   const int min_spp = adaptive ? std::clamp(settings.min_spp, 2, spp) : spp;
   const double goal = settings.target_error > 0 ? settings.target_error : settings.sampling_error;
   const PathSettings& path = settings.irrcache.path;
@@ -706,7 +707,7 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
   s.irrcache.path.max_depth = desc.integrator.max_depth;
   s.irrcache.path.rr_depth = desc.integrator.rr_depth;
   IrrcacheSettings& ic = s.irrcache;
-  double spp = 64;
+  double spp = kIrrcacheSpp;
   if (desc.integrator.type == "irrcache") {
     static constexpr const char* kKnown[] = {"accuracy",       "record_rays",    "light_samples",
                                              "min_spacing_px", "max_spacing_px", "spp",

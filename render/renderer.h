@@ -21,13 +21,22 @@
 
 namespace irfarm {
 
-// Adaptive sampling's default cap on one pixel's samples, as a multiple of the average (spp).
+// Adaptive sampling's default cap on one pixel's samples, as a multiple of spp.
 inline constexpr int kMaxSppFactor = 16;
+// irrcache's default spp, the average its adaptive samples may spend (a budget only binds where
+// the cache cannot help: glass, metal, glossy chains). At 64, living-room (glossy nearly
+// everywhere) came out at 1.6e-2 in 27 s against Mitsuba's 3.6e-2 at 256 spp in 26 s; at 32 at
+// 3.3e-2 in 12 s, too close to Mitsuba's error; at 48 at 2.1e-2 to 2.5e-2 in 13-17 s, below
+// both Mitsuba's error and its time. materials: 9.8e-4 in 8.4 s at 64, 1.1e-3 to 1.2e-3 in
+// 6.2-7.0 s at 48, against path at 256 spp 2.4e-3 in 16.5 s. The other shared scenes reach
+// the sampling goal below 32 on average.
+inline constexpr int kIrrcacheSpp = 48;
 
 struct RenderSettings {
   std::string integrator = "irrcache";  // "path" or "irrcache"
   // Samples per pixel. Adaptive sampling without a target error: at most this many on average
-  // over the rect, and one pixel up to max_spp; with a target error: the most a pixel gets.
+  // over the rect (in counted work), one pixel up to max_spp; with a target error, as many as
+  // reach it, one pixel up to max_spp. SettingsForScene: kIrrcacheSpp for irrcache.
   int spp = 64;
   int threads = 0;  // 0 = all cores
   uint64_t seed = 0;
@@ -43,7 +52,7 @@ struct RenderSettings {
   // samples go where they remove the most error (FinalPass).
   bool adaptive = false;
   int min_spp = 16;
-  int max_spp = 0;  // adaptive, no target error: the most one pixel gets; 0 = kMaxSppFactor x spp
+  int max_spp = 0;  // adaptive: the most one pixel gets; 0 = kMaxSppFactor x spp
   double sampling_error = 1e-4;
   // > 0: --target-error, the image's total relMSE to reach (cache + sampling); overrides
   // sampling_error and the cache's accuracy (see TargetErrorPlan in renderer.cc).
@@ -67,7 +76,8 @@ struct RenderSettings {
 // and rr_depth from the scene's <integrator>; irrcache parameters given in the scene
 // (<integrator type="irrcache"> children accuracy, record_rays, light_samples, min_spacing_px,
 // max_spacing_px, spp); samples per pixel: for path the scene's sampler, for irrcache its own
-// default of 64 (the scene's sample_count is meant for a path tracer). Bad values: file:line.
+// default kIrrcacheSpp (the scene's sample_count is meant for a path tracer). Bad values:
+// file:line.
 absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
                                                 const std::string& integrator);
 
