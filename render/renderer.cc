@@ -562,10 +562,10 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count() >=
             settings.time_limit)
       break;
-    // Each pixel's error taken as the mean estimate over its 3 x 3 neighbourhood: one pixel's
-    // two halves can agree by chance; its neighbours rarely all do.
-    // The budget is the work spp samples of every pixel would take at each pixel's measured
-    // cost per sample (a sample through glass or a glossy chain costs several on a diffuse wall).
+    // Each pixel's error is taken as the mean estimate over its 3 x 3 neighbourhood: one pixel's
+    // two halves can agree by chance; its neighbours rarely all do. The budget is the work spp
+    // samples of every pixel would take at each pixel's measured work per sample (a sample
+    // through glass or a glossy chain costs several of one on a diffuse wall).
     double used = 0, budget = 0;
     for (int y = 0; y < rh; ++y)
       for (int x = 0; x < rw; ++x) {
