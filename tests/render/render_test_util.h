@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -53,12 +55,11 @@ inline LoadedScene LoadQuarter(const std::string& name) {
 // variance of the reference's noise by 16 (the error of reference-x4.exr); 0 when absent.
 inline double ReferenceError(const std::string& name) {
   std::ifstream f(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference.json");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  const std::string s = ss.str();
-  const size_t at = s.find("\"relmse_est_ref_vs_truth\":");
-  if (at == std::string::npos) return 0;
-  return std::atof(s.c_str() + at + 26) / 16.0;
+  if (!f) return 0;
+  const nlohmann::json j = nlohmann::json::parse(f, nullptr, /*allow_exceptions=*/false);
+  EXPECT_FALSE(j.is_discarded()) << name << "/reference.json is not JSON";
+  if (!j.is_object() || !j.contains("relmse_est_ref_vs_truth")) return 0;
+  return j["relmse_est_ref_vs_truth"].get<double>() / 16.0;
 }
 
 inline Image QuarterReference(const std::string& name) {

@@ -11,6 +11,7 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <cstdlib>
@@ -45,14 +46,11 @@ const std::string kReference = kData + "/scenes/cornell-box/reference-x4.exr";  
 // the file or the figure is missing.
 double MitsubaTolerance() {
   std::ifstream f(kData + "/scenes/cornell-box/mitsuba-x4-noise.json");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  const std::string s = ss.str();
-  const std::string key = "\"relmse_vs_ref_max\":";
-  const size_t run = s.find("\"64x64 256spp\"");
-  const size_t at = run == std::string::npos ? run : s.find(key, run);
-  EXPECT_NE(at, std::string::npos) << "no 64x64 256spp figure in mitsuba-x4-noise.json";
-  return at == std::string::npos ? 0 : std::atof(s.c_str() + at + key.size());
+  const nlohmann::json j = nlohmann::json::parse(f, nullptr, /*allow_exceptions=*/false);
+  const nlohmann::json::json_pointer at("/renders/64x64 256spp/relmse_vs_ref_max");
+  const bool found = !j.is_discarded() && j.contains(at) && j[at].is_number();
+  EXPECT_TRUE(found) << "no 64x64 256spp figure in mitsuba-x4-noise.json";
+  return found ? j[at].get<double>() : 0;
 }
 
 const std::string kAlice = "alice-token-0123456789abcdef";
