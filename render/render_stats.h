@@ -43,7 +43,10 @@ struct RenderStats {
   long pixels_stopped_early = 0;
   int adaptive_rounds = 0;
   double estimated_sampling_relmse = 0;  // from the pixels' two half-images
-  double estimated_cache_relmse = -1;    // cross-validated records (target-error mode), -1: none
+  // Adaptive with a budget: counted work of the budget (RenderSettings::budget_carry included)
+  // the final pass did not spend.
+  double budget_left = 0;
+  double estimated_cache_relmse = -1;  // cross-validated records (target-error mode), -1: none
   double target_error = 0;
   // Default settings: the pilot's balance of record rays (record_balance.h), when it ran.
   bool balanced = false;

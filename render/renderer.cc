@@ -566,14 +566,14 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     // two halves can agree by chance; its neighbours rarely all do. The budget is the work spp
     // samples of every pixel would take at each pixel's measured work per sample (a sample
     // through glass or a glossy chain costs several of one on a diffuse wall).
-    double used = 0, budget = 0;
+    double used = 0, own = 0;
     for (int y = 0; y < rh; ++y)
       for (int x = 0; x < rw; ++x) {
         const size_t p = size_t(y) * rw + x;
         const size_t q = src_index(p);
         cost_per_sample[p] = std::max(1.0, work[q] / std::max(1, taken[q]));
         used += taken[q] * cost_per_sample[p];
-        budget += spp * cost_per_sample[p];
+        own += spp * cost_per_sample[p];
         double acc = 0;
         int n = 0;
         for (int dy = -1; dy <= 1; ++dy)
@@ -590,6 +590,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     // proportional to sqrt(v_p / c_p) (Neyman allocation), here within [the samples it has,
     // max_spp]; lambda is found by bisection. A pixel is a candidate when its share is at least
     // 1.5x what it has (doubling is the nearest step).
+    const double budget = own + std::min(own, std::max(0.0, settings.budget_carry));
     const double left = budget - used;
     if (budgeted && left < 1) break;
     if (budgeted) {
@@ -664,6 +665,17 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
 
   RenderStats& st = out->stats;
   st.adaptive_rounds = rounds;
+  if (budgeted) {  // the budget as the rounds counted it, at the pixels' final work per sample
+    double own = 0, used = 0;
+    for (size_t p = 0; p < npix; ++p) {
+      const size_t q = src_index(p);
+      const double c = std::max(1.0, work[q] / std::max(1, taken[q]));
+      own += spp * c;
+      used += taken[q] * c;
+    }
+    const double carry = std::max(0.0, settings.budget_carry);
+    st.budget_left = std::max(0.0, own + carry - used);
+  }
   st.estimated_sampling_relmse = estimate;
   long early = 0;
   double spp_sum = 0;

@@ -53,6 +53,10 @@ struct RenderSettings {
   bool adaptive = false;
   int min_spp = 16;
   int max_spp = 0;  // adaptive: the most one pixel gets; 0 = kMaxSppFactor x spp
+  // Adaptive with a budget: counted work this rect may spend beyond its own spp per pixel, at
+  // most as much again as its own budget (a job's worker passes on what its earlier tiles left:
+  // worker/job_context.h); what it does not use comes back in RenderStats::budget_left.
+  double budget_carry = 0;
   double sampling_error = 1e-4;
   // > 0: --target-error, the image's total relMSE to reach (cache + sampling); overrides
   // sampling_error and the cache's accuracy (see TargetErrorPlan in renderer.cc).

@@ -4,6 +4,7 @@
 // workers (origin = the sender's id). Knows which of its own records it has not published yet.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <memory>
 #include <mutex>
@@ -39,6 +40,16 @@ class JobContext {
   // Records received since the last call (for the next tile's stats).
   uint64_t TakeReceivedCount() { return received_since_.exchange(0); }
 
+  // Adaptive sampling's budget (RenderSettings::budget_carry): what this worker's earlier tiles
+  // left unspent (tiles of walls stop at the sampling goal), offered whole to its next tile,
+  // which gives back what it did not use (RenderStats::budget_left).
+  double TakeBudgetCarry() { return budget_carry_.exchange(0); }
+  void AddBudgetCarry(double work) {
+    double now = budget_carry_.load();
+    while (!budget_carry_.compare_exchange_weak(now, now + std::max(0.0, work))) {
+    }
+  }
+
  private:
   JobContext() = default;
   std::string job_id_, dir_;
@@ -51,6 +62,7 @@ class JobContext {
   std::mutex publish_mu_;
   size_t own_published_ = 0;  // own records already taken by TakeNewOwnRecords
   std::atomic<uint64_t> received_since_{0};
+  std::atomic<double> budget_carry_{0};
 };
 
 }  // namespace irfarm

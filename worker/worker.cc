@@ -243,7 +243,10 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       tr->set_max_z(box->hi.z);
       if (!write(rm)) break;
     }
-    RenderOutput out = RenderRect(job->scene(), job->settings(), job->cache(), rect);
+    RenderSettings tile_settings = job->settings();
+    tile_settings.budget_carry = job->TakeBudgetCarry();
+    RenderOutput out = RenderRect(job->scene(), tile_settings, job->cache(), rect);
+    job->AddBudgetCarry(out.stats.budget_left);
     publish_all();  // the tile's records go out before its result
     v1::WorkerMessage m;
     v1::TileResult* tr = m.mutable_tile_result();

@@ -16,7 +16,7 @@ double SampleWork(const RenderStats& st) {
   return double(st.counters.Work() - st.counters.record_work);
 }
 
-RenderOutput RenderMaterials(bool adaptive) {
+RenderOutput RenderMaterials(bool adaptive, double carry = 0) {
   static const LoadedScene s = LoadQuarter("materials");
   RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
   settings.seed = 3;
@@ -24,14 +24,15 @@ RenderOutput RenderMaterials(bool adaptive) {
   // The default rays, not the pilot's (it times records against samples: the same rays for both).
   settings.irrcache.balance_record_rays = false;
   settings.adaptive = adaptive;
+  settings.budget_carry = carry;
   return Render(*s.scene, settings);
 }
 
 // materials: its error is the frosted and smooth glass spheres' and the metals' path-traced
 // chains, a fifth of the image; the walls converge at their first 16 samples. At the same
 // budget the adaptive image moves the samples there: at quarter size 1.07e-3 against 2.36e-3
-// uniform at 48 spp (seed 3), in 0.96x the work. Before the budget, the rounds doubled every pixel while
-// the estimate was above the goal, up to spp: the uniform image.
+// uniform at 48 spp (seed 3), in 0.96x the work. Before the budget, the rounds doubled every pixel
+// while the estimate was above the goal, up to spp: the uniform image.
 TEST(AdaptiveSamplingTest, BudgetGoesWhereTheErrorIs) {
   const Image ref = QuarterReference("materials");
   const RenderOutput uniform = RenderMaterials(false);
@@ -63,6 +64,32 @@ TEST(AdaptiveSamplingTest, EasyImageStopsAtTheGoalBelowItsBudget) {
   EXPECT_LE(out.stats.estimated_sampling_relmse, settings.sampling_error);
   EXPECT_LT(out.stats.spp_mean, 0.75 * settings.spp);
   EXPECT_GT(out.stats.pixels_stopped_early, 0);
+}
+
+// A worker passes what its tiles left unspent to its next tile (RenderSettings::budget_carry):
+// an image that stops at the goal gives the carry back whole, plus its own unspent budget; one
+// whose budget binds spends at most as much again as its own and gives back the rest.
+TEST(AdaptiveSamplingTest, CarriedBudgetIsSpentWhereItBindsAndGivenBackWhereNot) {
+  const LoadedScene s = LoadQuarter("cornell-box");
+  RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
+  settings.seed = 3;
+  const RenderOutput easy = Render(*s.scene, settings);
+  EXPECT_GT(easy.stats.budget_left, 0);  // stopped at the goal
+  constexpr double kCarry = 1e12;
+  settings.budget_carry = kCarry;
+  const RenderOutput easy_carry = Render(*s.scene, settings);
+  EXPECT_GT(easy_carry.stats.budget_left, kCarry);
+  EXPECT_NEAR(easy_carry.stats.spp_mean, easy.stats.spp_mean, 0.25 * easy.stats.spp_mean);
+
+  const Image ref = QuarterReference("materials");
+  const RenderOutput own = RenderMaterials(true);
+  const RenderOutput carried = RenderMaterials(true, kCarry);
+  RecordProperty("own_spp_mean", std::to_string(own.stats.spp_mean));
+  RecordProperty("carried_spp_mean", std::to_string(carried.stats.spp_mean));
+  EXPECT_GT(carried.stats.spp_mean, 1.4 * own.stats.spp_mean);
+  EXPECT_LT(carried.stats.spp_mean, 2.2 * own.stats.spp_mean);  // at most twice its own work
+  EXPECT_GT(carried.stats.budget_left, 0.99 * kCarry);
+  EXPECT_LT(CompareImages(carried.image, ref).relmse, CompareImages(own.image, ref).relmse);
 }
 
 }  // namespace
