@@ -401,8 +401,9 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   // average; with one, they go on until the estimate reaches it. One pixel may take up to
   // max_spp.
   const bool budgeted = adaptive && !(settings.target_error > 0);
-  const int max_spp =
-      adaptive ? std::max(spp, settings.max_spp > 0 ? settings.max_spp : kMaxSppFactor * spp) : spp;
+  // (At most 2^30, so that doubling a pixel's samples cannot overflow.)
+  const int64_t most = settings.max_spp > 0 ? settings.max_spp : int64_t(kMaxSppFactor) * spp;
+  const int max_spp = adaptive ? int(std::clamp<int64_t>(most, spp, 1 << 30)) : spp;
   const int min_spp = adaptive ? std::clamp(settings.min_spp, 2, spp) : spp;
   const double goal = settings.target_error > 0 ? settings.target_error : settings.sampling_error;
   const PathSettings& path = settings.irrcache.path;
@@ -429,6 +430,10 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   // is made once, not per sample): the cost of a pixel's next samples for the adaptive rounds.
   std::vector<double> work(nsrc, 0);
   const auto sample_work = [](const RenderCounters& c) { return double(c.Work() - c.record_work); };
+  // Pixel q of src's work per sample so far (at least 1).
+  const auto work_per_sample = [&](size_t q) {
+    return std::max(1.0, work[q] / std::max(1, taken[q]));
+  };
   SampleFilm film(npix, irrcache ? integrator.ratio_slots() : 0);
   std::vector<PixelAovSum> aov_sums(settings.aovs ? npix : 0);
 
@@ -571,7 +576,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       for (int x = 0; x < rw; ++x) {
         const size_t p = size_t(y) * rw + x;
         const size_t q = src_index(p);
-        cost_per_sample[p] = std::max(1.0, work[q] / std::max(1, taken[q]));
+        cost_per_sample[p] = work_per_sample(q);
         used += taken[q] * cost_per_sample[p];
         own += spp * cost_per_sample[p];
         double acc = 0;
@@ -669,7 +674,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     double own = 0, used = 0;
     for (size_t p = 0; p < npix; ++p) {
       const size_t q = src_index(p);
-      const double c = std::max(1.0, work[q] / std::max(1, taken[q]));
+      const double c = work_per_sample(q);
       own += spp * c;
       used += taken[q] * c;
     }
