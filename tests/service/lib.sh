@@ -72,6 +72,21 @@ start_cluster() {
     start_worker "$ADDR" "$name"
     WORKER_PIDS+=("$LAST_WORKER_PID")
   done
+  wait_workers "$ADDR" "${#WORKER_PIDS[@]}"
+}
+
+# wait_workers ADDR N: until the coordinator lists at least N connected workers (30 s). A job
+# submitted before then can be rendered by the first worker alone (a 64x64 job takes under a
+# second), which the scripts that check both workers' counters cannot tell from a broken exchange.
+wait_workers() {
+  local n
+  for _ in $(seq 300); do
+    n=$("$BIN/irfarm" status --coordinator "$1" --workers --json 2>/dev/null |
+      python3 -c 'import json,sys; print(len(json.load(sys.stdin).get("workers", [])))' 2>/dev/null) || n=0
+    ((n >= $2)) && return 0
+    sleep 0.1
+  done
+  fail "only $n of $2 workers connected to $1 in 30 s"
 }
 
 # render_job OUT SUBMIT_ARGS...: `irfarm submit SUBMIT_ARGS` to $ADDR; waits for the job (120 s),
