@@ -49,6 +49,14 @@ TEST(CoordinatorListTest, FindsTheAddressThatListensAndTheNextOneAfterIt) {
   // The second goes away and the first comes up (a standby took over).
   b->Shutdown(std::chrono::system_clock::now());
   b.reset();
+  // The channel reports READY until it has seen the connection close (a client learns it from a
+  // failed call or this state change); until then FindConnected rightly still returns 1. This
+  // once failed the test when the check below came first.
+  const auto seen_gone = soon();
+  while (list.channel(1)->GetState(false) == GRPC_CHANNEL_READY &&
+         std::chrono::system_clock::now() < seen_gone)
+    list.channel(1)->WaitForStateChange(GRPC_CHANNEL_READY, seen_gone);
+  ASSERT_NE(list.channel(1)->GetState(false), GRPC_CHANNEL_READY);
   std::unique_ptr<grpc::Server> a = Listen(first, &service);
   ASSERT_TRUE(a);
   EXPECT_EQ(list.FindConnected(soon()), std::optional<size_t>(0));
