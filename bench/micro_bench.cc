@@ -66,6 +66,7 @@ void BM_CacheLookupPixelRuns(benchmark::State& state) {
   Rng rng(3, 4);
   LookupRegion region;
   int hits = 0, reused = 0, k = 0;
+  double region_records = 0;
   Vec3 pixel;
   for (auto _ : state) {
     if (k++ % 16 == 0) pixel = Vec3(rng.Next() * 2 - 1, rng.Next() * 2 - 1, -1);
@@ -74,10 +75,12 @@ void BM_CacheLookupPixelRuns(benchmark::State& state) {
     LookupInfo info;
     hits += cache->LookupNear(x, Vec3(0, 0, 1), 0.1f, 2 * footprint, 0.1f, &region, &E, &info);
     reused += info.from_region;
+    region_records += std::max(0, region.count);
     benchmark::DoNotOptimize(E);
   }
   state.counters["hit_rate"] = double(hits) / double(state.iterations());
   state.counters["from_region"] = double(reused) / double(state.iterations());
+  state.counters["region_records"] = region_records / double(state.iterations());
 }
 BENCHMARK(BM_CacheLookupPixelRuns)->Arg(1000)->Arg(10000)->Arg(100000);
 

@@ -37,7 +37,9 @@
 // clamping added its radius), octree overhead 0.55-0.75x
 // the records' bytes (tests/cache: RecordsAreCompactAndTheOctreeSmall). What remains is about
 // 10 node visits, ~130 candidates and ~6 full weighings per lookup at 100k records, mostly cache
-// misses and data-dependent branches; the 250 ns goal of issue 9 is not reached.
+// misses and data-dependent branches. The renderer's lookups go through LookupNear (a pixel's
+// samples share one gathered region of ~16 candidates, weighed 4 at a time): 150-215 ns per
+// lookup in bench_micro's pixel runs at 1k-100k records.
 #pragma once
 
 #include <algorithm>
@@ -88,9 +90,20 @@ struct LookupRegion {
   size_t generation = 0;        // its insert count when gathered
   int count = -1;  // records in refs; -1 = more than kMaxRecords (lookups walk the octree)
   uint64_t refs[kMaxRecords];
-  // Copies of the candidates' hot parts (position, R: the octree's upper bound on the radius), so
-  // that a lookup rejects the candidates beyond reach 4 at a time without touching the records.
+  // Copies of the candidates' positions and radii (neighbour-clamped, as gathered: the region is
+  // gathered again after any insert, and an insert lowers its neighbours' radii before it counts),
+  // so that a lookup rejects the candidates beyond reach 4 at a time without touching the records.
   alignas(16) float x[kMaxRecords], y[kMaxRecords], z[kMaxRecords], r[kMaxRecords];
+  // The rest of what the rule reads (IrradianceCache::RegionWeights4), as structure of arrays so
+  // that a lookup weighs 4 candidates at a time without touching the records: normal n, the
+  // occluder o (unpacked) and |o|^2, irradiance E, and whether another process made the record.
+  // Measured in bench_micro's pixel runs at 100k records, rebuilding each record from its block
+  // (occluder unpacked) and weighing it alone took half of a lookup's time, and reading the
+  // clamped radius from the record a quarter.
+  alignas(16) float nx[kMaxRecords], ny[kMaxRecords], nz[kMaxRecords];
+  alignas(16) float ox[kMaxRecords], oy[kMaxRecords], oz[kMaxRecords], o2[kMaxRecords];
+  float ex[kMaxRecords], ey[kMaxRecords], ez[kMaxRecords];
+  bool remote[kMaxRecords];
 };
 
 // Bytes held by a cache (IrradianceCache::MemoryUse). record_bytes counts the filled record
@@ -241,6 +254,10 @@ class IrradianceCache {
   bool CellOf(const Vec3& x, uint32_t cell[3]) const;
   static void AddToNode(Node* node, const IrradianceRecord& r, std::atomic<uint64_t>* all);
   void InsertUnclamped(const IrradianceRecord& r);
+  // Calls f(block, slot) for every ready record j of the blocks from `head` with
+  // |p - x_j| < alpha * R_j + beta (where that is positive), tested 4 at a time.
+  template <typename F>
+  static void ForEachWithin(const Block* head, const Vec3& p, float alpha, float beta, F&& f);
   // Calls f(block, slot) for every ready record j of tree `tree` (every class) closer to x than
   // alpha * R_j + beta (alpha >= 0; records where that is not positive are skipped).
   template <typename F>
@@ -279,6 +296,10 @@ class IrradianceCache {
                  F visit) const;
   void Gather(const Vec3& x, const Vec3& n, float a, float radius, float angle, int max_level,
               LookupRegion* region) const;
+  // RecordWeight of region candidates k0..k0 + 3 at (x, n, a), in the same float operations lane
+  // by lane: the same weights as the scalar rule.
+  static void RegionWeights4(const LookupRegion& region, int k0, const Vec3& x, const Vec3& n,
+                             float a, float w[4]);
 
   float max_accuracy_;
   float neighbour_slope_;
