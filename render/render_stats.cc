@@ -5,9 +5,12 @@
 #include <sys/resource.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
-#include <sstream>
+
+#include <nlohmann/json.hpp>
 
 namespace irfarm {
 namespace {
@@ -16,28 +19,21 @@ double WallNow() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-std::string Quote(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", c);
-      out += buf;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
+// The stats file (--stats): key order kept as written. Non-finite numbers (none expected) are
+// written as null.
+using Json = nlohmann::ordered_json;
 
-std::string Num(double v) {
-  if (!std::isfinite(v)) return "null";
+// A float as the double of its shortest decimal that reads back as the same float, so that the
+// file says 0.1 for 0.1f, not 0.10000000149011612.
+double Short(float v) {
+  if (!std::isfinite(v)) return v;
   char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
+  for (int digits = 6; digits < 9; ++digits) {
+    std::snprintf(buf, sizeof buf, "%.*g", digits, double(v));
+    if (std::strtof(buf, nullptr) == v) return std::strtod(buf, nullptr);
+  }
+  std::snprintf(buf, sizeof buf, "%.9g", double(v));
+  return std::strtod(buf, nullptr);
 }
 
 }  // namespace
@@ -76,78 +72,86 @@ double RenderStats::PhaseWall(const std::string& name) const {
 
 std::string RenderStats::ToJson() const {
   const RenderCounters& c = counters;
-  std::ostringstream o;
+  Json j;
+  j["scene"] = scene;
+  j["integrator"] = integrator;
+  j["width"] = width;
+  j["height"] = height;
+  j["spp"] = spp;
+  j["threads"] = threads;
+  j["seed"] = seed;
+  j["settings"] = {{"accuracy", Short(accuracy)},
+                   {"record_rays", record_rays},
+                   {"strata", {strata_theta, strata_phi}},
+                   {"light_samples", light_samples},
+                   {"cache_levels", cache_levels},
+                   {"min_spacing_px", Short(min_spacing_px)},
+                   {"max_spacing_px", Short(max_spacing_px)}};
+  Json& seconds = j["seconds"] = Json::object();
+  Json& cpu_seconds = j["cpu_seconds"] = Json::object();
   double wall = 0, cpu = 0;
-  o << "{\n  \"scene\": " << Quote(scene) << ",\n  \"integrator\": " << Quote(integrator)
-    << ",\n  \"width\": " << width << ", \"height\": " << height << ", \"spp\": " << spp
-    << ", \"threads\": " << threads << ", \"seed\": " << seed << ",\n";
-  o << "  \"settings\": {\"accuracy\": " << Num(accuracy) << ", \"record_rays\": " << record_rays
-    << ", \"strata\": [" << strata_theta << ", " << strata_phi
-    << "], \"light_samples\": " << light_samples << ", \"cache_levels\": " << cache_levels
-    << ", \"min_spacing_px\": " << Num(min_spacing_px)
-    << ", \"max_spacing_px\": " << Num(max_spacing_px) << "},\n";
-  o << "  \"seconds\": {";
-  for (size_t i = 0; i < phases.size(); ++i) {
-    o << (i ? ", " : "") << Quote(phases[i].name) << ": " << Num(phases[i].wall_seconds);
-    wall += phases[i].wall_seconds;
+  for (const PhaseTime& p : phases) {
+    seconds[p.name] = p.wall_seconds;
+    cpu_seconds[p.name] = p.cpu_seconds;
+    wall += p.wall_seconds;
+    cpu += p.cpu_seconds;
   }
-  o << (phases.empty() ? "" : ", ") << "\"total\": " << Num(wall) << "},\n";
-  o << "  \"cpu_seconds\": {";
-  for (size_t i = 0; i < phases.size(); ++i) {
-    o << (i ? ", " : "") << Quote(phases[i].name) << ": " << Num(phases[i].cpu_seconds);
-    cpu += phases[i].cpu_seconds;
-  }
-  o << (phases.empty() ? "" : ", ") << "\"total\": " << Num(cpu) << "},\n";
-  const uint64_t total_rays = c.camera_rays + c.bounce_rays + c.shadow_rays + c.record_rays;
-  o << "  \"rays\": {\"camera\": " << c.camera_rays << ", \"bounce\": " << c.bounce_rays
-    << ", \"shadow\": " << c.shadow_rays << ", \"record\": " << c.record_rays
-    << ", \"total\": " << total_rays
-    << ", \"shadow_skipped_unreachable_light\": " << c.lights_skipped << "},\n";
-  o << "  \"records\": {\"computed\": " << c.records_computed
-    << ", \"computed_secondary\": " << c.records_secondary
-    << ", \"computed_hessian\": " << c.records_hessian
-    << ", \"computed_overture\": " << records_overture << ", \"received\": " << records_received
-    << ", \"in_cache\": " << records_in_cache << ", \"used\": " << c.records_used
-    << ", \"used_remote\": " << c.remote_records_used
-    << ", \"compute_thread_seconds\": " << Num(c.record_seconds) << "},\n";
-  o << "  \"cache\": {\"lookups\": " << c.lookups << ", \"hits\": " << c.lookup_hits
-    << ", \"region_lookups\": " << c.region_lookups
-    << ", \"hit_rate\": " << Num(c.lookups ? double(c.lookup_hits) / double(c.lookups) : 0)
-    << ", \"records_per_hit\": "
-    << Num(c.lookup_hits ? double(c.records_used) / double(c.lookup_hits) : 0)
-    << ", \"glossy_bounces\": " << c.glossy_bounces << "},\n";
-  o << "  \"caustics\": {\"photons\": " << caustic_photons
-    << ", \"emitted\": " << caustic_photons_emitted << "},\n";
-  o << "  \"sampling\": {\"spp_min\": " << spp_min << ", \"spp_mean\": " << Num(spp_mean)
-    << ", \"spp_max\": " << spp_max << ", \"pixels_stopped_early\": " << pixels_stopped_early
-    << ", \"adaptive_rounds\": " << adaptive_rounds
-    << ", \"nonfinite_samples\": " << c.nonfinite_samples << "},\n";
-  o << "  \"error_estimate\": {\"relmse\": "
-    << Num(estimated_sampling_relmse + std::max(0.0, estimated_cache_relmse))
-    << ", \"sampling_relmse\": " << Num(estimated_sampling_relmse)
-    << ", \"cache_relmse\": " << Num(estimated_cache_relmse)
-    << ", \"target_error\": " << Num(target_error) << "},\n";
+  seconds["total"] = wall;
+  cpu_seconds["total"] = cpu;
+  j["rays"] = {{"camera", c.camera_rays},
+               {"bounce", c.bounce_rays},
+               {"shadow", c.shadow_rays},
+               {"record", c.record_rays},
+               {"total", c.camera_rays + c.bounce_rays + c.shadow_rays + c.record_rays},
+               {"shadow_skipped_unreachable_light", c.lights_skipped}};
+  j["records"] = {{"computed", c.records_computed},
+                  {"computed_secondary", c.records_secondary},
+                  {"computed_hessian", c.records_hessian},
+                  {"computed_overture", records_overture},
+                  {"received", records_received},
+                  {"in_cache", records_in_cache},
+                  {"used", c.records_used},
+                  {"used_remote", c.remote_records_used},
+                  {"compute_thread_seconds", c.record_seconds}};
+  j["cache"] = {
+      {"lookups", c.lookups},
+      {"hits", c.lookup_hits},
+      {"region_lookups", c.region_lookups},
+      {"hit_rate", c.lookups ? double(c.lookup_hits) / double(c.lookups) : 0.0},
+      {"records_per_hit", c.lookup_hits ? double(c.records_used) / double(c.lookup_hits) : 0.0},
+      {"glossy_bounces", c.glossy_bounces}};
+  j["caustics"] = {{"photons", caustic_photons}, {"emitted", caustic_photons_emitted}};
+  j["sampling"] = {{"spp_min", spp_min},
+                   {"spp_mean", spp_mean},
+                   {"spp_max", spp_max},
+                   {"pixels_stopped_early", pixels_stopped_early},
+                   {"adaptive_rounds", adaptive_rounds},
+                   {"nonfinite_samples", c.nonfinite_samples}};
+  j["error_estimate"] = {
+      {"relmse", estimated_sampling_relmse + std::max(0.0, estimated_cache_relmse)},
+      {"sampling_relmse", estimated_sampling_relmse},
+      {"cache_relmse", estimated_cache_relmse},
+      {"target_error", target_error}};
   if (balanced)
-    o << "  \"record_balance\": {\"record_rays\": " << balance.record_rays
-      << ", \"record_noise_relmse\": " << Num(balance.record_noise)
-      << ", \"sampling_relmse\": " << Num(balance.sampling_error)
-      << ", \"expected_spp\": " << Num(balance.expected_spp)
-      << ", \"record_thread_seconds\": " << Num(balance.record_seconds)
-      << ", \"sampling_thread_seconds\": " << Num(balance.sampling_seconds)
-      << ", \"pilot_records\": " << balance.pilot_records
-      << ", \"cache_levels\": " << balance.cache_levels
-      << ", \"one_level_record_noise_relmse\": " << Num(balance.one_level_record_noise)
-      << ", \"one_level_sampling_relmse\": " << Num(balance.one_level_sampling_error) << "},\n";
-  o << "  \"tiles\": {\"count\": " << tiles << ", \"size\": " << tile_size << "},\n";
-  o << "  \"geometry\": {\"triangles\": " << triangles
-    << ", \"degenerate_dropped\": " << degenerate_dropped << "},\n";
-  o << "  \"image\": {\"mean_rgb\": [" << Num(mean_rgb.x) << ", " << Num(mean_rgb.y) << ", "
-    << Num(mean_rgb.z) << "], \"nonfinite_pixels\": " << nonfinite_pixels << "},\n";
-  o << "  \"peak_rss_mib\": " << Num(PeakRssMiB()) << ",\n";
-  o << "  \"warnings\": [";
-  for (size_t i = 0; i < warnings.size(); ++i) o << (i ? ", " : "") << Quote(warnings[i]);
-  o << "]\n}\n";
-  return o.str();
+    j["record_balance"] = {{"record_rays", balance.record_rays},
+                           {"record_noise_relmse", balance.record_noise},
+                           {"sampling_relmse", balance.sampling_error},
+                           {"expected_spp", balance.expected_spp},
+                           {"record_thread_seconds", balance.record_seconds},
+                           {"sampling_thread_seconds", balance.sampling_seconds},
+                           {"pilot_records", balance.pilot_records},
+                           {"cache_levels", balance.cache_levels},
+                           {"one_level_record_noise_relmse", balance.one_level_record_noise},
+                           {"one_level_sampling_relmse", balance.one_level_sampling_error}};
+  j["tiles"] = {{"count", tiles}, {"size", tile_size}};
+  j["geometry"] = {{"triangles", triangles}, {"degenerate_dropped", degenerate_dropped}};
+  j["image"] = {{"mean_rgb", {Short(mean_rgb.x), Short(mean_rgb.y), Short(mean_rgb.z)}},
+                {"nonfinite_pixels", nonfinite_pixels}};
+  j["peak_rss_mib"] = PeakRssMiB();
+  j["warnings"] = warnings;
+  // Invalid UTF-8 (a scene path or shape name is bytes from the user) is replaced, not thrown
+  // over at the end of a render.
+  return j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
 absl::Status WriteTextFile(const std::string& path, const std::string& text) {
