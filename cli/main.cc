@@ -5,6 +5,7 @@
 // (cli/service_commands.h).
 #include <spdlog/spdlog.h>
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <cstdio>
 #include <map>
@@ -223,11 +224,13 @@ int RunCompare(const std::string& test_path, const std::string& ref_path) {
     return 1;
   }
   const ImageError e = CompareImages(*test, *ref);
-  std::printf(
-      "{\"relmse\": %.6g, \"rmse\": %.6g, \"mean_test\": [%.6g, %.6g, %.6g], "
-      "\"mean_ref\": [%.6g, %.6g, %.6g], \"nonfinite_pixels\": %ld}\n",
-      e.relmse, e.rmse, e.mean_test.x, e.mean_test.y, e.mean_test.z, e.mean_ref.x, e.mean_ref.y,
-      e.mean_ref.z, e.nonfinite);
+  // nlohmann-json: a non-finite figure is written as null, never as bare "nan".
+  const nlohmann::ordered_json j = {{"relmse", e.relmse},
+                                    {"rmse", e.rmse},
+                                    {"mean_test", {e.mean_test.x, e.mean_test.y, e.mean_test.z}},
+                                    {"mean_ref", {e.mean_ref.x, e.mean_ref.y, e.mean_ref.z}},
+                                    {"nonfinite_pixels", e.nonfinite}};
+  std::printf("%s\n", j.dump().c_str());
   return 0;
 }
 
@@ -255,7 +258,7 @@ int RunDenoise(const std::string& in, const std::string& out, const std::string&
     std::fprintf(stderr, "error: %s\n", std::string(st.message()).c_str());
     return 1;
   }
-  std::printf("{\"denoise_seconds\": %.4f}\n", t.wall_seconds);
+  std::printf("%s\n", nlohmann::json{{"denoise_seconds", t.wall_seconds}}.dump().c_str());
   return 0;
 }
 
