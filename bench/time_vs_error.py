@@ -176,6 +176,57 @@ def plot(scene, runs, mitsuba, path):
     return True
 
 
+def reference_error(scene_dir):
+    """The reference's own relMSE against the truth (reference.json's relmse_est_ref_vs_truth:
+    half the relMSE between its two halves, halved again for the whole), or 0 when unknown. A
+    render's relMSE against the reference is, in expectation, its error plus this."""
+    try:
+        with open(os.path.join(scene_dir, "reference.json")) as f:
+            return float(json.load(f).get("relmse_est_ref_vs_truth", 0.0))
+    except (OSError, ValueError):
+        return 0.0
+
+
+def target_rows(name, scene_dir, runs):
+    """One row per --target-error run: E, measured relMSE, its estimate, and the checks of issue 6
+    (measured within [E/2, 2E]; estimate within 1.5x of measured), also with the reference's own
+    error taken out of the measured figure (the estimate is of the error against the truth)."""
+    ref = reference_error(scene_dir)
+    rows = []
+    for r in runs:
+        if r["method"] != "irrcache-target":
+            continue
+        e = float(r["args"][r["args"].index("--target-error") + 1])
+        m, est = r["relmse"], r["estimate"]
+        mt = max(m - ref, 0.0)
+        within = lambda x: e / 2 <= x <= 2 * e
+        close = lambda x: est > 0 and x > 0 and max(x / est, est / x) <= 1.5
+        rows.append(f"| {name} | {e:g} | {m:.2e} | {est:.2e} | {m / est:.2f} | "
+                    f"{'yes' if within(m) else 'NO'} | {'yes' if close(m) else 'NO'} | "
+                    f"{ref:.1e} | {mt:.2e} | {mt / est:.2f} | {'yes' if within(mt) else 'NO'} | "
+                    f"{'yes' if close(mt) else 'NO'} |")
+    return rows
+
+
+TARGET_HEADER = [
+    "| scene | E | measured | estimate | measured / estimate | in [E/2, 2E] | estimate within "
+    "1.5x | reference's own error | measured - reference's | that / estimate | in [E/2, 2E] | "
+    "estimate within 1.5x |",
+    "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+
+
+def summarize_targets(run_dir, scenes_dir):
+    """The target table of a stored run (its SCENE.json files), against scenes_dir's references."""
+    rows = []
+    for fn in sorted(os.listdir(run_dir)):
+        if not fn.endswith(".json"):
+            continue
+        with open(os.path.join(run_dir, fn)) as f:
+            j = json.load(f)
+        rows += target_rows(j["scene"], os.path.join(scenes_dir, j["scene"]), j["runs"])
+    return TARGET_HEADER + rows
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -196,7 +247,13 @@ def main():
                     help="render Mitsuba 3 in this run at these spp (e.g. 16,64,256) with "
                          "--mitsuba-variant (needs `pip install mitsuba`) instead of its curve file")
     ap.add_argument("--mitsuba-variant", default="llvm_ad_rgb")
+    ap.add_argument("--summarize-targets", default="",
+                    help="only print the --target-error table of a stored run's directory (its "
+                         "SCENE.json files) against --scenes-dir's references, and exit")
     a = ap.parse_args()
+    if a.summarize_targets:
+        print("\n".join(summarize_targets(a.summarize_targets, a.scenes_dir)))
+        return
 
     names = a.scenes.split(",") if a.scenes else sorted(
         n for n in os.listdir(a.scenes_dir)
@@ -210,6 +267,7 @@ def main():
                "|---|---|---|---|---|---|---|---|---|"]
     tmp = tempfile.mkdtemp(prefix="irfarm-bench-")
     curves = []
+    target_table = []
     for name in names:
         d = os.path.join(a.scenes_dir, name)
         runs = []
@@ -264,6 +322,7 @@ def main():
             f"{mit_flag}{t_mit / default['seconds']:.1f}x | " +
             (f"{base['relmse']:.2e}, {base['seconds']:.2f} s" if base else "-") + " | " +
             " / ".join(f"{r['relmse']:.2e} ({r['estimate']:.2e})" for r in targets) + " |")
+        target_table += target_rows(name, d, runs)
         with open(os.path.join(a.out, name + ".json"), "w") as f:
             json.dump({"scene": name, "runs": runs,
                        "mitsuba_curve": [{"seconds": m[0], "relmse": m[1], "spp": m[2]}
@@ -285,6 +344,8 @@ def main():
             for level, ti, fi, tp, fp, verdict in rows:
                 curves.append(f"  {level:.2e}  {fi or ' '}{ti:9.2f}  {fp or ' '}{tp:9.2f}   {verdict}")
     text = "\n".join(summary) + "\n" + ("\n" + "\n".join(curves) + "\n" if curves else "")
+    if target_table:
+        text += "\n" + "\n".join(TARGET_HEADER + target_table) + "\n"
     with open(os.path.join(a.out, "summary.md"), "w") as f:
         f.write(text)
     print(text)
