@@ -1,3 +1,8 @@
+"""The veach-ajar door figure of the README (issue 9): full frames side by side, the door at 2x
+below each, one exposure for all (irfarm's preview rule on the last image, the reference).
+Usage: python3 make_figure.py OUT.png BEFORE.exr AFTER.exr REFERENCE.exr
+(BEFORE/AFTER: `irfarm render ../shared/scenes/veach-ajar/scene.xml --seed 7 -o X.exr` with the
+binaries of 30457e3 and main)."""
 import sys, OpenEXR, numpy as np
 from PIL import Image
 def load(p):
