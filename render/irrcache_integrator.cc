@@ -57,10 +57,10 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
 
 float IrrcacheIntegrator::EnvironmentMisWeight(float prev_pdf, const Vec3& prev_p,
                                                const Vec3& prev_n, const Vec3& dir) const {
-  return prev_pdf == 0
-             ? 1.0f
-             : PowerHeuristic(prev_pdf, scene_.light_sampler().NeePdfEnvironment(
-                                            settings_.path.all_lights, prev_p, prev_n, dir));
+  return prev_pdf == 0 ? 1.0f
+                       : PowerHeuristic(prev_pdf, scene_.light_sampler().NeePdfEnvironment(
+                                                      settings_.path.all_lights, prev_p, prev_n,
+                                                      dir, settings_.path.env_importance));
 }
 
 float IrrcacheIntegrator::AreaLightMisWeight(float prev_pdf, const Vec3& prev_p, const Vec3& prev_n,
@@ -563,8 +563,8 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
   const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;  // as prev_n in Li (light selection)
   Vec3 L;
   scene_.light_sampler().SampleForNee(
-      settings_.path.all_lights, hit.p, nf, rng, &counters.lights_skipped,
-      [&](const LightSample& ls) {
+      settings_.path.all_lights, settings_.path.env_importance, hit.p, nf, rng,
+      &counters.lights_skipped, [&](const LightSample& ls) {
         const Vec3 wi_l = frame.ToLocal(ls.wi);
         if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return;
         const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l, kNonDiffuseLobes);

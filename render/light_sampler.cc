@@ -42,6 +42,23 @@ float AreaToSolidAngle(float dist2, float cos_l, float area) {
 void LightSampler::Build(std::vector<Light> lights, int num_local) {
   lights_ = std::move(lights);
   num_local_ = num_local;
+  env_map_ = EnvironmentMapSampler();
+  // The first envmap's frame parameterises the density (every environment light's radiance goes
+  // into it). Only for a rotation: a frame that scales or shears does not keep solid angle.
+  for (size_t i = size_t(num_local_); i < lights_.size(); ++i) {
+    const Light& l = lights_[i];
+    if (l.type != LightType::kEnvmap) continue;
+    bool rotation = true;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) {
+        double dot = 0;
+        for (int k = 0; k < 3; ++k) dot += l.world_to_env.m[r][k] * l.world_to_env.m[c][k];
+        rotation = rotation && std::abs(dot - (r == c ? 1.0 : 0.0)) < 1e-4;
+      }
+    if (rotation)
+      env_map_.Build([this](const Vec3& d) { return EvalEnvironment(d); }, l.world_to_env);
+    break;
+  }
 }
 
 float LightSampler::Weight(int i, const Vec3& p, const Vec3& n) const {
@@ -342,7 +359,8 @@ float LightSampler::SelectPdf(const Vec3& p, const Vec3& n, int index) const {
 }
 
 bool LightSampler::Sample(const Vec3& p, const Vec3& n, float u1, float u2, float u3,
-                          bool include_env, LightSample* s, int* skipped) const {
+                          bool include_env, LightSample* s, int* skipped,
+                          bool env_importance) const {
   const int nl = num_local_;
   const bool env = include_env && has_environment();
   const int count = nl + (env ? 1 : 0);
@@ -380,7 +398,7 @@ bool LightSampler::Sample(const Vec3& p, const Vec3& n, float u1, float u2, floa
     u1r = std::clamp((target - acc) / w[chosen], 0.0f, 0x1.fffffep-1f);
   }
   if (chosen == nl) {  // the environment
-    if (!SampleEnvironment(n, u2, u3, s)) return false;
+    if (!SampleEnvironment(n, u2, u3, s, env_importance)) return false;
     s->pdf *= psel;
     s->value = Vec3(1.0f / s->pdf);  // times EvalEnvironment(wi): Scene::LightValue
     return true;
@@ -391,8 +409,29 @@ bool LightSampler::Sample(const Vec3& p, const Vec3& n, float u1, float u2, floa
   return true;
 }
 
-bool LightSampler::SampleEnvironment(const Vec3& n, float u2, float u3, LightSample* s) const {
-  if (HasNormal(n)) {
+bool LightSampler::SampleEnvironment(const Vec3& n, float u2, float u3, LightSample* s,
+                                     bool importance) const {
+  bool by_cosine = true;
+  if (importance && !env_map_.empty()) {
+    // u2 picks the part of the mixture and is then stretched back to [0, 1).
+    by_cosine = u2 < kEnvCosineShare;
+    u2 = by_cosine ? u2 / kEnvCosineShare : (u2 - kEnvCosineShare) / (1 - kEnvCosineShare);
+    u2 = std::min(u2, 0x1.fffffep-1f);
+  }
+  if (!by_cosine) {
+    float grid_pdf = 0;
+    if (!env_map_.Sample(u2, u3, &s->wi, &grid_pdf)) return false;
+    // Below the horizon nothing arrives: no shadow ray (and no density there, PdfEnvironmentAlone).
+    const float c = HasNormal(n) ? Dot(s->wi, n) : 1.0f;
+    if (!(c > 0)) return false;
+    const float cosine = HasNormal(n) ? c * kInvPi : 0.25f * kInvPi;
+    s->pdf = kEnvCosineShare * cosine + (1 - kEnvCosineShare) * grid_pdf;
+    s->distance = INFINITY;
+    s->value = Vec3(1.0f / s->pdf);  // times EvalEnvironment(wi): Scene::LightValue
+    s->environment = true;
+    s->light = -1;
+    return true;
+  } else if (HasNormal(n)) {
     Vec3 a, b;
     MakeFrame(n, &a, &b);
     const Vec3 local = CosineHemisphere(u2, u3);
@@ -401,7 +440,7 @@ bool LightSampler::SampleEnvironment(const Vec3& n, float u2, float u3, LightSam
     s->wi = UniformSphere(u2, u3);
   }
   s->distance = INFINITY;
-  s->pdf = PdfEnvironmentAlone(n, s->wi);
+  s->pdf = PdfEnvironmentAlone(n, s->wi, importance);
   if (!(s->pdf > 0)) return false;
   s->value = Vec3(1.0f / s->pdf);  // times EvalEnvironment(wi): Scene::LightValue
   s->environment = true;
@@ -409,8 +448,14 @@ bool LightSampler::SampleEnvironment(const Vec3& n, float u2, float u3, LightSam
   return true;
 }
 
-float LightSampler::PdfEnvironmentAlone(const Vec3& n, const Vec3& wi) const {
-  return HasNormal(n) ? std::max(0.0f, Dot(wi, n)) * kInvPi : 0.25f * kInvPi;
+float LightSampler::PdfEnvironmentAlone(const Vec3& n, const Vec3& wi, bool importance) const {
+  // With a normal, SampleEnvironment gives only directions above the horizon (it refuses the
+  // envmap's others): the density is 0 below, for MIS with a BSDF that transmits.
+  const float c = HasNormal(n) ? Dot(wi, n) : 1.0f;
+  if (!(c > 0)) return 0;
+  const float cosine = HasNormal(n) ? c * kInvPi : 0.25f * kInvPi;
+  if (!importance || env_map_.empty()) return cosine;
+  return kEnvCosineShare * cosine + (1 - kEnvCosineShare) * env_map_.Pdf(wi);
 }
 
 float LightSampler::PdfArea(const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
@@ -429,15 +474,16 @@ float LightSampler::NeePdfArea(bool all, const Vec3& p, const Vec3& n, int light
   return PdfOne(light, p, q, nq, prim, wi);
 }
 
-float LightSampler::NeePdfEnvironment(bool all, const Vec3& p, const Vec3& n,
-                                      const Vec3& wi) const {
-  if (!SamplesEveryLight(all)) return PdfEnvironment(p, n, wi);
-  return has_environment() ? PdfEnvironmentAlone(n, wi) : 0;
+float LightSampler::NeePdfEnvironment(bool all, const Vec3& p, const Vec3& n, const Vec3& wi,
+                                      bool env_importance) const {
+  if (!SamplesEveryLight(all)) return PdfEnvironment(p, n, wi, env_importance);
+  return has_environment() ? PdfEnvironmentAlone(n, wi, env_importance) : 0;
 }
 
-float LightSampler::PdfEnvironment(const Vec3& p, const Vec3& n, const Vec3& wi) const {
+float LightSampler::PdfEnvironment(const Vec3& p, const Vec3& n, const Vec3& wi,
+                                   bool importance) const {
   if (!has_environment()) return 0;
-  const float dir = PdfEnvironmentAlone(n, wi);
+  const float dir = PdfEnvironmentAlone(n, wi, importance);
   return dir > 0 ? dir * SelectPdf(p, n, num_local_) : 0;
 }
 

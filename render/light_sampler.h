@@ -11,13 +11,17 @@
 // directions, emissive meshes by a triangle picked by area and then sampled by solid angle
 // (spherical triangles); by area only where the solid angle is too small to sample that way
 // (far away, where the area pdf is harmless). The environment (all constant + envmap lights
-// together) is sampled cosine-weighted around n (uniformly over the sphere when n is zero).
+// together) is sampled cosine-weighted around n (uniformly over the sphere when n is zero), and,
+// when it holds an envmap, by its radiance (EnvironmentMapSampler) with probability
+// 1 - kEnvCosineShare: a mixture, so that the cosine part still covers the light an envmap
+// holds where the map's density is low.
 //
 // n may be the zero vector: no horizon test (points that also transmit light).
 #pragma once
 
 #include <vector>
 
+#include "render/environment_map_sampler.h"
 #include "render/light.h"
 #include "render/sampling.h"
 
@@ -29,6 +33,8 @@ class LightSampler {
   // Up to this many local lights, next-event estimation may sample every light at each vertex
   // (SampleForNee with all = true); with more, one is picked.
   static constexpr int kAllLightsMax = 16;
+  // Share of environment samples drawn cosine-weighted when an envmap is importance sampled.
+  static constexpr float kEnvCosineShare = 0.25f;
 
   // `lights`: local lights first, then environment lights.
   void Build(std::vector<Light> lights, int num_local);
@@ -52,16 +58,19 @@ class LightSampler {
                const Vec3& wi) const;
 
   // Samples the environment alone from (p, n): cosine-weighted around n (uniform over the sphere
-  // when n is zero); s->pdf is that direction's pdf alone, s->value 1 / pdf (see Sample).
-  bool SampleEnvironment(const Vec3& n, float u2, float u3, LightSample* s) const;
+  // when n is zero), and with `importance` and an envmap the mixture with its radiance
+  // (EnvironmentMapSampler); s->pdf is that direction's pdf alone, s->value 1 / pdf (see Sample).
+  // `importance` (PathSettings::env_importance) must be the same in the matching pdf calls.
+  bool SampleEnvironment(const Vec3& n, float u2, float u3, LightSample* s,
+                         bool importance = false) const;
   // The pdf of SampleEnvironment(n, ...) giving wi.
-  float PdfEnvironmentAlone(const Vec3& n, const Vec3& wi) const;
+  float PdfEnvironmentAlone(const Vec3& n, const Vec3& wi, bool importance = false) const;
   // Picks a light by weight (the environment too when include_env) and samples it; pdf and
   // value include the selection probability. An environment sample's value lacks the radiance
   // (LightSample::environment): Scene::LightValue completes it once the sample is unblocked.
   // *skipped (if given) counts the local lights that got weight 0 (no shadow ray is spent on them).
   bool Sample(const Vec3& p, const Vec3& n, float u1, float u2, float u3, bool include_env,
-              LightSample* s, int* skipped = nullptr) const;
+              LightSample* s, int* skipped = nullptr, bool env_importance = false) const;
   // Probability that Sample(p, n, ..., include_env = true) picks local light `index`, or the
   // environment for index == num_local().
   float SelectionProbability(const Vec3& p, const Vec3& n, int index) const {
@@ -72,7 +81,7 @@ class LightSampler {
   float PdfArea(const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
                 unsigned prim, const Vec3& wi) const;
   // ... and of it having produced the environment direction wi.
-  float PdfEnvironment(const Vec3& p, const Vec3& n, const Vec3& wi) const;
+  float PdfEnvironment(const Vec3& p, const Vec3& n, const Vec3& wi, bool importance = false) const;
 
   // Radiance from the environment lights (constant + envmap) along direction d.
   Vec3 EvalEnvironment(const Vec3& d) const;
@@ -85,13 +94,13 @@ class LightSampler {
   // Random numbers: three per light (two for the environment), or three in all.
   bool SamplesEveryLight(bool all) const { return all && num_local_ <= kAllLightsMax; }
   template <typename F>
-  void SampleForNee(bool all, const Vec3& p, const Vec3& n, Rng& rng, uint64_t* skipped,
-                    F&& f) const {
+  void SampleForNee(bool all, bool env_importance, const Vec3& p, const Vec3& n, Rng& rng,
+                    uint64_t* skipped, F&& f) const {
     if (!SamplesEveryLight(all)) {
       LightSample s;
       const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
       int zero = 0;
-      const bool ok = Sample(p, n, u1, u2, u3, true, &s, &zero);
+      const bool ok = Sample(p, n, u1, u2, u3, true, &s, &zero, env_importance);
       *skipped += uint64_t(zero);
       if (ok) f(s);
       return;
@@ -108,7 +117,7 @@ class LightSampler {
     if (has_environment()) {
       LightSample s;
       const float u2 = rng.Next(), u3 = rng.Next();
-      if (SampleEnvironment(n, u2, u3, &s)) f(s);
+      if (SampleEnvironment(n, u2, u3, &s, env_importance)) f(s);
     }
   }
   // The pdf with which SampleForNee(all, p, n, ...) produces direction wi towards point q of
@@ -116,7 +125,8 @@ class LightSampler {
   // BSDF sample from p against.
   float NeePdfArea(bool all, const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
                    unsigned prim, const Vec3& wi) const;
-  float NeePdfEnvironment(bool all, const Vec3& p, const Vec3& n, const Vec3& wi) const;
+  float NeePdfEnvironment(bool all, const Vec3& p, const Vec3& n, const Vec3& wi,
+                          bool env_importance = false) const;
 
  private:
   // Selection probability of candidate `index` (num_local_ = the environment).
@@ -125,6 +135,7 @@ class LightSampler {
 
   std::vector<Light> lights_;
   int num_local_ = 0;
+  EnvironmentMapSampler env_map_;  // empty without an envmap (or with a non-rotation frame)
 };
 
 }  // namespace irfarm

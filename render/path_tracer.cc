@@ -29,10 +29,10 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       if (first && first_distance) *first_distance = INFINITY;
       if (scene.has_environment()) {
         const bool skip_mis = prev_pdf == 0 || (first && skip_first_local_emission);
-        const float w =
-            skip_mis ? 1.0f
-                     : PowerHeuristic(prev_pdf, lights.NeePdfEnvironment(settings.all_lights,
-                                                                         prev_p, prev_n, ray.dir));
+        const float w = skip_mis ? 1.0f
+                                 : PowerHeuristic(prev_pdf, lights.NeePdfEnvironment(
+                                                                settings.all_lights, prev_p, prev_n,
+                                                                ray.dir, settings.env_importance));
         add(beta * scene.EvalEnvironment(ray.dir) * w, depth);
       }
       break;
@@ -85,8 +85,8 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       add(beta * f * scene.LightValue(ls) * w, depth);
     };
     if (bsdf.HasSmooth())  // next-event estimation, MIS against BSDF sampling
-      lights.SampleForNee(settings.all_lights, hit.p, n_select, rng, &counters.lights_skipped,
-                          shade_light);
+      lights.SampleForNee(settings.all_lights, settings.env_importance, hit.p, n_select, rng,
+                          &counters.lights_skipped, shade_light);
     const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
     const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3);
     if (IsBlack(bs.weight)) break;  // failed sample, or a one-sided surface seen from the back

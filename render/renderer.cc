@@ -723,6 +723,7 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
   s.integrator = integrator;
   s.irrcache.path.max_depth = desc.integrator.max_depth;
   s.irrcache.path.rr_depth = desc.integrator.rr_depth;
+  s.irrcache.path.env_importance = integrator == "path";  // PathSettings::env_importance
   IrrcacheSettings& ic = s.irrcache;
   double spp = kIrrcacheSpp;
   if (desc.integrator.type == "irrcache") {
