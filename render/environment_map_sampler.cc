@@ -7,6 +7,13 @@ namespace irfarm {
 
 void EnvironmentMapSampler::Build(const std::function<Vec3(const Vec3&)>& radiance,
                                   const Mat4& world_to_env, int nu, int nv) {
+  *this = EnvironmentMapSampler();
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      double dot = 0;  // row r . row c: 1 on the diagonal, 0 off it for a rotation
+      for (int k = 0; k < 3; ++k) dot += world_to_env.m[r][k] * world_to_env.m[c][k];
+      if (std::abs(dot - (r == c ? 1.0 : 0.0)) > 1e-4) return;
+    }
   nu_ = std::max(1, nu);
   nv_ = std::max(1, nv);
   for (int r = 0; r < 3; ++r)
@@ -88,20 +95,16 @@ float EnvironmentMapSampler::Pdf(const Vec3& wi) const {
   const Vec3 e(rot_[0][0] * wi.x + rot_[0][1] * wi.y + rot_[0][2] * wi.z,
                rot_[1][0] * wi.x + rot_[1][1] * wi.y + rot_[1][2] * wi.z,
                rot_[2][0] * wi.x + rot_[2][1] * wi.y + rot_[2][2] * wi.z);
-  const float a = std::atan2(e.x, -e.z) * (0.5f * kInvPi);
-  const float u = a - std::floor(a);
+  float u, v;
+  EnvmapUv(e, &u, &v);
   const float y = std::clamp(e.y, -1.0f, 1.0f);
-  const float v = std::acos(y) * kInvPi;
   const int i = std::clamp(int(u * float(nu_)), 0, nu_ - 1);
   const int j = std::clamp(int(v * float(nv_)), 0, nv_ - 1);
   return CellPdf(i, j, std::sqrt(std::max(0.0f, 1 - y * y)));
 }
 
 Vec3 EnvironmentMapSampler::FromUv(float u, float v) const {
-  const float phi = u * 2 * kPi, theta = v * kPi;
-  const float st = std::sin(theta);
-  // The inverse of Pdf's mapping: u = atan2(e.x, -e.z) / 2 pi, v = acos(e.y) / pi.
-  const Vec3 e(st * std::sin(phi), std::cos(theta), -st * std::cos(phi));
+  const Vec3 e = EnvmapDirection(u, v);
   return Normalize(Vec3(rot_[0][0] * e.x + rot_[1][0] * e.y + rot_[2][0] * e.z,
                         rot_[0][1] * e.x + rot_[1][1] * e.y + rot_[2][1] * e.z,
                         rot_[0][2] * e.x + rot_[1][2] * e.y + rot_[2][2] * e.z));

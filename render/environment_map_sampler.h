@@ -13,14 +13,15 @@
 #include <vector>
 
 #include "cache/math.h"
+#include "render/light.h"
 
 namespace irfarm {
 
 class EnvironmentMapSampler {
  public:
   // `radiance(d)`: the environment's radiance along world direction d. `world_to_env` maps world
-  // directions to the envmap's frame and must be a rotation. Cells: nu x nv, each the mean of
-  // 2 x 2 sub-samples.
+  // directions to the envmap's frame; when it is not a rotation (a scale or shear does not keep
+  // solid angle) the sampler stays empty. Cells: nu x nv, each the mean of 2 x 2 sub-samples.
   void Build(const std::function<Vec3(const Vec3&)>& radiance, const Mat4& world_to_env,
              int nu = 512, int nv = 256);
   bool empty() const { return total_ <= 0; }

@@ -65,6 +65,21 @@ struct Light {
   bool IsEnvironment() const { return type == LightType::kConstant || type == LightType::kEnvmap; }
 };
 
+// An envmap's parameterisation (Mitsuba's latitude-longitude map): unit direction e in the map's
+// frame -> (u, v) in [0, 1)^2 with u = phi / 2 pi (phi = atan2(e.x, -e.z)) and v = theta / pi
+// (theta from +y). LightSampler::EvalEnvironment reads the map with it; EnvironmentMapSampler
+// places its density with it and its inverse.
+inline void EnvmapUv(const Vec3& e, float* u, float* v) {
+  const float a = std::atan2(e.x, -e.z) * (0.5f * kInvPi);
+  *u = a - std::floor(a);
+  *v = std::acos(std::clamp(e.y, -1.0f, 1.0f)) * kInvPi;
+}
+inline Vec3 EnvmapDirection(float u, float v) {
+  const float phi = u * 2 * kPi, theta = v * kPi;
+  const float st = std::sin(theta);
+  return Vec3(st * std::sin(phi), std::cos(theta), -st * std::cos(phi));
+}
+
 struct LightSample {
   Vec3 wi;                    // unit direction from the shading point to the light
   float distance = INFINITY;  // to the light point (INFINITY for directional / environment)

@@ -44,19 +44,10 @@ void LightSampler::Build(std::vector<Light> lights, int num_local) {
   num_local_ = num_local;
   env_map_ = EnvironmentMapSampler();
   // The first envmap's frame parameterises the density (every environment light's radiance goes
-  // into it). Only for a rotation: a frame that scales or shears does not keep solid angle.
+  // into it).
   for (size_t i = size_t(num_local_); i < lights_.size(); ++i) {
-    const Light& l = lights_[i];
-    if (l.type != LightType::kEnvmap) continue;
-    bool rotation = true;
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) {
-        double dot = 0;
-        for (int k = 0; k < 3; ++k) dot += l.world_to_env.m[r][k] * l.world_to_env.m[c][k];
-        rotation = rotation && std::abs(dot - (r == c ? 1.0 : 0.0)) < 1e-4;
-      }
-    if (rotation)
-      env_map_.Build([this](const Vec3& d) { return EvalEnvironment(d); }, l.world_to_env);
+    if (lights_[i].type != LightType::kEnvmap) continue;
+    env_map_.Build([this](const Vec3& d) { return EvalEnvironment(d); }, lights_[i].world_to_env);
     break;
   }
 }
@@ -425,23 +416,21 @@ bool LightSampler::SampleEnvironment(const Vec3& n, float u2, float u3, LightSam
     const float c = HasNormal(n) ? Dot(s->wi, n) : 1.0f;
     if (!(c > 0)) return false;
     const float cosine = HasNormal(n) ? c * kInvPi : 0.25f * kInvPi;
+    // The mixture's pdf, with the cell's density as the sampler drew it.
     s->pdf = kEnvCosineShare * cosine + (1 - kEnvCosineShare) * grid_pdf;
-    s->distance = INFINITY;
-    s->value = Vec3(1.0f / s->pdf);  // times EvalEnvironment(wi): Scene::LightValue
-    s->environment = true;
-    s->light = -1;
-    return true;
-  } else if (HasNormal(n)) {
-    Vec3 a, b;
-    MakeFrame(n, &a, &b);
-    const Vec3 local = CosineHemisphere(u2, u3);
-    s->wi = a * local.x + b * local.y + n * local.z;
   } else {
-    s->wi = UniformSphere(u2, u3);
+    if (HasNormal(n)) {
+      Vec3 a, b;
+      MakeFrame(n, &a, &b);
+      const Vec3 local = CosineHemisphere(u2, u3);
+      s->wi = a * local.x + b * local.y + n * local.z;
+    } else {
+      s->wi = UniformSphere(u2, u3);
+    }
+    s->pdf = PdfEnvironmentAlone(n, s->wi, importance);
   }
-  s->distance = INFINITY;
-  s->pdf = PdfEnvironmentAlone(n, s->wi, importance);
   if (!(s->pdf > 0)) return false;
+  s->distance = INFINITY;
   s->value = Vec3(1.0f / s->pdf);  // times EvalEnvironment(wi): Scene::LightValue
   s->environment = true;
   s->light = -1;
@@ -494,10 +483,9 @@ Vec3 LightSampler::EvalEnvironment(const Vec3& d) const {
     if (l.type == LightType::kConstant) {
       L += l.radiance;
     } else {
-      const Vec3 v = Normalize(l.world_to_env.ApplyVector(d));
-      const float u = std::atan2(v.x, -v.z) * (0.5f * kInvPi);
-      const float w = std::acos(std::clamp(v.y, -1.0f, 1.0f)) * kInvPi;
-      L += l.envmap->Eval(u - std::floor(u), w) * l.scale;
+      float u, v;
+      EnvmapUv(Normalize(l.world_to_env.ApplyVector(d)), &u, &v);
+      L += l.envmap->Eval(u, v) * l.scale;
     }
   }
   return L;
