@@ -6,7 +6,10 @@ mitsuba-curve.json), this renders with the `irfarm` CLI:
   - irfarm path over an spp ladder (default 16, 64, 256),
   - irfarm irrcache at its defaults and over a ladder of settings: --target-error values and
     fixed-spp runs,
-  - optionally an older irfarm binary at its defaults (--baseline-bin: "today's" figures),
+  - optionally an older irfarm binary at its defaults (--baseline-bin: "today's" figures), and
+    irrcache's error at the baseline's time: the least relMSE of irrcache's runs (default, budgets,
+    targets) that took at most the baseline's time (more time never costs error on that ladder;
+    nothing is interpolated; 'n/a' when every run took longer),
 and reads Mitsuba 3's own curve from mitsuba-curve.json (its seconds are from another day and
 machine; only ratios measured in this run are sound, and the table says which is which).
 Each render's time is the wall time of its overture + render phases (stats JSON); its error is
@@ -73,6 +76,18 @@ def time_for(curve, relmse):
             f = (math.log(relmse) - math.log(e0)) / (math.log(e1) - math.log(e0))
             return math.exp(math.log(t0) + f * (math.log(t1) - math.log(t0))), ""
     return pts[0][0], ""
+
+
+def error_within(runs, seconds):
+    """The least relMSE of irrcache's runs that took at most `seconds`, or None."""
+    within = [r["relmse"] for r in runs
+              if r["method"] in ("irrcache", "irrcache-target") and r["seconds"] <= seconds]
+    return min(within) if within else None
+
+
+def equal_time_cell(runs, base):
+    e = error_within(runs, base["seconds"])
+    return "n/a" if e is None else f"{e:.2e} ({e / base['relmse']:.2f}x)"
 
 
 def front(points):
@@ -262,9 +277,10 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     summary = ["| scene | irrcache default: relMSE, s | path time at that relMSE | "
                "Mitsuba time at that relMSE | Mitsuba 256 spp relMSE | "
-               "vs path | vs Mitsuba | baseline default: relMSE, s | targets " +
+               "vs path | vs Mitsuba | baseline default: relMSE, s | "
+               "irrcache within the baseline's time: relMSE (vs baseline) | targets " +
                " / ".join(x for x in a.targets.split(",") if x) + ": measured (estimate) |",
-               "|---|---|---|---|---|---|---|---|---|"]
+               "|---|---|---|---|---|---|---|---|---|---|"]
     tmp = tempfile.mkdtemp(prefix="irfarm-bench-")
     curves = []
     target_table = []
@@ -292,11 +308,14 @@ def main():
             for spp in [x for x in a.path_spp.split(",") if x]:
                 add("path", render(a.irfarm, d, ["--integrator", "path", "--spp", spp], tmp,
                                    name + "-path" + spp))
-            if a.baseline_bin:
-                add("baseline", render(a.baseline_bin, d, [], tmp, name + "-base"))
         except subprocess.CalledProcessError as e:
             print(f"{name}: {e.stderr.strip()}", file=sys.stderr)
             continue
+        try:  # an older binary may not load a newer scene: the rest of the row stands
+            if a.baseline_bin:
+                add("baseline", render(a.baseline_bin, d, [], tmp, name + "-base"))
+        except subprocess.CalledProcessError as e:
+            print(f"{name}: baseline failed: {e.stderr.strip()}", file=sys.stderr)
         mit = mitsuba_curve(d)
         mit_source = "curve file"
         if a.mitsuba_live:
@@ -321,6 +340,7 @@ def main():
             f"{path_flag}{t_path / default['seconds']:.1f}x | "
             f"{mit_flag}{t_mit / default['seconds']:.1f}x | " +
             (f"{base['relmse']:.2e}, {base['seconds']:.2f} s" if base else "-") + " | " +
+            (equal_time_cell(runs, base) if base else "-") + " | " +
             " / ".join(f"{r['relmse']:.2e} ({r['estimate']:.2e})" for r in targets) + " |")
         target_table += target_rows(name, d, runs)
         with open(os.path.join(a.out, name + ".json"), "w") as f:
@@ -330,7 +350,11 @@ def main():
                        "equal_error": {"irrcache_default_relmse": default["relmse"],
                                        "irrcache_default_seconds": default["seconds"],
                                        "path_seconds": t_path, "path_flag": path_flag,
-                                       "mitsuba_seconds": t_mit, "mitsuba_flag": mit_flag}},
+                                       "mitsuba_seconds": t_mit, "mitsuba_flag": mit_flag},
+                       "equal_time_vs_baseline": (
+                           {"baseline_relmse": base["relmse"], "baseline_seconds": base["seconds"],
+                            "irrcache_relmse_within": error_within(runs, base["seconds"])}
+                           if base else None)},
                       f, indent=1)
         plot(name, runs, mit, os.path.join(a.out, name + ".png"))
         if a.curve_levels and path_curve:
