@@ -9,7 +9,8 @@ mitsuba-curve.json), this renders with the `irfarm` CLI:
   - optionally an older irfarm binary at its defaults (--baseline-bin: "today's" figures), and
     irrcache's error at the baseline's time: the least relMSE of irrcache's runs (default, budgets,
     targets) that took at most the baseline's time (more time never costs error on that ladder;
-    nothing is interpolated; 'n/a' when every run took longer),
+    nothing is interpolated; 'n/a' when every run took longer), and with --baseline-spp the
+    baseline's own curve read at irrcache's default time (log-log between its measured points),
 and reads Mitsuba 3's own curve from mitsuba-curve.json (its seconds are from another day and
 machine; only ratios measured in this run are sound, and the table says which is which).
 Each render's time is the wall time of its overture + render phases (stats JSON); its error is
@@ -85,9 +86,35 @@ def error_within(runs, seconds):
     return min(within) if within else None
 
 
+def error_at(curve, seconds):
+    """relMSE of a curve [(seconds, relmse)] at `seconds`, by log-log interpolation between the
+    measured points around it in time; (value, '') inside, (bound, '<=' or '>=') outside."""
+    pts = sorted(curve)
+    if seconds >= pts[-1][0]:
+        return (pts[-1][1], "" if seconds == pts[-1][0] else "<=")
+    if seconds <= pts[0][0]:
+        return (pts[0][1], "" if seconds == pts[0][0] else ">=")
+    for (t0, e0), (t1, e1) in zip(pts, pts[1:]):
+        if t0 <= seconds <= t1 and t1 > t0:
+            f = (math.log(seconds) - math.log(t0)) / (math.log(t1) - math.log(t0))
+            return math.exp(math.log(e0) + f * (math.log(e1) - math.log(e0))), ""
+    return pts[0][1], ""
+
+
+def baseline_curve(runs):
+    return [(r["seconds"], r["relmse"]) for r in runs if r["method"] == "baseline"]
+
+
 def equal_time_cell(runs, base):
     e = error_within(runs, base["seconds"])
-    return "n/a" if e is None else f"{e:.2e} ({e / base['relmse']:.2f}x)"
+    cell = "n/a" if e is None else f"{e:.2e} ({e / base['relmse']:.2f}x)"
+    curve = baseline_curve(runs)
+    if len(curve) > 1:  # the baseline's ladder (--baseline-spp): its error at irrcache's time
+        default = runs[0]
+        eb, flag = error_at(curve, default["seconds"])
+        cell += (f"; baseline at irrcache's {default['seconds']:.2f} s: {flag}{eb:.2e} "
+                 f"(irrcache {default['relmse'] / eb:.2f}x)")
+    return cell
 
 
 def front(points):
@@ -247,6 +274,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--irfarm", default=os.path.join(here, "..", "build", "irfarm"))
     ap.add_argument("--baseline-bin", help="an older irfarm binary to run at its defaults")
+    ap.add_argument("--baseline-spp", default="",
+                    help="the baseline also at these --spp (its curve: its error at irrcache's "
+                         "default time, interpolated, never extrapolated)")
     ap.add_argument("--scenes-dir", default=os.path.join(here, "..", "..", "shared", "scenes"))
     ap.add_argument("--scenes", help="comma-separated names (default: all with a reference)")
     ap.add_argument("--path-spp", default="16,64,256")
@@ -314,6 +344,9 @@ def main():
         try:  # an older binary may not load a newer scene: the rest of the row stands
             if a.baseline_bin:
                 add("baseline", render(a.baseline_bin, d, [], tmp, name + "-base"))
+                for spp in [x for x in a.baseline_spp.split(",") if x]:
+                    add("baseline", render(a.baseline_bin, d, ["--spp", spp], tmp,
+                                           name + "-base" + spp))
         except subprocess.CalledProcessError as e:
             print(f"{name}: baseline failed: {e.stderr.strip()}", file=sys.stderr)
         mit = mitsuba_curve(d)
@@ -353,7 +386,10 @@ def main():
                                        "mitsuba_seconds": t_mit, "mitsuba_flag": mit_flag},
                        "equal_time_vs_baseline": (
                            {"baseline_relmse": base["relmse"], "baseline_seconds": base["seconds"],
-                            "irrcache_relmse_within": error_within(runs, base["seconds"])}
+                            "irrcache_relmse_within": error_within(runs, base["seconds"]),
+                            "baseline_at_irrcache_seconds": (
+                                error_at(baseline_curve(runs), default["seconds"])
+                                if len(baseline_curve(runs)) > 1 else None)}
                            if base else None)},
                       f, indent=1)
         plot(name, runs, mit, os.path.join(a.out, name + ".png"))
