@@ -1014,16 +1014,16 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
             EstimateCacheError(trial, ic.cache_levels, cam, settings.seed, uint64_t(streams),
                                checks, rect, arena, counters);
         cache_error = estimate.error;
-        // An easy scene: the first cache is far inside its half of E (below E/8), and the render
-        // would end far below E (room-b: 4.8e-4 at E = 4e-3, at 2 spp). Rebuild the cache coarser
-        // by the model the first round used (interpolation error ~ a^2, noise ~ 1 / rays), aiming
-        // at what the first round of samples leaves of E (at most 0.9 E, at least E/2); the
-        // adaptive samples then stop at or near their minimum. Once more if the rebuilt cache is
-        // still below half of that (the first estimate is from 256 checks only, and a larger a
-        // may buy nothing where the validity radius is clamped at max_spacing_px).
-        // "Far inside" is a quarter of what the first samples leave of E: where they leave more
-        // than half of E (room-c at E = 4e-3: 9.7e-4 of sampling error at 4 spp, cache 5.4e-4),
-        // the cache may take more than its nominal half.
+        // An easy scene: the first cache is far inside what the first round of samples
+        // (TargetMinSpp) leaves of E, below a quarter of it, and the render would end far below E
+        // (room-b: 4.8e-4 at E = 4e-3, at 2 spp). That share is E minus those samples' error,
+        // within [E/2, 0.9 E]: where they leave more than half of E (room-c at E = 4e-3: 9.7e-4
+        // of sampling error at 4 spp, cache 5.4e-4), the cache may take more than its nominal
+        // half. Rebuild the cache coarser by the model the first round used (interpolation error
+        // ~ a^2, noise ~ 1 / rays), aiming at that share; the adaptive samples then stop at or
+        // near their minimum. Once more if the rebuilt cache is still below half of it (the
+        // first estimate is from 256 checks only, and a larger a may buy nothing where the
+        // validity radius is clamped at max_spacing_px).
         if (may_rebuild && rebuilds == 0 && iteration == 0) {
           const double sampling = EstimateSamplingError(
               trial, cam, settings.seed, TargetMinSpp(settings), std::max(1, ic.light_samples),
