@@ -20,11 +20,12 @@ struct IrradianceRecord {
   // made with fewer rays for the rays of another record. A lookup at level l uses records of
   // level <= l only, so the coarser secondary records never shade what the camera sees.
   uint8_t level = 0;
-  // Secondary records: from x_i to the nearest hit of its rays (zero: none). A lookup point
-  // beyond the plane through that hit, perpendicular to it, is behind the occluder as seen from
-  // x_i and does not use the record (RecordWeight): a record next to a thin partition does not
-  // reach the partition's other side. Kept in the cache in 6 bytes (cache/occluder_plane.h), not
-  // in snapshots or on the wire (secondary records are not published).
+  // From x_i to the nearest hit of its rays (zero: none; IrrcacheSettings::occluder_plane). A
+  // lookup point beyond the plane through that hit, perpendicular to it, is behind the occluder
+  // as seen from x_i and does not use the record (RecordWeight): a record next to a thin
+  // partition does not reach the partition's other side. Kept in the cache in 6 bytes
+  // (cache/occluder_plane.h), not in snapshots or on the wire: a camera record read from either
+  // has none (its validity radius alone bounds it, as before the plane).
   Vec3 occluder;
 };
 

@@ -1,4 +1,4 @@
-// A secondary record's nearest occluder, as the plane through its nearest ray hit perpendicular
+// A record's nearest occluder, as the plane through its nearest ray hit perpendicular
 // to that ray, packed into 6 bytes of the cache's record (the record stays within 64 bytes):
 // the direction octahedron-encoded in two 16-bit numbers, the distance as a 16-bit logarithm
 // (2^-32 .. 2^32, 0.034% steps). A lookup point beyond the plane, as seen from the record, is

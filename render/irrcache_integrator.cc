@@ -294,10 +294,11 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
     const float reach =
         std::max(settings_.occluder_reach * nearest, settings_.occluder_floor_px * pixel_spread);
     r.radius = std::min(r.radius, reach / a_max);
-    // Where the floor keeps the reach past the nearest hit (a record next to a partition), the
-    // occluder plane keeps the record from the partition's other side.
-    r.occluder = nearest_dir * nearest;
   }
+  // Where a floor keeps the validity radius past the nearest hit (a record next to a partition;
+  // a camera record by a lamp hung just below the ceiling, whose 1.5-pixel floor reached into
+  // the dark gap above the lamp), the occluder plane keeps the record from the other side.
+  if (settings_.occluder_plane && std::isfinite(nearest)) r.occluder = nearest_dir * nearest;
   if (!(r.radius > 0) || !std::isfinite(r.radius)) {
     // Degenerate footprint (should not happen): fall back to a small multiple of the offset scale.
     r.radius = std::max(1e-4f * std::max(hit.error_scale, MaxAbsComponent(hit.p)), 1e-30f);

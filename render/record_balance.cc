@@ -49,8 +49,11 @@ BalanceResult ChooseRecordRays(const PilotFigures& pilot, const BalanceInputs& i
   r.sampling_seconds = spp * in.image_pixels * seconds_per_sample;
   if (!(noise > 0) || !(r.record_seconds > 0) || !(r.sampling_seconds > 0)) return r;
 
-  // error x time minimal at R* = R0 sqrt(N / (I + S) * D / C), with I taken as 0 (see header).
-  const double ratio = std::sqrt(noise / r.sampling_error * r.sampling_seconds / r.record_seconds);
+  // error x time minimal at R* = R0 sqrt(N / (I + S) * D / C), with I = kInterpolationFloor N
+  // (see header).
+  const double interpolation = kInterpolationFloor * noise;
+  const double ratio =
+      std::sqrt(noise / (interpolation + r.sampling_error) * r.sampling_seconds / r.record_seconds);
   const double lowest = std::max(1.0, std::floor(r0 / 8.0));
   r.record_rays = int(std::lround(std::clamp(r0 * ratio, lowest, double(r0))));
   return r;

@@ -14,12 +14,8 @@
 // D, with N the record noise at R0 rays, I the interpolation error, S the sampling error at the
 // samples adaptive sampling is expected to take, C the records' time at R0 and D the samples'.
 // d(error x time)/dR = 0 gives R* = R0 sqrt(N / (I + S) * D / C). I is not measured by the pilot
-// (it needs a filled cache) and is taken as 0, which can only raise R*: the ray sweep on the
-// shared scenes measured I from 0.3 N (veach-ajar, whose error is the records' noise at the door
-// gap) to 1.9 N (cornell-box), and taking I = N there made veach-ajar 2.9x worse at 449 rays. N
-// from the pilot's single records is itself 1.5-1.9x the noise the interpolated image shows
-// (several records are averaged). R* is kept within [R0 / 8, R0]: the balance only ever lowers
-// the rays.
+// (it needs a filled cache) and is taken as kInterpolationFloor N. R* is kept within [R0 / 8, R0]:
+// the balance only ever lowers the rays.
 #pragma once
 
 #include <vector>
@@ -77,6 +73,23 @@ constexpr double kRecordOverlap = 4.0;
 
 // Share of the pilot's pixels with the largest sampling error left out of S (fireflies).
 constexpr double kTrimmed = 0.02;
+
+// The interpolation error I as a share of the pilot's record noise N. Measured at default levels
+// by rendering each shared scene at 1536 and 384 fixed rays (seeds 7 and 8): the image's record
+// noise from the difference, and what remains at 1536 rays (I plus the samples' error) against
+// the pilot's N: veach-ajar 1.0-1.6, sunlit-room 1.9-2.1, room-a 1.8-2.8, living-room about 2,
+// room-d 2.6-4.0, room-c 4.5-5.6, specular 7.6-8.2, cornell-box 11-14, room-b 12-14, thin-panels
+// 23-33. Taking I = 0 (as until 2026-12-02) kept 1536 rays wherever the pilot's S is near 0 (a
+// room lit by rectangles, whose direct light has no noise outside penumbrae), and on cornell-box
+// made R* follow S, which 256 pilot pixels measure only within 10x (3.7e-6 to 4.2e-5 over seeds
+// 7-14): 257 to 1202 rays, 1.5 to 5.1 s. Error x wall time at defaults, mean of seeds 7 and 8,
+// factor 0.5 against 0: room-a 0.42x, room-b 0.44x, sunlit-room 0.47x, thin-panels 0.37x, room-c
+// 0.65x, room-d 0.69x, specular 0.73x, living-room 0.88x; seeds 9-11 alike on the first five
+// (0.41-0.97x), room-d and specular 0.92-1.06x; veach-ajar 1.09x over seeds 7-11 (its error is its
+// records' noise at the door gap), cornell-box 1.04x over seeds 7-14 (with
+// IrrcacheSettings::occluder_plane; rays 192 to 592). Factor 1 was worse than 0.5 on 6 of 10 scenes
+// (cornell-box 1.27x, room-c 1.21x, specular 1.28x).
+constexpr double kInterpolationFloor = 0.5;
 
 // R* as the model above gives it, from the pilot's figures.
 BalanceResult ChooseRecordRays(const PilotFigures& pilot, const BalanceInputs& in);

@@ -146,7 +146,7 @@ class Scene {
   std::vector<std::unique_ptr<Texture>> textures_;
   std::vector<std::unique_ptr<Bsdf>> materials_;  // SceneDesc::bsdfs, built
   LightSampler lights_;                           // local lights first, then environment lights
-  bool has_pass_through_ = false;  // some material lets rays through (mask): see Occluded
+  bool has_pass_through_ = false;     // some material lets rays through (mask): see Occluded
   bool pass_through_filter_ = false;  // ... and Embree's occlusion filter handles it
   Camera camera_;
   Bounds3 bounds_;

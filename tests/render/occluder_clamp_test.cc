@@ -55,8 +55,9 @@ struct RecordSetup {
   float a_max = 0;
 };
 
-RecordSetup MakeRecord(bool panel) {
+RecordSetup MakeRecord(bool panel, int level = 1, float footprint = 0.1f, bool plane = true) {
   RecordSetup s;
+  s.settings.occluder_plane = plane;
   s.built = BuildLoaded(LoadSceneString(FloorXml(panel), ::testing::TempDir() + "/s.xml", {}));
   const Scene& scene = *s.built.scene;
   CacheSettings cs;
@@ -70,14 +71,15 @@ RecordSetup MakeRecord(bool panel) {
   EXPECT_NEAR(hit.p.y, 0, 1e-5);
   Rng rng(7, 1);
   RenderCounters counters;
-  s.record = integrator.ComputeRecord(hit, Vec3(0, 1, 0), 1, 0.1f, rng, counters, nullptr, 1);
+  s.record =
+      integrator.ComputeRecord(hit, Vec3(0, 1, 0), 1, footprint, rng, counters, nullptr, level);
   s.cache->Insert(s.record);
   return s;
 }
 
-bool Found(const RecordSetup& s, const Vec3& x) {
+bool Found(const RecordSetup& s, const Vec3& x, int level = 1) {
   Vec3 e;
-  return s.cache->Lookup(x, Vec3(0, 1, 0), s.a_max, &e, nullptr, 1);
+  return s.cache->Lookup(x, Vec3(0, 1, 0), s.a_max, &e, nullptr, level);
 }
 
 TEST(OccluderClampTest, SecondaryRecordDoesNotReachBehindAThinPanel) {
@@ -96,6 +98,27 @@ TEST(OccluderClampTest, WithoutThePanelTheFootprintSpacingStays) {
   EXPECT_GE(s.settings.accuracy * s.record.radius, s.settings.min_spacing_px * 0.1f * 0.999f);
   EXPECT_TRUE(Found(s, Vec3(0.21f, 0, 0)));
   EXPECT_TRUE(Found(s, Vec3(0.25f, 0, 0)));
+}
+
+// A camera record (level 0) keeps its spacing floor (1.5 footprints: 0.3 units at a footprint of
+// 0.2, past the panel at 0.2), but its occluder plane (IrrcacheSettings::occluder_plane) keeps it
+// from the floor behind the panel; without the panel it reaches there.
+TEST(OccluderClampTest, CameraRecordKeepsItsFloorButNotBehindAPanel) {
+  const RecordSetup s = MakeRecord(true, 0, 0.2f);
+  ASSERT_GT(s.record.irradiance.x, 0);
+  EXPECT_GE(s.settings.accuracy * s.record.radius, s.settings.min_spacing_px * 0.2f * 0.999f);
+  EXPECT_FALSE(Found(s, Vec3(0.25f, 0, 0), 0));  // behind the panel
+  EXPECT_FALSE(Found(s, Vec3(0.21f, 0, 0), 0));
+  EXPECT_TRUE(Found(s, Vec3(-0.1f, 0, 0), 0));
+  EXPECT_TRUE(Found(s, Vec3(0.15f, 0, 0), 0));  // nearer than the panel
+
+  const RecordSetup open = MakeRecord(false, 0, 0.2f);
+  EXPECT_TRUE(Found(open, Vec3(0.25f, 0, 0), 0));
+  EXPECT_TRUE(Found(open, Vec3(0.21f, 0, 0), 0));
+
+  // With the plane off (as before it), the same record reaches behind the panel.
+  const RecordSetup off = MakeRecord(true, 0, 0.2f, false);
+  EXPECT_TRUE(Found(off, Vec3(0.25f, 0, 0), 0));
 }
 
 }  // namespace

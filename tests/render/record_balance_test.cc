@@ -47,7 +47,7 @@ TEST(RecordBalanceTest, ClosedFormWhenSamplesDominate) {
   const double c = kRecordOverlap * 1e-3 * 1e5 * 4e-3, d = 64 * 1e5 * 5e-6;
   EXPECT_NEAR(r.record_seconds, c, 1e-9);
   EXPECT_NEAR(r.sampling_seconds, d, 1e-9);
-  const double expect = 1536 * std::sqrt(1e-4 / 0.01 * d / c);
+  const double expect = 1536 * std::sqrt(1e-4 / (kInterpolationFloor * 1e-4 + 0.01) * d / c);
   ASSERT_GT(expect, 1536 / 8.0);  // inside the clamp, so the closed form is what comes out
   EXPECT_EQ(r.record_rays, int(std::lround(expect)));
 }
@@ -58,6 +58,24 @@ TEST(RecordBalanceTest, KeepsTheRaysWhenRecordsDominate) {
   BalanceInputs in;
   in.image_pixels = 1e5;
   EXPECT_EQ(ChooseRecordRays(p, in).record_rays, 1536);
+}
+
+TEST(RecordBalanceTest, NoiselessSamplesDoNotDecideAlone) {
+  // Samples with no error (direct light from rectangles, nothing in penumbra): with I = 0 the
+  // model would want rays without end; the interpolation error the cache keeps at any rays bounds
+  // them at R0 sqrt(D / (kInterpolationFloor C)).
+  const PilotFigures p = Pilot(100, 1e-4, 1e-3, 0.0, 0.1, 5e-6);
+  BalanceInputs in;
+  in.image_pixels = 1e5;
+  in.max_spp = 64;
+  in.min_spp = 16;
+  const BalanceResult r = ChooseRecordRays(p, in);
+  EXPECT_EQ(r.sampling_error, 0);
+  const double expect =
+      1536 * std::sqrt(r.sampling_seconds / (kInterpolationFloor * r.record_seconds));
+  ASSERT_GT(expect, 1536 / 8.0);
+  ASSERT_LT(expect, 1536);
+  EXPECT_EQ(r.record_rays, int(std::lround(expect)));
 }
 
 TEST(RecordBalanceTest, NeverBelowAnEighth) {
