@@ -24,15 +24,18 @@ struct IrradianceRecord {
   // lookup point beyond the plane through that hit, perpendicular to it, is behind the occluder
   // as seen from x_i and does not use the record (RecordWeight): a record next to a thin
   // partition does not reach the partition's other side. Kept in the cache in 6 bytes
-  // (cache/occluder_plane.h), not in snapshots or on the wire: a camera record read from either
-  // has none (its validity radius alone bounds it, as before the plane).
+  // (cache/occluder_plane.h), as 3 floats in snapshots (version 2) and on the wire
+  // (RecordBatch.occluders); a record from a version-1 snapshot or from a sender without them has
+  // none (its validity radius alone bounds it).
   Vec3 occluder;
 };
 
-// True when every field is finite, the normal has unit length (within 1e-3), R > 0 and E >= 0.
-// Records read back from disk or the wire are checked with this before use.
+// True when every field (the occluder too) is finite, the normal has unit length (within 1e-3), R >
+// 0 and E >= 0. Records read back from disk or the wire are checked with this before use.
 inline bool IsValidRecord(const IrradianceRecord& r) {
-  if (!IsFinite(r.position) || !IsFinite(r.normal) || !IsFinite(r.irradiance)) return false;
+  if (!IsFinite(r.position) || !IsFinite(r.normal) || !IsFinite(r.irradiance) ||
+      !IsFinite(r.occluder))
+    return false;
   if (!(r.radius > 0) || !std::isfinite(r.radius)) return false;
   if (std::abs(Length(r.normal) - 1.0f) > 1e-3f) return false;
   return r.irradiance.x >= 0 && r.irradiance.y >= 0 && r.irradiance.z >= 0;

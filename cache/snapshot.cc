@@ -12,7 +12,8 @@ namespace irfarm {
 namespace {
 
 constexpr char kMagic[8] = {'I', 'R', 'F', 'S', 'N', 'A', 'P', '\0'};
-constexpr uint32_t kRecordBytes = 44;
+constexpr uint32_t kRecordBytesV1 = 44;  // version 1: no occluder
+constexpr uint32_t kRecordBytes = 56;
 constexpr size_t kHeaderBytes = 32;
 
 template <typename T>
@@ -54,6 +55,9 @@ std::string SerializeSnapshot(const Snapshot& snapshot) {
                          r.normal.z,   r.irradiance.x, r.irradiance.y, r.irradiance.z, r.radius};
     for (float f : v) Put(&out, f);
     Put(&out, r.origin);
+    Put(&out, r.occluder.x);
+    Put(&out, r.occluder.y);
+    Put(&out, r.occluder.z);
   }
   Put(&out, SnapshotChecksum(out.data(), out.size()));
   return out;
@@ -66,21 +70,22 @@ absl::StatusOr<Snapshot> ParseSnapshot(const std::string& in, const std::string&
   if (in.size() < kHeaderBytes + 8) return bad("too short");
   if (std::memcmp(in.data(), kMagic, sizeof kMagic) != 0) return bad("bad magic");
   const uint32_t version = Get<uint32_t>(in, 8);
-  if (version != kSnapshotVersion)
-    return bad("version " + std::to_string(version) + ", this build reads version " +
+  if (version != 1 && version != kSnapshotVersion)
+    return bad("version " + std::to_string(version) + ", this build reads versions 1 to " +
                std::to_string(kSnapshotVersion));
-  if (Get<uint32_t>(in, 12) != kRecordBytes) return bad("unexpected record size");
+  const uint32_t record_bytes = version == 1 ? kRecordBytesV1 : kRecordBytes;
+  if (Get<uint32_t>(in, 12) != record_bytes) return bad("unexpected record size");
   Snapshot s;
   s.scene_hash = Get<uint64_t>(in, 16);
   const uint64_t count = Get<uint64_t>(in, 24);
-  if (count > (in.size() - kHeaderBytes - 8) / kRecordBytes ||
-      in.size() != kHeaderBytes + count * kRecordBytes + 8)
+  if (count > (in.size() - kHeaderBytes - 8) / record_bytes ||
+      in.size() != kHeaderBytes + count * record_bytes + 8)
     return bad("size does not match the record count " + std::to_string(count));
   const size_t body = in.size() - 8;
   if (SnapshotChecksum(in.data(), body) != Get<uint64_t>(in, body)) return bad("checksum mismatch");
   s.records.reserve(count);
   for (uint64_t i = 0; i < count; ++i) {
-    const size_t o = kHeaderBytes + i * kRecordBytes;
+    const size_t o = kHeaderBytes + i * record_bytes;
     float v[10];
     std::memcpy(v, in.data() + o, sizeof v);
     IrradianceRecord r;
@@ -89,6 +94,8 @@ absl::StatusOr<Snapshot> ParseSnapshot(const std::string& in, const std::string&
     r.irradiance = Vec3(v[6], v[7], v[8]);
     r.radius = v[9];
     r.origin = Get<uint32_t>(in, o + 40);
+    if (version >= 2)
+      r.occluder = Vec3(Get<float>(in, o + 44), Get<float>(in, o + 48), Get<float>(in, o + 52));
     if (!IsValidRecord(r)) return bad("record " + std::to_string(i) + " is invalid");
     s.records.push_back(r);
   }

@@ -1,15 +1,16 @@
 // Cache snapshot files: a job's irradiance records saved to warm-start a later render of the same
 // scene (design.md "Snapshots"). No network here: the coordinator, the CLI and tests share it.
 //
-// Format (little-endian, version 1):
+// Format (little-endian, version 2):
 //   offset 0   8 bytes  magic "IRFSNAP\0"
-//          8   u32      version (1)
-//         12   u32      bytes per record (44)
+//          8   u32      version (2)
+//         12   u32      bytes per record (56)
 //         16   u64      scene hash (SceneHash of the scene the records belong to)
 //         24   u64      record count N
-//         32   N x 44   records: position xyz, normal xyz, irradiance rgb, radius (10 f32),
-//                       origin (u32)
-//   32 + 44N   u64      FNV-1a 64 checksum of every byte before it
+//         32   N x 56   records: position xyz, normal xyz, irradiance rgb, radius (10 f32),
+//                       origin (u32), occluder xyz (3 f32; IrradianceRecord::occluder, zero: none)
+//   32 + 56N   u64      FNV-1a 64 checksum of every byte before it
+// Version 1 (before 2026-12-02) is read too: 44 bytes per record, no occluder.
 // Reading checks the magic, version, sizes, checksum and every record (IsValidRecord); any
 // failure is an error naming what is wrong, and no record of a bad file is used.
 #pragma once
@@ -24,7 +25,7 @@
 
 namespace irfarm {
 
-constexpr uint32_t kSnapshotVersion = 1;
+constexpr uint32_t kSnapshotVersion = 2;
 
 struct Snapshot {
   uint64_t scene_hash = 0;

@@ -16,12 +16,22 @@ void PackRecords(const std::vector<IrradianceRecord>& records, uint32_t origin_f
     for (float f : v) batch->add_values(f);
     batch->add_origins(r.origin != 0 ? r.origin : origin_for_own);
   }
+  // Occluders for every record of the batch or for none: a batch appended to one that came
+  // without them (an older sender's) gets none either.
+  if (batch->occluders_size() + 3 * int(records.size()) != 3 * batch->origins_size()) return;
+  batch->mutable_occluders()->Reserve(3 * batch->origins_size());
+  for (const IrradianceRecord& r : records) {
+    batch->add_occluders(r.occluder.x);
+    batch->add_occluders(r.occluder.y);
+    batch->add_occluders(r.occluder.z);
+  }
 }
 
 size_t BatchSize(const v1::RecordBatch& batch) { return size_t(batch.origins_size()); }
 
 size_t BatchBytes(const v1::RecordBatch& batch) {
-  return size_t(batch.values_size()) * sizeof(float) + size_t(batch.origins_size()) * 4;
+  return size_t(batch.values_size() + batch.occluders_size()) * sizeof(float) +
+         size_t(batch.origins_size()) * 4;
 }
 
 absl::StatusOr<std::vector<IrradianceRecord>> DecodeRecords(const v1::RecordBatch& batch) {
@@ -30,6 +40,12 @@ absl::StatusOr<std::vector<IrradianceRecord>> DecodeRecords(const v1::RecordBatc
     return absl::InvalidArgumentError(
         "malformed record batch: " + std::to_string(batch.values_size()) + " floats for " +
         std::to_string(batch.origins_size()) + " origins");
+  }
+  const bool occluders = batch.occluders_size() > 0;
+  if (occluders && batch.occluders_size() != 3 * batch.origins_size()) {
+    return absl::InvalidArgumentError(
+        "malformed record batch: " + std::to_string(batch.occluders_size()) +
+        " occluder floats for " + std::to_string(batch.origins_size()) + " records");
   }
   std::vector<IrradianceRecord> out(size_t(batch.origins_size()));
   const float* v = batch.values().data();
@@ -40,6 +56,9 @@ absl::StatusOr<std::vector<IrradianceRecord>> DecodeRecords(const v1::RecordBatc
     r.irradiance = Vec3(v[6], v[7], v[8]);
     r.radius = v[9];
     r.origin = batch.origins(i);
+    if (occluders)
+      r.occluder =
+          Vec3(batch.occluders(3 * i), batch.occluders(3 * i + 1), batch.occluders(3 * i + 2));
   }
   return out;
 }

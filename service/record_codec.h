@@ -1,6 +1,7 @@
 // Irradiance records on the wire: packs IrradianceRecords into a RecordBatch (10 floats + one
-// origin per record, no per-record messages) and unpacks them, validating every record
-// (IsValidRecord: finite values, unit normal, R > 0, E >= 0) before anything uses it.
+// origin + 3 occluder floats per record, no per-record messages) and unpacks them; receivers
+// validate every record (IsValidRecord: finite values, unit normal, R > 0, E >= 0) before
+// anything uses it.
 #pragma once
 
 #include <cstddef>
@@ -26,7 +27,7 @@ size_t BatchBytes(const v1::RecordBatch& batch);
 
 // Decodes every record of `batch`, valid or not: the receiver validates them (IsValidRecord)
 // and counts what it rejects. INVALID_ARGUMENT when the batch is malformed: values not 10 per
-// origin.
+// origin, occluders neither 3 per origin nor absent (then the records have none).
 absl::StatusOr<std::vector<IrradianceRecord>> DecodeRecords(const v1::RecordBatch& batch);
 
 }  // namespace irfarm
