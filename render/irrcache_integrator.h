@@ -74,7 +74,9 @@ struct IrrcacheSettings {
   // record on the ceiling by the lamp, valid 1.5 pixels around by the spacing floor, reached into
   // the dark gap between lamp and ceiling: a bright line along the lamp's far edge, about 35
   // pixels carrying half the image's error (seed 12: relMSE 6.6e-4 with the plane off, 3.5e-4
-  // on; seed 14: 5.7e-4 against 2.9e-4). Records made on the 9 other shared scenes: +0-4%.
+  // on; seed 14: 5.7e-4 against 2.9e-4). Records made: +0-4% on room-a ... room-d, specular,
+  // sunlit-room, thin-panels and veach-ajar; +23% on living-room (35k -> 43k), whose error x time
+  // at defaults is then 1.02x what it was before this plane and kInterpolationFloor together.
   bool occluder_plane = true;
   // Levels of cached irradiance (RADIANCE's ambient bounces are all cached likewise): 1 = a
   // record's rays are path traced (unbiased beyond the interpolation at x); 2 = they are shaded,
