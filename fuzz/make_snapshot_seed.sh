@@ -18,4 +18,4 @@ JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$DATA/scenes/cornell-box/scene
 STATE=$(wait_job "$ADDR" "$JOB" 120)
 [[ $STATE == JOB_STATE_SUCCEEDED ]] || fail "job $JOB: $STATE"
 "$BIN/irfarm" snapshot --coordinator "$ADDR" "$JOB" -o "$out"
-echo "$out: $(stat -c %s "$out") bytes, $(( ($(stat -c %s "$out") - 40) / 44 )) records"
+echo "$out: $(stat -c %s "$out") bytes, $(( ($(stat -c %s "$out") - 40) / 56 )) records"
