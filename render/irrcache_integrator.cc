@@ -1,5 +1,7 @@
 #include "render/irrcache_integrator.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <optional>
 
@@ -15,6 +17,9 @@ constexpr int kAllLightsMax = LightSampler::kAllLightsMax;
 // Records with more strata than this keep Ward's split-sphere spacing (the Hessian needs every
 // stratum's ray on the stack: 80 KB).
 constexpr int kMaxHessianStrata = 4096;
+// At most this many nearest hits are kept for a camera record's occluder-plane test (5% of 10k
+// rays); with more rays the test asks for this many within twice the nearest distance.
+constexpr int kMaxPlaneRays = 512;
 // Each stratum's ray, kept for Hessian spacing: direction (times its hit distance, once known),
 // first-hit distance and luminance.
 struct StrataRays {
@@ -218,6 +223,16 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   std::optional<StrataRays> grid;
   if (settings_.spacing == RecordSpacing::kHessian && T * P <= kMaxHessianStrata) grid.emplace();
   bool grid_complete = grid.has_value();
+  // The k nearest hit distances (a max-heap, on the stack): at the end, whether k rays hit within
+  // twice the nearest one's distance decides the camera record's occluder plane.
+  const bool plane_test =
+      settings_.occluder_plane && level == 0 && settings_.occluder_plane_fraction > 0;
+  std::array<float, kMaxPlaneRays> near_heap;
+  const int near_k =
+      plane_test ? std::clamp(int(std::ceil(settings_.occluder_plane_fraction * float(T * P))), 1,
+                              kMaxPlaneRays)
+                 : 0;
+  int near_count = 0;
   Vec3 sum, half_sum[2];
   for (int i = 0; i < T; ++i)
     for (int j = 0; j < P; ++j) {
@@ -247,6 +262,14 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
         if (d < nearest) {
           nearest = d;
           nearest_dir = dir;
+        }
+        if (near_count < near_k) {
+          near_heap[size_t(near_count++)] = d;
+          std::push_heap(near_heap.begin(), near_heap.begin() + near_count);
+        } else if (near_k > 0 && d < near_heap[0]) {
+          std::pop_heap(near_heap.begin(), near_heap.begin() + near_count);
+          near_heap[size_t(near_count - 1)] = d;
+          std::push_heap(near_heap.begin(), near_heap.begin() + near_count);
         }
       }
       if (grid) {
@@ -298,7 +321,11 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   // Where a floor keeps the validity radius past the nearest hit (a record next to a partition;
   // a camera record by a lamp hung just below the ceiling, whose 1.5-pixel floor reached into
   // the dark gap above the lamp), the occluder plane keeps the record from the other side.
-  if (settings_.occluder_plane && std::isfinite(nearest)) r.occluder = nearest_dir * nearest;
+  // A camera record's plane only where something large is that close (occluder_plane_fraction):
+  // k rays within twice the nearest distance.
+  const bool large_occluder = !plane_test || (near_count == near_k && near_heap[0] < 2 * nearest);
+  if (settings_.occluder_plane && std::isfinite(nearest) && large_occluder)
+    r.occluder = nearest_dir * nearest;
   if (!(r.radius > 0) || !std::isfinite(r.radius)) {
     // Degenerate footprint (should not happen): fall back to a small multiple of the offset scale.
     r.radius = std::max(1e-4f * std::max(hit.error_scale, MaxAbsComponent(hit.p)), 1e-30f);

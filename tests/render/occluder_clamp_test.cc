@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "cache/irradiance_cache.h"
@@ -19,8 +20,9 @@ namespace irfarm {
 namespace {
 
 // A grey floor (the y = 0 plane, facing +y) under a uniform sky; with `panel`, a thin panel in the
-// plane x = 0.2 stands on it (y in [0, 2], z in [-1, 1]).
-std::string FloorXml(bool panel) {
+// plane x = 0.2 stands on it (y in [0, 2], z in [-1, 1]); with `post` instead, a post as high and
+// 0.02 wide (z in [-0.01, 0.01]) stands there.
+std::string FloorXml(bool panel, bool post = false) {
   std::string xml = R"(<scene version="3.0.0">
   <sensor type="perspective">
     <float name="fov" value="60"/>
@@ -40,6 +42,12 @@ std::string FloorXml(bool panel) {
     <ref id="gray"/>
   </shape>
 )";
+  if (post)
+    xml += R"(  <shape type="rectangle">
+    <transform name="to_world"><rotate y="1" angle="90"/><scale z="0.01"/><translate x="0.2" y="1"/></transform>
+    <ref id="gray"/>
+  </shape>
+)";
   return xml + "</scene>\n";
 }
 
@@ -55,10 +63,13 @@ struct RecordSetup {
   float a_max = 0;
 };
 
-RecordSetup MakeRecord(bool panel, int level = 1, float footprint = 0.1f, bool plane = true) {
+RecordSetup MakeRecord(bool panel, int level = 1, float footprint = 0.1f, bool plane = true,
+                       bool post = false, std::optional<float> plane_fraction = std::nullopt) {
   RecordSetup s;
   s.settings.occluder_plane = plane;
-  s.built = BuildLoaded(LoadSceneString(FloorXml(panel), ::testing::TempDir() + "/s.xml", {}));
+  if (plane_fraction) s.settings.occluder_plane_fraction = *plane_fraction;
+  s.built =
+      BuildLoaded(LoadSceneString(FloorXml(panel, post), ::testing::TempDir() + "/s.xml", {}));
   const Scene& scene = *s.built.scene;
   CacheSettings cs;
   cs.bounds = scene.bounds();
@@ -119,6 +130,28 @@ TEST(OccluderClampTest, CameraRecordKeepsItsFloorButNotBehindAPanel) {
   // With the plane off (as before it), the same record reaches behind the panel.
   const RecordSetup off = MakeRecord(true, 0, 0.2f, false);
   EXPECT_TRUE(Found(off, Vec3(0.25f, 0, 0), 0));
+}
+
+// A camera record by a post (IrrcacheSettings::occluder_plane_fraction): the post is its
+// nearest hit, but few of its rays (about 1.6% cosine-weighted) hit anything within twice that
+// distance, so it keeps no plane and reaches the floor behind the post, which the post hardly
+// shades; by the panel (about 15% of its rays that close) the same record keeps its plane. With
+// the fraction at 0 (every record a plane) the post's record is cut off behind the post.
+TEST(OccluderClampTest, CameraRecordByASmallObjectKeepsNoPlane) {
+  const RecordSetup post = MakeRecord(false, 0, 0.2f, true, true);
+  ASSERT_GT(post.record.irradiance.x, 0);
+  EXPECT_GE(post.settings.accuracy * post.record.radius,
+            post.settings.min_spacing_px * 0.2f * 0.999f);
+  EXPECT_EQ(Length(post.record.occluder), 0.0f);
+  EXPECT_TRUE(Found(post, Vec3(0.25f, 0, 0), 0));  // behind the post
+
+  const RecordSetup panel = MakeRecord(true, 0, 0.2f);
+  EXPECT_GT(Length(panel.record.occluder), 0.19f);
+  EXPECT_LT(Length(panel.record.occluder), 0.4f);
+
+  const RecordSetup every = MakeRecord(false, 0, 0.2f, true, true, 0.0f);
+  EXPECT_GT(Length(every.record.occluder), 0.19f);
+  EXPECT_FALSE(Found(every, Vec3(0.25f, 0, 0), 0));
 }
 
 }  // namespace
