@@ -1,0 +1,189 @@
+#!/usr/bin/env python3
+"""Random rooms of the kind of ../shared/scenes/room-a ... room-d, for judging irfarm on scenes it
+has never seen (its defaults were chosen on the shared scenes only).
+
+A room is a box W x H x D (x in [0, W], y up, z in [0, D]) of one-sided diffuse walls facing
+inwards, each its own colour; 1-4 diffuse boxes on the floor (Mitsuba's `cube`, rotated about y);
+1-3 rectangular area lamps just under the ceiling facing down; with probability 0.6 a window
+opening in the far wall (z = D) with a directional sun shining in through it and a constant sky.
+The camera stands near the z = 0 wall at eye height and looks into the room. Only the scene
+subset of ../shared/scenes/README.md, so Mitsuba 3 reads the same file.
+
+  python3 bench/make_room.py SEED OUT_DIR [--window yes|no]   writes OUT_DIR/scene.xml
+  python3 bench/make_room.py SEED OUT_DIR --reference 1024      and a Mitsuba 3 reference:
+      reference.exr (mean of 256-spp chunks, seeds 1000...), reference.json (seconds, spp and the
+      reference's own noise: relmse_half_vs_half of the even and odd chunks and
+      relmse_est_ref_vs_truth = half_vs_half / 4, as the shared references have it). Needs
+      `pip install mitsuba` and, for llvm_ad_rgb, DRJIT_LIBLLVM_PATH (Debian's libllvm19).
+
+bench/time_vs_error.py --scenes-dir takes a folder of such rooms (with --mitsuba-live: they
+have no mitsuba-curve.json).
+"""
+import argparse
+import json
+import math
+import os
+import random
+import time
+
+
+def rect(name, mat, scale, rotate, translate, emitter=None):
+    """A rectangle ([-1, 1]^2 in xy, normal +z) scaled, rotated (axis, degrees), translated."""
+    rot = "".join(f'<rotate {ax}="1" angle="{ang:.4f}"/>' for ax, ang in rotate)
+    em = (f'\n        <emitter type="area"><rgb name="radiance" value="{emitter}"/></emitter>'
+          if emitter else "")
+    return f"""    <shape type="rectangle" id="{name}">
+        <transform name="to_world"><scale x="{scale[0]:.5f}" y="{scale[1]:.5f}"/>{rot}<translate x="{translate[0]:.5f}" y="{translate[1]:.5f}" z="{translate[2]:.5f}"/></transform>
+        <ref id="{mat}"/>{em}
+    </shape>
+"""
+
+
+def rgb(v):
+    return ", ".join(f"{c:.4f}" for c in v)
+
+
+def make_room(seed, window=None):
+    rnd = random.Random(seed)
+    W, H, D = rnd.uniform(3.5, 7.0), rnd.uniform(2.5, 3.3), rnd.uniform(3.0, 5.5)
+    if window is None:
+        window = rnd.random() < 0.6
+    out = []
+    mats = {}
+
+    def mat(name, colour):
+        mats[name] = colour
+
+    def wall_colour():
+        base = rnd.uniform(0.35, 0.7)
+        return [min(0.85, max(0.05, base + rnd.uniform(-0.2, 0.2))) for _ in range(3)]
+
+    mat("mat-floor", [rnd.uniform(0.3, 0.6)] * 3)
+    mat("mat-ceiling", [rnd.uniform(0.6, 0.8)] * 3)
+    for w in ("z0", "zD", "x0", "xW"):
+        mat(f"mat-wall-{w}", wall_colour())
+    mat("mat-lamp", [0, 0, 0])
+    # Floor (normal +y), ceiling (-y), walls facing inwards.
+    out.append(rect("floor", "mat-floor", (W / 2, D / 2), [("x", -90)], (W / 2, 0, D / 2)))
+    out.append(rect("ceiling", "mat-ceiling", (W / 2, D / 2), [("x", 90)], (W / 2, H, D / 2)))
+    out.append(rect("wall-z0", "mat-wall-z0", (W / 2, H / 2), [], (W / 2, H / 2, 0)))
+    out.append(rect("wall-x0", "mat-wall-x0", (D / 2, H / 2), [("y", 90)], (0, H / 2, D / 2)))
+    out.append(rect("wall-xW", "mat-wall-xW", (D / 2, H / 2), [("y", -90)], (W, H / 2, D / 2)))
+    emitters = []
+    if window:
+        ww, wh = rnd.uniform(0.9, min(2.2, W - 1.0)), rnd.uniform(0.9, min(1.5, H - 1.2))
+        x0 = rnd.uniform(0.4, W - ww - 0.4)
+        y0 = rnd.uniform(0.7, H - wh - 0.3)
+        x1, y1 = x0 + ww, y0 + wh
+        # The far wall (z = D, normal -z) around the opening: below, above, left, right.
+        for k, (a, b, c, d) in enumerate(
+                [(0, W, 0, y0), (0, W, y1, H), (0, x0, y0, y1), (x1, W, y0, y1)]):
+            out.append(rect(f"wall-zD-{k}", "mat-wall-zD", ((b - a) / 2, (d - c) / 2), [("y", 180)],
+                            ((a + b) / 2, (c + d) / 2, D)))
+        # The sun comes in through the opening (direction -z, downwards).
+        elev = math.radians(rnd.uniform(20, 50))
+        az = math.radians(rnd.uniform(-30, 30))
+        sun_dir = (math.cos(elev) * math.sin(az), -math.sin(elev), -math.cos(elev) * math.cos(az))
+        sun = [rnd.uniform(8, 12) * c for c in (1.0, 0.93, 0.8)]
+        emitters.append(f"""    <emitter type="directional">
+        <vector name="direction" value="{rgb(sun_dir)}"/>
+        <rgb name="irradiance" value="{rgb(sun)}"/>
+    </emitter>
+""")
+        sky = rnd.uniform(0.15, 0.35)
+        emitters.append(f"""    <emitter type="constant">
+        <rgb name="radiance" value="{rgb([sky * 0.8, sky * 0.95, sky * 1.1])}"/>
+    </emitter>
+""")
+    else:
+        out.append(rect("wall-zD", "mat-wall-zD", (W / 2, H / 2), [("y", 180)], (W / 2, H / 2, D)))
+    # Boxes on the floor, in the far part of the room (the camera is by the z = 0 wall).
+    boxes = []
+    for i in range(rnd.randint(1, 4)):
+        sx, sy, sz = rnd.uniform(0.2, 0.7), rnd.uniform(0.2, 0.8), rnd.uniform(0.2, 0.6)
+        x, z = rnd.uniform(0.8, W - 0.8), rnd.uniform(max(1.5, 0.45 * D), D - 0.7)
+        mat(f"mat-box{i}", [rnd.uniform(0.1, 0.7) for _ in range(3)])
+        boxes.append(f"""    <shape type="cube" id="box{i}">
+        <transform name="to_world"><scale x="{sx:.4f}" y="{sy:.4f}" z="{sz:.4f}"/><rotate y="1" angle="{rnd.uniform(0, 90):.3f}"/><translate x="{x:.4f}" y="{sy:.4f}" z="{z:.4f}"/></transform>
+        <ref id="mat-box{i}"/>
+    </shape>
+""")
+    # Lamps under the ceiling, facing down.
+    lamps = []
+    for i in range(rnd.randint(1, 3)):
+        lw, ld = rnd.uniform(0.15, 0.6), rnd.uniform(0.15, 0.6)
+        x, z = rnd.uniform(lw + 0.3, W - lw - 0.3), rnd.uniform(ld + 0.3, D - ld - 0.3)
+        power = rnd.uniform(20, 50) * (0.3 / math.sqrt(lw * ld)) ** 0.5
+        lamps.append(rect(f"light{i}", "mat-lamp", (lw, ld), [("x", 90)], (x, H - 0.01, z),
+                          emitter=rgb([power, power * 0.92, power * 0.78])))
+    eye = (rnd.uniform(0.3 * W, 0.7 * W), rnd.uniform(1.2, 1.6), rnd.uniform(0.25, 0.5))
+    target = (rnd.uniform(0.2 * W, 0.8 * W), rnd.uniform(0.8, 1.4), D * 0.8)
+    head = f"""<?xml version="1.0" encoding="utf-8"?>
+<!-- bench/make_room.py seed {seed}: {W:.3f} x {H:.3f} x {D:.3f} m, {'window, sun and sky' if window else 'no window'}, {len(lamps)} lamp(s), {len(boxes)} box(es) -->
+<scene version="3.0.0">
+    <default name="spp" value="256"/>
+    <default name="resx" value="320"/>
+    <default name="resy" value="240"/>
+    <default name="max_depth" value="-1"/>
+    <integrator type="path"><integer name="max_depth" value="$max_depth"/></integrator>
+    <sensor type="perspective">
+        <string name="fov_axis" value="x"/>
+        <float name="fov" value="{rnd.uniform(65, 78):.2f}"/>
+        <transform name="to_world"><lookat origin="{rgb(eye)}" target="{rgb(target)}" up="0, 1, 0"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
+        <film type="hdrfilm">
+            <integer name="width" value="$resx"/>
+            <integer name="height" value="$resy"/>
+            <rfilter type="box"/>
+        </film>
+    </sensor>
+"""
+    bsdfs = "".join(f"""    <bsdf type="diffuse" id="{n}"><rgb name="reflectance" value="{rgb(c)}"/></bsdf>
+""" for n, c in mats.items())
+    return head + bsdfs + "".join(out) + "".join(emitters) + "".join(boxes) + "".join(lamps) + \
+        "</scene>\n"
+
+
+def make_reference(folder, spp):
+    import numpy as np
+    import mitsuba as mi
+    mi.set_variant("llvm_ad_rgb")
+    chunk = 256
+    n = max(2, spp // chunk)
+    scene = mi.load_file(os.path.join(folder, "scene.xml"), spp=chunk)
+    t0 = time.time()
+    imgs = [np.array(mi.render(scene, spp=chunk, seed=1000 + i), dtype=np.float64)
+            for i in range(n)]
+    seconds = time.time() - t0
+    ref = np.mean(imgs, axis=0)
+    even, odd = np.mean(imgs[0::2], axis=0), np.mean(imgs[1::2], axis=0)
+    half = float(np.mean((even - odd) ** 2 / (odd ** 2 + 0.01)))
+    mi.Bitmap(ref.astype(np.float32)).write(os.path.join(folder, "reference.exr"))
+    with open(os.path.join(folder, "reference.json"), "w") as f:
+        json.dump({"renderer": "mitsuba " + mi.__version__, "variant": "llvm_ad_rgb",
+                   "integrator": "path", "max_depth": -1, "spp": n * chunk,
+                   "seconds": round(seconds, 2), "chunks": {"count": n, "spp_each": chunk,
+                                                            "seeds": f"1000..{999 + n}"},
+                   "relmse_half_vs_half": half, "relmse_est_ref_vs_truth": half / 4}, f, indent=2)
+    return seconds, half / 4
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("seed", type=int)
+    ap.add_argument("out")
+    ap.add_argument("--window", choices=["yes", "no"])
+    ap.add_argument("--reference", type=int, default=0, help="spp of a Mitsuba 3 reference")
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    window = None if a.window is None else a.window == "yes"
+    with open(os.path.join(a.out, "scene.xml"), "w") as f:
+        f.write(make_room(a.seed, window))
+    if a.reference > 0:
+        seconds, est = make_reference(a.out, a.reference)
+        print(f"{a.out}: reference {a.reference} spp in {seconds:.0f} s, "
+              f"its own relMSE about {est:.2e}")
+
+
+if __name__ == "__main__":
+    main()
