@@ -54,5 +54,27 @@ TEST(RenderStatsTest, StringsWithQuotesControlsAndInvalidUtf8StayValidJson) {
   EXPECT_TRUE(j["error_estimate"]["sampling_relmse"].is_null());
 }
 
+// error_estimate.relmse is the whole image's estimate only where each part was estimated: an
+// irrcache render without cross-validated records (cache_relmse -1) writes null, not its camera
+// samples' part as if it were the total.
+TEST(RenderStatsTest, TotalErrorEstimateOnlyWhenTheCacheWasEstimated) {
+  RenderStats st;
+  st.integrator = "irrcache";
+  st.estimated_sampling_relmse = 5e-5;
+  st.estimated_cache_relmse = -1;
+  nlohmann::json j = nlohmann::json::parse(st.ToJson());
+  EXPECT_TRUE(j["error_estimate"]["relmse"].is_null());
+  EXPECT_DOUBLE_EQ(j["error_estimate"]["sampling_relmse"].get<double>(), 5e-5);
+
+  st.estimated_cache_relmse = 3e-4;
+  j = nlohmann::json::parse(st.ToJson());
+  EXPECT_DOUBLE_EQ(j["error_estimate"]["relmse"].get<double>(), 3.5e-4);
+
+  st.integrator = "path";  // no cache: the samples' estimate is the image's
+  st.estimated_cache_relmse = -1;
+  j = nlohmann::json::parse(st.ToJson());
+  EXPECT_DOUBLE_EQ(j["error_estimate"]["relmse"].get<double>(), 5e-5);
+}
+
 }  // namespace
 }  // namespace irfarm
