@@ -1024,25 +1024,15 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
         // near their minimum. Once more if the rebuilt cache is still below half of it (the
         // first estimate is from 256 checks only, and a larger a may buy nothing where the
         // validity radius is clamped at max_spacing_px).
-        double sampling = 0;
         if (may_rebuild && rebuilds == 0 && iteration == 0) {
-          sampling = EstimateSamplingError(trial, cam, settings.seed, TargetMinSpp(settings),
-                                           std::max(1, ic.light_samples), settings.splat, rect,
-                                           arena, counters);
+          const double sampling = EstimateSamplingError(
+              trial, cam, settings.seed, TargetMinSpp(settings), std::max(1, ic.light_samples),
+              settings.splat, rect, arena, counters);
           left_by_samples = std::clamp(settings.target_error - sampling,
                                        0.5 * settings.target_error, 0.9 * settings.target_error);
         }
-        // Also where the cache and the first round's samples together come out below E/2. On
-        // rooms made afresh by a generator like room-a ... room-d's (bench/make_room.py, seeds
-        // 201-206), room-203's cache came out at 0.3 E and its samples at 0.05 E, and both its
-        // runs ended at 0.37-0.39 E, outside [E/2, 2E]; with this, 3.98e-3 at E = 4e-3 and
-        // 1.10e-3 at 1e-3 (less the reference's own error). On the shared scenes it moved
-        // cornell-box at 4e-3 from 3.6e-3 to 4.5e-3 and room-a at 4e-3 from 2.7e-3 to 4.2e-3.
-        const bool far_below =
-            rebuilds == 0
-                ? cache_error < 0.25 * left_by_samples ||
-                      (iteration == 0 && cache_error + sampling < 0.5 * settings.target_error)
-                : iteration == 0 && cache_error < 0.5 * cache_budget;
+        const bool far_below = rebuilds == 0 ? cache_error < 0.25 * left_by_samples
+                                             : iteration == 0 && cache_error < 0.5 * cache_budget;
         if (may_rebuild && rebuilds < 2 && far_below) {
           if (rebuilds == 0) cache_budget = left_by_samples;
           const double r = std::min(16.0, cache_budget / std::max(cache_error, 1e-12));
