@@ -9,7 +9,9 @@
 //     coordinator's lock would take the 500 ms call deadline or more; with the old code the
 //     slowest took 960 ms. The 90% allows for a loaded machine: measured with the load average
 //     at 11 on 2 cores, the slowest of 98 took 113 ms.)
-//   - Submit fails with UNAVAILABLE in under 2 s; Cancel of a queued job answers at once;
+//   - Submit fails with UNAVAILABLE in under 2 s; Cancel of a queued job answers from memory
+//     (under 400 ms, the bound of the slowest read; it was 100 ms for this one call, the likeliest
+//     of the checks CI's run of 2026-12-02 failed once: its log did not keep which);
 //   - no tile counts as done (none could be stored).
 // After SIGCONT the job finishes, and nothing was lost: a second coordinator started on the same
 // Redis sees the job SUCCEEDED with every tile and returns the same image, sees the cancelled job
@@ -142,7 +144,9 @@ TEST_F(RedisHangTest, ReadsAnswerFromMemorySubmitFailsFastAndNothingIsLost) {
     worst_submit_ms = std::max(worst_submit_ms, ms);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAVAILABLE) << st.error_message();
   }
-  // Cancel of the queued job: answered from memory, written once Redis is back.
+  // Cancel of the queued job: answered from memory, written once Redis is back. One call, so it
+  // gets the bound of the slowest read (one that waited for Redis would take the 500 ms deadline).
+  double cancel_ms = 0;
   {
     const Clock::time_point t0 = Clock::now();
     grpc::ClientContext c;
@@ -150,7 +154,7 @@ TEST_F(RedisHangTest, ReadsAnswerFromMemorySubmitFailsFastAndNothingIsLost) {
     req.set_job_id(b);
     v1::CancelJobResponse r;
     EXPECT_TRUE(stub_->CancelJob(&c, req, &r).ok());
-    EXPECT_LT(Ms(Clock::now() - t0), 100.0);
+    cancel_ms = Ms(Clock::now() - t0);
   }
   // Reads, every 50 ms, for the rest of the stop.
   std::vector<double> get_ms, list_ms;
@@ -175,16 +179,17 @@ TEST_F(RedisHangTest, ReadsAnswerFromMemorySubmitFailsFastAndNothingIsLost) {
   auto p90 = [](const std::vector<double>& v) { return v[v.size() * 9 / 10]; };
   std::printf(
       "MEASURED Redis stopped %.1f s: %zu GetJob, median %.1f ms, 90%% %.1f ms, slowest %.1f ms; "
-      "ListJobs 90%% %.1f ms, slowest %.1f ms; slowest failed Submit %.0f ms; tiles done at stop "
-      "%u/%u\n",
+      "ListJobs 90%% %.1f ms, slowest %.1f ms; slowest failed Submit %.0f ms; Cancel %.1f ms; "
+      "tiles done at stop %u/%u\n",
       Ms(Clock::now() - stopped) / 1000, get_ms.size(), get_ms[get_ms.size() / 2], p90(get_ms),
-      get_ms.back(), p90(list_ms), list_ms.back(), worst_submit_ms, at_stop.tiles_done(),
+      get_ms.back(), p90(list_ms), list_ms.back(), worst_submit_ms, cancel_ms, at_stop.tiles_done(),
       at_stop.tiles_total());
   EXPECT_LT(p90(get_ms), 100.0);
   EXPECT_LT(get_ms.back(), 400.0);
   EXPECT_LT(p90(list_ms), 100.0);
   EXPECT_LT(list_ms.back(), 400.0);
   EXPECT_LT(worst_submit_ms, 2000.0);
+  EXPECT_LT(cancel_ms, 400.0);
   ASSERT_EQ(cluster.workers_size(), 1);
   EXPECT_FALSE(cluster.workers(0).silent()) << "the worker's stream stalled behind the store";
 
