@@ -505,6 +505,22 @@ TriangleMesh MakeDiskMesh(int segments) {
   return mesh;
 }
 
+TriangleMesh MakeCylinderMesh(int segments) {
+  TriangleMesh mesh;
+  for (int i = 0; i <= segments; ++i) {
+    const double a = 2 * 3.14159265358979323846 * i / segments;
+    const float c = float(std::cos(a)), s = float(std::sin(a)), u = float(i) / float(segments);
+    mesh.positions.insert(mesh.positions.end(), {Vec3(c, s, 0.0f), Vec3(c, s, 1.0f)});
+    mesh.normals.insert(mesh.normals.end(), {Vec3(c, s, 0.0f), Vec3(c, s, 0.0f)});
+    mesh.uvs.insert(mesh.uvs.end(), {u, 0.0f, u, 1.0f});
+  }
+  for (int i = 0; i < segments; ++i) {
+    const auto b0 = uint32_t(2 * i), t0 = b0 + 1, b1 = b0 + 2, t1 = b0 + 3;
+    mesh.indices.insert(mesh.indices.end(), {b0, b1, t1, b0, t1, t0});
+  }
+  return mesh;
+}
+
 void TransformMesh(const Mat4& to_world, TriangleMesh* mesh) {
   for (Vec3& p : mesh->positions) p = to_world.ApplyPoint(p);
   if (mesh->normals.empty()) return;

@@ -1,8 +1,9 @@
-// Triangle meshes for the scene loader: reads Wavefront OBJ and PLY files, generates the built-in
-// shapes (rectangle, cube, disk) and cleans meshes up (world transform, degenerate triangles,
-// smooth normals). Meshes come out in object space; TransformMesh moves them to world space.
-// Errors are statuses whose message is "FILE:LINE: what is wrong" (OBJ, PLY header) or
-// "FILE: what is wrong" (PLY data, which has no lines); NOT_FOUND when the file cannot be read.
+// Triangle meshes for the scene loader: reads Wavefront OBJ and PLY files (Mitsuba's serialized
+// format: serialized_mesh.h), generates the built-in shapes (rectangle, cube, disk, cylinder) and
+// cleans meshes up (world transform, degenerate triangles, smooth normals). Meshes come out in
+// object space; TransformMesh moves them to world space. Errors are statuses whose message is
+// "FILE:LINE: what is wrong" (OBJ, PLY header) or "FILE: what is wrong" (PLY data, which has no
+// lines); NOT_FOUND when the file cannot be read.
 #pragma once
 
 #include <string>
@@ -36,6 +37,12 @@ absl::StatusOr<TriangleMesh> LoadPlyMesh(const std::string& path);
 TriangleMesh MakeRectangleMesh();
 TriangleMesh MakeCubeMesh();
 TriangleMesh MakeDiskMesh(int segments = 128);
+// Cylinder: Mitsuba's open tube of radius 1 around z, z in [0, 1] (no caps), outward normals
+// (exact, per vertex: the tube's shading is smooth), uv = (angle / 2pi, z); `segments` quads, each
+// two triangles, with one seam column so u runs 0 ... 1. The polygon is inscribed in the circle:
+// at kCylinderSegments its area is 1 - 2.5e-5 of the tube's.
+constexpr int kCylinderSegments = 256;
+TriangleMesh MakeCylinderMesh(int segments = kCylinderSegments);
 
 // Positions by to_world, normals by its inverse transpose (normalized). The index order is kept,
 // as Mitsuba does: a mirroring transform (negative determinant) turns the geometric normal

@@ -30,6 +30,7 @@
 #include "absl/strings/str_split.h"
 #include "render/bsdfs/registry.h"
 #include "render/mesh_loader.h"
+#include "render/serialized_mesh.h"
 
 #define LOADER_RETURN_IF_ERROR(expr)   \
   do {                                 \
@@ -1145,10 +1146,10 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     if (shape_sink_) return Error(n, "an instance cannot be part of a shapegroup");
     return ParseInstance(n);
   }
-  LOADER_RETURN_IF_ERROR(
-      PluginType(n, "shape",
-                 {"obj", "ply", "rectangle", "cube", "sphere", "disk", "shapegroup", "instance"})
-          .status());
+  LOADER_RETURN_IF_ERROR(PluginType(n, "shape",
+                                    {"obj", "ply", "serialized", "rectangle", "cube", "sphere",
+                                     "disk", "cylinder", "shapegroup", "instance"})
+                             .status());
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "shape"));
   ShapeDesc s;
   LOADER_ASSIGN_OR_RETURN(s.id, Attr(n, "id"));
@@ -1158,8 +1159,10 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
   LOADER_ASSIGN_OR_RETURN(s.flip_normals, GetBool(p, "flip_normals", false));
   bool face_normals = false, flip_tex_coords = true;
   std::string filename;
-  std::array<double, 3> center{0, 0, 0};  // double: it may be far from the origin
+  std::array<double, 3> center{0, 0, 0};           // double: it may be far from the origin
+  std::array<double, 3> p0{0, 0, 0}, p1{0, 0, 1};  // cylinder
   float radius = 1;
+  int shape_index = 0;  // serialized
   if (type == "sphere") {
     s.type = ShapeType::kSphere;
     LOADER_ASSIGN_OR_RETURN(const auto c, GetPoint(p, "center"));
@@ -1167,8 +1170,18 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     LOADER_ASSIGN_OR_RETURN(radius, GetFloat(p, "radius", 1));
   } else {
     LOADER_ASSIGN_OR_RETURN(face_normals, GetBool(p, "face_normals", false));
-    if (type == "obj" || type == "ply") {
+    if (type == "obj" || type == "ply" || type == "serialized") {
       LOADER_ASSIGN_OR_RETURN(filename, GetFile(p, "filename"));
+    }
+    if (type == "serialized") {
+      LOADER_ASSIGN_OR_RETURN(shape_index, GetInt(p, "shape_index", 0));
+    }
+    if (type == "cylinder") {
+      LOADER_ASSIGN_OR_RETURN(const auto a, GetPoint(p, "p0"));
+      LOADER_ASSIGN_OR_RETURN(const auto b, GetPoint(p, "p1"));
+      if (a) p0 = *a;
+      if (b) p1 = *b;
+      LOADER_ASSIGN_OR_RETURN(radius, GetFloat(p, "radius", 1));
     }
     if (type == "obj") {
       LOADER_ASSIGN_OR_RETURN(flip_tex_coords, GetBool(p, "flip_tex_coords", true));
@@ -1221,9 +1234,34 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     s.center = (to_world * Mat4::Translate(center[0], center[1], center[2])).ApplyPoint(Vec3(0.0f));
     s.radius = float(radius * std::cbrt(std::abs(det)));
   } else {
+    // A cylinder is Mitsuba's unit tube (radius 1, z in [0, 1]) placed by to_world, then p0 at the
+    // origin, the axis p1 - p0 along z in Mitsuba's frame of it (which fixes where u = 0 is), and
+    // scaled by the radius and length.
+    Mat4 mesh_to_world = to_world;
+    if (type == "cylinder") {
+      const Vec3 axis(float(p1[0] - p0[0]), float(p1[1] - p0[1]), float(p1[2] - p0[2]));
+      const float length = Length(axis);
+      if (!(radius > 0) || !(length > 0) || !std::isfinite(radius) || !std::isfinite(length)) {
+        return Error(n, absl::StrCat("cylinder needs a positive radius and p0 != p1 (radius ",
+                                     radius, ", length ", length, ")"));
+      }
+      Vec3 sx, sy;
+      const Vec3 sz = axis / length;
+      MakeFrame(sz, &sx, &sy);
+      Mat4 frame;
+      for (int r = 0; r < 3; ++r) {
+        frame.m[r][0] = sx[r];
+        frame.m[r][1] = sy[r];
+        frame.m[r][2] = sz[r];
+      }
+      mesh_to_world = to_world * Mat4::Translate(p0[0], p0[1], p0[2]) * frame *
+                      Mat4::Scale(radius, radius, length);
+    }
     absl::StatusOr<TriangleMesh> mesh;
     if (type == "obj") mesh = LoadObjMesh(filename, flip_tex_coords);
     if (type == "ply") mesh = LoadPlyMesh(filename);
+    if (type == "serialized") mesh = LoadSerializedMesh(filename, shape_index);
+    if (type == "cylinder") mesh = MakeCylinderMesh(kCylinderSegments);
     if (type == "rectangle") mesh = MakeRectangleMesh();
     if (type == "cube") mesh = MakeCubeMesh();
     if (type == "disk") mesh = MakeDiskMesh(128);
@@ -1232,10 +1270,13 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
                           absl::StrCat(Where(n), "mesh ", mesh.status().message()));
     }
     s.mesh = *std::move(mesh);
-    TransformMesh(to_world, &s.mesh);
+    TransformMesh(mesh_to_world, &s.mesh);
     // Mitsuba's rectangle and disk are analytic: their normal is to_world's normal transform of
-    // +z even when to_world mirrors, so the triangles must turn with it. (Meshes keep their order.)
-    if ((type == "rectangle" || type == "disk") && det < 0) ReverseWinding(&s.mesh);
+    // +z even when to_world mirrors, so the triangles must turn with it; a cylinder's faces out
+    // (Mitsuba keeps only its rotation). Meshes keep their order.
+    if ((type == "rectangle" || type == "disk" || type == "cylinder") &&
+        mesh_to_world.Determinant3() < 0)
+      ReverseWinding(&s.mesh);
     s.degenerate_dropped = DropDegenerateTriangles(&s.mesh);
     if (!face_normals && s.mesh.normals.empty()) ComputeSmoothNormals(&s.mesh);
     if (s.flip_normals) FlipNormals(&s.mesh);

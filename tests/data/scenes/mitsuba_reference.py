@@ -10,11 +10,14 @@ Writes reference.exr, reference-x4.exr (box-filtered by 4 x 4: the golden tests 
 size) and reference.json. Optional figures of Mitsuba's own noise:
   quarter_noise: two renders at 1/4 size and 64 spp (seeds 1 and 2, as the golden test renders
     irfarm), relmse(A, B) / 2 as mitsuba_quarter_64spp_noise;
-  full_256: two renders at full size and 256 spp (seeds 1 and 2): mitsuba_full_256spp_noise,
-    their relMSE against the reference and their channel means.
+  full_256: renders at full size and 256 spp (seeds 1 and 2, or 1 ... full_256 when it is a
+    number above 2): mitsuba_full_256spp_noise (from the first two), their relMSE against the
+    reference and their channel means.
+The reference is the mean of the chunks whatever the scene's rfilter (recorded from scene.xml,
+gaussian when it names none, as Mitsuba's default); with a box filter it equals one render.
 Set DRJIT_LIBLLVM_PATH if drjit does not find libLLVM (e.g. /usr/lib/x86_64-linux-gnu/libLLVM-19.so).
 """
-import argparse, json, time
+import argparse, json, re, time
 import numpy as np
 import mitsuba as mi
 
@@ -34,6 +37,8 @@ def make_reference(quarter_noise=False, full_256=False):
     args = ap.parse_args()
     chunk = 256
     n = max(2, args.spp // chunk)
+    found = re.search(r'<rfilter\s+type="(\w+)"', open("scene.xml").read())
+    rfilter = found.group(1) if found else "gaussian"
     scene = mi.load_file("scene.xml", spp=chunk)
     t0 = time.time()
     imgs = [render(scene, chunk, 1000 + i) for i in range(n)]
@@ -48,7 +53,7 @@ def make_reference(quarter_noise=False, full_256=False):
     info = {
         "renderer": "mitsuba " + mi.__version__, "variant": "llvm_ad_rgb", "integrator": "path",
         "max_depth": -1, "spp": n * chunk, "seconds": round(seconds, 2), "width": w, "height": h,
-        "rfilter": "box", "chunks": {"count": n, "spp_each": chunk, "seeds": f"1000..{999 + n}"},
+        "rfilter": rfilter, "chunks": {"count": n, "spp_each": chunk, "seeds": f"1000..{999 + n}"},
         "mean_rgb": [float(c) for c in ref.mean(axis=(0, 1))],
         "nonfinite_pixels": int(np.sum(~np.isfinite(ref))),
         "relmse_definition": "mean over pixels and channels of (test-ref)^2/(ref^2+0.01)",
@@ -61,11 +66,11 @@ def make_reference(quarter_noise=False, full_256=False):
                                                      render(quarter, 64, 2)) / 2
     if full_256:
         full = mi.load_file("scene.xml", spp=256)
-        fa, fb = render(full, 256, 1), render(full, 256, 2)
-        info["mitsuba_full_256spp_noise"] = relmse(fa, fb) / 2
-        info["mitsuba_full_256spp_relmse_vs_ref"] = [relmse(fa, ref), relmse(fb, ref)]
+        runs = [render(full, 256, seed) for seed in range(1, max(2, int(full_256)) + 1)]
+        info["mitsuba_full_256spp_noise"] = relmse(runs[0], runs[1]) / 2
+        info["mitsuba_full_256spp_relmse_vs_ref"] = [relmse(x, ref) for x in runs]
         info["mitsuba_full_256spp_means"] = [[float(c) for c in x.mean(axis=(0, 1))]
-                                             for x in (fa, fb)]
+                                             for x in runs]
     info["made_with"] = "python3 make_reference.py --spp %d" % args.spp
     json.dump(info, open("reference.json", "w"), indent=2)
     print("spp", n * chunk, "seconds", seconds, "half_vs_half", hvh)
