@@ -31,6 +31,7 @@
 #include "render/bsdfs/registry.h"
 #include "render/mesh_loader.h"
 #include "render/serialized_mesh.h"
+#include "render/spectrum.h"
 
 #define LOADER_RETURN_IF_ERROR(expr)   \
   do {                                 \
@@ -116,6 +117,7 @@ struct Entry {
   pugi::xml_node node;
   int ref = -1;  // a <ref>: index into the scene's bsdfs or textures
   bool used = false;
+  Vec3 rgb;  // a <spectrum>: its value converted as Mitsuba converts it (render/spectrum.h)
 };
 
 struct Params {
@@ -434,8 +436,25 @@ absl::StatusOr<Params> Parser::Collect(pugi::xml_node obj, absl::string_view kin
     const absl::string_view tag = c.name();
     Entry e;
     e.node = c;
-    if (tag == "spectrum") return Error(c, "spectra are not supported, use rgb");
-    if (IsPropertyTag(tag)) {
+    if (tag == "spectrum") {
+      if (c.attribute("filename") || c.attribute("type")) {
+        return Error(c,
+                     "spectrum files (filename=) and spectrum plugins (type=) are not read: give "
+                     "value=\"...\" (a number or wavelength:value pairs) or an <rgb>");
+      }
+      LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"name", "value"}));
+      e.tag = "spectrum";
+      LOADER_ASSIGN_OR_RETURN(e.name, RequiredAttr(c, "name"));
+      LOADER_ASSIGN_OR_RETURN(const std::string text, RequiredAttr(c, "value"));
+      absl::StatusOr<Vec3> rgb = SpectrumToRgb(text, kind == "emitter");
+      if (!rgb.ok()) return Error(c, std::string(rgb.status().message()));
+      if (rgb->x < 0 || rgb->y < 0 || rgb->z < 0) {
+        Warn(c, absl::StrCat("spectrum '", e.name, "' lies outside sRGB (", rgb->x, ", ", rgb->y,
+                             ", ", rgb->z, "): negative parts set to 0, as Mitsuba does"));
+        *rgb = Max(*rgb, Vec3(0.0f));
+      }
+      e.rgb = *rgb;
+    } else if (IsPropertyTag(tag)) {
       LOADER_RETURN_IF_ERROR(tag == "transform" ? CheckAttributes(c, {"name"})
                              : IsOneOf(tag, {"point", "vector"})
                                  ? CheckAttributes(c, {"name", "value", "x", "y", "z"})
@@ -567,8 +586,9 @@ absl::StatusOr<std::string> Parser::GetString(Params& p, absl::string_view name,
 }
 
 absl::StatusOr<Vec3> Parser::GetRgb(Params& p, absl::string_view name, Vec3 def) const {
-  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"rgb", "float", "integer"}));
+  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"rgb", "float", "integer", "spectrum"}));
   if (e == nullptr) return def;
+  if (e->tag == "spectrum") return e->rgb;
   LOADER_ASSIGN_OR_RETURN(const std::vector<double> v, Numbers(e->node, "value"));
   if (v.size() == 1) return Vec3(float(v[0]));
   if (v.size() != 3) {
@@ -626,7 +646,8 @@ absl::StatusOr<float> Parser::GetIor(Params& p, absl::string_view name, float de
 }
 
 absl::StatusOr<ColorParam> Parser::GetColor(Params& p, absl::string_view name, Vec3 def) {
-  LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"rgb", "float", "integer", "texture"}));
+  LOADER_ASSIGN_OR_RETURN(const Entry* e,
+                          Find(p, name, {"rgb", "float", "integer", "spectrum", "texture"}));
   ColorParam color;
   color.value = def;
   if (e != nullptr && e->tag == "texture") {
@@ -1479,7 +1500,9 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
     } else if (tag == "emitter") {
       LOADER_RETURN_IF_ERROR(ParseEmitter(c));
     } else if (tag == "spectrum") {
-      return Error(c, "spectra are not supported, use rgb");
+      return Error(c,
+                   "a <spectrum> outside the object that uses it is not read: give it inside "
+                   "that object, as <spectrum name=... value=...> or <rgb>");
     } else {
       return Error(c, absl::StrCat("unknown element <", tag,
                                    "> in <scene> (supported: default, integrator, sensor, bsdf, "

@@ -321,10 +321,13 @@ TEST(SceneLoaderErrorTest, FileOutsideSceneFolder) {
   ExpectError(load("/etc/hosts"), dir + "/scene.xml:3:", "is absolute");
 }
 
-TEST(SceneLoaderErrorTest, Spectrum) {
-  ExpectError(Load("  <bsdf type=\"diffuse\">\n    <spectrum name=\"reflectance\" value=\"0.5\"/>\n"
-                   "  </bsdf>\n"),
-              "scene.xml:3:", "spectra are not supported, use rgb");
+TEST(SceneLoaderErrorTest, Spectrum) {  // values are read: spectrum_test.cc
+  ExpectError(
+      Load("  <bsdf type=\"diffuse\">\n    <spectrum name=\"reflectance\" filename=\"a.spd\"/>\n"
+           "  </bsdf>\n"),
+      "scene.xml:3:", "spectrum files (filename=)");
+  ExpectError(Load("  <spectrum id=\"s\" value=\"0.5\"/>\n"),
+              "scene.xml:2:", "<spectrum> outside the object that uses it");
 }
 
 TEST(SceneLoaderErrorTest, UndefinedParameter) {
