@@ -15,7 +15,8 @@ Per scene (all-diffuse scenes only: the cached term is then exactly what is not 
   - irfarm at its defaults: relMSE and seconds against the baseline's (equal-time comparison).
 
   python3 bench/indirect_only.py --baseline-bin WARD/irfarm [--scenes cornell-box,...]
-      [--spp 4096] [--out bench-indirect] [--irfarm-args "--spacing hessian"]
+      [--spp 4096] [--out bench-indirect] [--irfarm-args "--spacing hessian"] [--bin 4]
+      [--noise-spp 1024]
 
 Building the baseline: `git worktree add WARD f9fc65e`, the patch in docs/bench/indirect-only/
 ward-indirect-only.patch (`git -C WARD apply`), `cmake -S WARD -B WARD/build -G Ninja && cmake
@@ -36,7 +37,22 @@ SCENES = ["cornell-box", "sunlit-room", "thin-panels", "veach-ajar", "room-a", "
           "room-d"]
 
 
+# --bin B: every image (irfarm's, the baseline's, the indirect reference and the floor's renders)
+# is box-filtered by B x B before relMSE is taken. The references are box-filtered renders, so
+# their pixels' noise is independent and binning divides its share of every figure by B^2, while
+# a cache's error (records' noise and interpolation, smooth over many pixels) stays nearly whole.
+BIN = 1
+
+
+def binned(x):
+    if BIN <= 1:
+        return x
+    h, w = x.shape[0] // BIN * BIN, x.shape[1] // BIN * BIN
+    return x[:h, :w].reshape(h // BIN, BIN, w // BIN, BIN, -1).mean(axis=(1, 3))
+
+
 def relmse(x, ref):
+    x, ref = binned(x), binned(ref)
     return float(np.mean((x - ref) ** 2 / (ref ** 2 + 0.01)))
 
 
@@ -112,14 +128,15 @@ def reference_floor(scene_dir, ind_ref, n, cache, direct=None, direct_spp=0, out
     m = np.mean([np.array(mi.render(s, spp=chunk, seed=70000 + k), dtype=np.float64)[:, :, :3]
                  for k in range(n // chunk)], axis=0)
     ref = read_rgb(os.path.join(scene_dir, "reference.exr"))
-    e = float(np.mean((m - ref) ** 2 / (ind_ref ** 2 + 0.01)))
+    m, ref, ind_b = binned(m), binned(ref), binned(ind_ref)
+    e = float(np.mean((m - ref) ** 2 / (ind_b ** 2 + 0.01)))
     floor_ref = e / (1 + spp_ref / n)
     floor_direct = 0.0
     if direct is not None:
         name = os.path.basename(os.path.normpath(scene_dir))
         d2 = direct_reference(scene_dir, n, os.path.join(out_dir, name + "-direct-check.npy"),
                               seed_base=190000)
-        e2 = float(np.mean((d2 - direct) ** 2 / (ind_ref ** 2 + 0.01)))
+        e2 = float(np.mean((binned(d2) - binned(direct)) ** 2 / (ind_b ** 2 + 0.01)))
         floor_direct = e2 / (1 + direct_spp / n)
     floor = floor_ref + floor_direct
     with open(cache, "w") as f:
@@ -167,8 +184,12 @@ def main():
                     help="no renders: the table from an earlier run's runs.json")
     ap.add_argument("--irfarm-args", default="",
                     help="extra irfarm render arguments, e.g. '--spacing hessian'")
+    ap.add_argument("--bin", type=int, default=1,
+                    help="box-filter every image by BIN x BIN before relMSE (see BIN above)")
     ap.add_argument("--out", default="bench-indirect")
     a = ap.parse_args()
+    global BIN
+    BIN = a.bin
     os.makedirs(a.out, exist_ok=True)
     tmp = tempfile.mkdtemp(prefix="irfarm-indirect-")
     rows = []
