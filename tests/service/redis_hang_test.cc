@@ -12,7 +12,9 @@
 //   - Submit fails with UNAVAILABLE in under 2 s; Cancel of a queued job answers from memory
 //     (under 400 ms, the bound of the slowest read; it was 100 ms for this one call, the likeliest
 //     of the checks CI's run of 2026-12-02 failed once: its log did not keep which);
-//   - no tile counts as done (none could be stored).
+//   - no tile counts as done (none could be stored); counted from when /proc shows Redis stopped
+//     and 200 ms more, since kill() returns before the stop takes hold and a write Redis was
+//     already handed may still be answered (a second candidate for CI's failure of 2026-12-02).
 // After SIGCONT the job finishes, and nothing was lost: a second coordinator started on the same
 // Redis sees the job SUCCEEDED with every tile and returns the same image, sees the cancelled job
 // CANCELLED, and has at least the records the first one merged.
@@ -21,6 +23,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <fstream>
+#include <string>
 #include <thread>
 
 #include "coordinator/job_manager.h"
@@ -39,6 +43,21 @@ constexpr std::chrono::seconds kStopped{30};
 constexpr std::chrono::milliseconds kRedisTimeout{500};
 
 double Ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
+
+// Whether process `pid` is in the stopped state ('T' in /proc/PID/stat) within `limit`.
+bool WaitStopped(pid_t pid, std::chrono::milliseconds limit) {
+  const Clock::time_point end = Clock::now() + limit;
+  do {
+    std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+    std::string line;
+    std::getline(stat, line);
+    const size_t close = line.rfind(')');  // the command name may hold spaces
+    if (close != std::string::npos && close + 2 < line.size() && line[close + 2] == 'T')
+      return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  } while (Clock::now() < end);
+  return false;
+}
 
 class RedisHangTest : public ::testing::Test {
  protected:
@@ -131,6 +150,11 @@ TEST_F(RedisHangTest, ReadsAnswerFromMemorySubmitFailsFastAndNothingIsLost) {
 
   ASSERT_EQ(kill(redis_.pid(), SIGSTOP), 0);
   const Clock::time_point stopped = Clock::now();
+  // kill() returns before the stop takes hold: Redis may still answer a write it was handed, and
+  // that tile would then count after at_stop below. So: until /proc says it is stopped, then
+  // long enough for a reply already sent to be taken in.
+  ASSERT_TRUE(WaitStopped(redis_.pid(), std::chrono::seconds(5))) << "redis-server did not stop";
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
   v1::Job at_stop;
   ASSERT_TRUE(Get(a, &at_stop).ok());
   ASSERT_LT(at_stop.tiles_done(), at_stop.tiles_total()) << "finished before Redis was stopped";
