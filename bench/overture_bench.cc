@@ -23,7 +23,7 @@ int main(int argc, char** argv) {
   std::string dir = IRFARM_SCENES_DIR;
   std::vector<std::string> scenes = {"cornell-box", "sunlit-room"};
   std::vector<std::string> defines;
-  int repeat = 2;
+  int repeat = 5;
   app.add_option("--scenes-dir", dir, "folder of <scene>/scene.xml");
   app.add_option("--scenes", scenes, "scene names")->delimiter(',');
   app.add_option("-D", defines, "scene default name=value");
