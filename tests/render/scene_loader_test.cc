@@ -351,16 +351,17 @@ TEST(SceneLoaderErrorTest, UnknownAndDuplicateIds) {
 }
 
 TEST(SceneLoaderErrorTest, UnsupportedFeatures) {
-  const std::string gaussian = std::string(R"(<scene version="3.0.0">
+  const std::string unknown = std::string(R"(<scene version="3.0.0">
   <sensor type="perspective">
     <film type="hdrfilm">
-      <rfilter type="lanczos"/>
+      <rfilter type="sinc"/>
     </film>
   </sensor>
 </scene>
 )");
-  ExpectError(LoadSceneString(gaussian, "s.xml", {}),
-              "s.xml:4:", "unknown rfilter type 'lanczos' (supported: box, gaussian, tent)");
+  ExpectError(LoadSceneString(unknown, "s.xml", {}), "s.xml:4:",
+              "unknown rfilter type 'sinc' (supported: box, gaussian, tent, mitchell, catmullrom, "
+              "lanczos)");
   ExpectError(Load("  <bsdf type=\"conductor\">\n    <string name=\"material\" value=\"Xx\"/>\n"
                    "  </bsdf>\n"),
               "scene.xml:3:", "unknown conductor material 'Xx' (supported: none, a-C, Ag,");
@@ -371,6 +372,35 @@ TEST(SceneLoaderErrorTest, UnsupportedFeatures) {
 
 // The film's reconstruction filter: Mitsuba 3's plugins, parameters and defaults (gaussian
 // stddev 0.5 cut at 4 stddev, tent radius 1, gaussian when the film or the filter is missing).
+// Filters with negative lobes load as the gaussian nearest their kernel, with a warning at their
+// line; their parameters are still checked.
+TEST(SceneLoaderTest, NegativeLobedFiltersBecomeTheNearestGaussian) {
+  for (const char* filter :
+       {R"(<rfilter type="mitchell"><float name="B" value="0.3"/></rfilter>)",
+        R"(<rfilter type="catmullrom"/>)",
+        R"(<rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>)"}) {
+    const std::string xml = std::string(
+                                "<scene version=\"3.0.0\">\n<sensor type=\"perspective\">\n"
+                                "<film type=\"hdrfilm\">\n") +
+                            filter + "\n</film>\n</sensor>\n</scene>\n";
+    absl::StatusOr<SceneDesc> d = LoadSceneString(xml, "s.xml", {});
+    ASSERT_TRUE(d.ok()) << filter << ": " << d.status();
+    EXPECT_EQ(d->camera.filter.type, FilterType::kGaussian);
+    // The gaussian nearest the kernel (see scene_loader.cc): 0.45 for mitchell, 0.40 otherwise.
+    const float stddev = std::string(filter).find("mitchell") != std::string::npos ? 0.45f : 0.40f;
+    EXPECT_FLOAT_EQ(d->camera.filter.stddev, stddev);
+    EXPECT_FLOAT_EQ(d->camera.filter.radius, 4 * stddev);
+    ASSERT_EQ(d->warnings.size(), 1u) << filter;
+    EXPECT_NE(d->warnings[0].find("s.xml:4:"), std::string::npos) << d->warnings[0];
+    EXPECT_NE(d->warnings[0].find("gaussian"), std::string::npos) << d->warnings[0];
+  }
+  const std::string bad =
+      "<scene version=\"3.0.0\">\n<sensor type=\"perspective\">\n<film type=\"hdrfilm\">\n"
+      "<rfilter type=\"mitchell\"><float name=\"B\" value=\"x\"/></rfilter>\n</film>\n</sensor>\n"
+      "</scene>\n";
+  EXPECT_FALSE(LoadSceneString(bad, "s.xml", {}).ok());
+}
+
 TEST(SceneLoaderTest, ReconstructionFilters) {
   auto film = [](const std::string& filter) {
     return "<scene version=\"3.0.0\">\n  <sensor type=\"perspective\">\n"
