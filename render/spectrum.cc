@@ -63,7 +63,9 @@ absl::StatusOr<Vec3> SpectrumToRgb(absl::string_view value, bool emission) {
     return XyzToRgb(white);
   }
   std::vector<double> wl, v;
-  for (absl::string_view pair : absl::StrSplit(text, ',', absl::SkipWhitespace())) {
+  // Pairs are separated by commas, white space or both, as Mitsuba's parser splits them.
+  for (absl::string_view pair :
+       absl::StrSplit(text, absl::ByAnyChar(", \t\r\n"), absl::SkipEmpty())) {
     pair = absl::StripAsciiWhitespace(pair);
     const std::vector<absl::string_view> parts = absl::StrSplit(pair, ':');
     double l = 0, x = 0;

@@ -45,6 +45,10 @@ TEST(SpectrumTest, ConvertsAsMitsubaDoes) {
           << c.name << " " << c.value << " channel " << ch;
     }
   }
+  // Pairs separated by white space alone read the same (Mitsuba splits on both).
+  const Vec3 spaced = *SpectrumToRgb("400:0.1 500:0.5\n600:0.7\t700:0.9", false);
+  EXPECT_NEAR(spaced.x, 0.775405, 2e-5);
+  EXPECT_NEAR(spaced.z, 0.277033, 2e-5);
   // Without the D65 weighting (a reflectance taken as light) the figures are far off: the
   // reflectance case above would come out (0.918, 0.565, 0.242).
   const Vec3 as_light = *SpectrumToRgb("400:0.1, 500:0.5, 600:0.7, 700:0.9", true);
