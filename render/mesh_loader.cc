@@ -24,11 +24,6 @@
 #include "absl/strings/string_view.h"
 
 namespace irfarm {
-namespace {
-
-absl::Status LineError(const std::string& path, int line, absl::string_view what) {
-  return absl::InvalidArgumentError(absl::StrCat(path, ":", line, ": ", what));
-}
 
 absl::StatusOr<std::string> ReadWholeFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -36,6 +31,12 @@ absl::StatusOr<std::string> ReadWholeFile(const std::string& path) {
   std::ostringstream data;
   data << in.rdbuf();
   return data.str();
+}
+
+namespace {
+
+absl::Status LineError(const std::string& path, int line, absl::string_view what) {
+  return absl::InvalidArgumentError(absl::StrCat(path, ":", line, ": ", what));
 }
 
 // Parses one finite number; on failure returns why ("malformed number 'x'").

@@ -14,6 +14,10 @@
 
 namespace irfarm {
 
+// The bytes of the file at `path`; NOT_FOUND ("PATH: cannot open file") when it cannot be read.
+// The mesh readers' (OBJ, PLY, serialized) shared way in.
+absl::StatusOr<std::string> ReadWholeFile(const std::string& path);
+
 // Parses OBJ text: `v`, `vt`, `vn` and `f` with `a`, `a/b`, `a//c` or `a/b/c` corners (1-based, or
 // negative = relative to the end of the list so far); polygons become triangle fans; other
 // statements are ignored. Corners with the same (v, vt, vn) share one output vertex, as in

@@ -5,12 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <limits>
-#include <sstream>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "render/mesh_loader.h"
 
 namespace irfarm {
 namespace {
@@ -25,11 +24,16 @@ constexpr size_t kMaxNameLength = 1 << 16;
 // Values read per block: the arrays grow block by block as the stream delivers them.
 constexpr size_t kBlockValues = 1 << 16;
 
+// The little-endian unsigned integer at p (the format's byte order, whatever the machine's).
+template <typename T>
+T LittleEndian(const unsigned char* p) {
+  T v = 0;
+  for (size_t i = 0; i < sizeof(T); ++i) v |= T(p[i]) << (8 * i);
+  return v;
+}
 template <typename T>
 T LittleEndian(const std::string& bytes, size_t at) {
-  T v = 0;
-  for (size_t i = 0; i < sizeof(T); ++i) v |= T(uint8_t(bytes[at + i])) << (8 * i);
-  return v;
+  return LittleEndian<T>(reinterpret_cast<const unsigned char*>(bytes.data()) + at);
 }
 
 // Exactly-sized reads from one zlib stream that starts at a given byte of the file.
@@ -84,9 +88,7 @@ class Inflater {
   bool Read(T* v) {
     unsigned char b[sizeof(T)];
     if (!Read(b, sizeof(T))) return false;
-    T x = 0;
-    for (size_t i = 0; i < sizeof(T); ++i) x |= T(b[i]) << (8 * i);
-    *v = x;
+    *v = LittleEndian<T>(b);
     return true;
   }
   // Reads on to the stream's end, which checks its Adler-32 checksum: a damaged stream can
@@ -189,12 +191,10 @@ absl::StatusOr<TriangleMesh> ParseSerializedMesh(const std::string& bytes, const
       for (size_t i = 0; i < m; ++i) {
         double v = 0;
         if (dp) {
-          uint64_t u = 0;
-          for (size_t k = 0; k < 8; ++k) u |= uint64_t(block[8 * i + k]) << (8 * k);
+          const uint64_t u = LittleEndian<uint64_t>(&block[8 * i]);
           std::memcpy(&v, &u, sizeof v);
         } else {
-          uint32_t u = 0;
-          for (size_t k = 0; k < 4; ++k) u |= uint32_t(block[4 * i + k]) << (8 * k);
+          const uint32_t u = LittleEndian<uint32_t>(&block[4 * i]);
           float f = 0;
           std::memcpy(&f, &u, sizeof f);
           v = f;
@@ -237,8 +237,7 @@ absl::StatusOr<TriangleMesh> ParseSerializedMesh(const std::string& bytes, const
     block.resize(4 * m);
     if (!in.Read(block.data(), block.size())) return broken();
     for (size_t i = 0; i < m; ++i) {
-      uint32_t index = 0;
-      for (size_t k = 0; k < 4; ++k) index |= uint32_t(block[4 * i + k]) << (8 * k);
+      const uint32_t index = LittleEndian<uint32_t>(&block[4 * i]);
       if (index >= vertices) {
         return bad(absl::StrCat("triangle ", (done + i) / 3, ": vertex index ", index,
                                 " out of range (the mesh has ", vertices, " vertices)"));
@@ -252,11 +251,9 @@ absl::StatusOr<TriangleMesh> ParseSerializedMesh(const std::string& bytes, const
 }
 
 absl::StatusOr<TriangleMesh> LoadSerializedMesh(const std::string& path, int shape_index) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) return absl::NotFoundError(absl::StrCat(path, ": cannot read the file"));
-  std::ostringstream s;
-  s << f.rdbuf();
-  return ParseSerializedMesh(s.str(), path, shape_index);
+  absl::StatusOr<std::string> bytes = ReadWholeFile(path);
+  if (!bytes.ok()) return bytes.status();
+  return ParseSerializedMesh(*bytes, path, shape_index);
 }
 
 }  // namespace irfarm
