@@ -39,9 +39,9 @@ SCENES = ["cornell-box", "sunlit-room", "thin-panels", "veach-ajar", "room-a", "
 
 # --bin B: every image (irfarm's, the baseline's, the indirect reference and the floor's renders)
 # is box-filtered by B x B before relMSE is taken. The references are box-filtered renders, so
-# their pixels' noise is independent and binning divides its share of every figure by up to B^2
-# (the floors measured at 4 x 4 fell 8-16x), while
-# a cache's error (records' noise and interpolation, smooth over many pixels) stays nearly whole.
+# their pixels' noise is independent and binning divides its share of every figure by about B^2
+# (the single-render floor estimates, which are rough, fell 8x to 30x at 4 x 4), while a cache's
+# error (records' noise and interpolation, smooth over many pixels) stays nearly whole.
 BIN = 1
 
 
