@@ -9,7 +9,9 @@ opening in the far wall (z = D) with a directional sun shining in through it and
 The camera stands near the z = 0 wall at eye height and looks into the room. Only the scene
 subset of ../shared/scenes/README.md, so Mitsuba 3 reads the same file.
 
-  python3 bench/make_room.py SEED OUT_DIR [--window yes|no]   writes OUT_DIR/scene.xml
+  python3 bench/make_room.py SEED OUT_DIR [--window yes|no] [--lamps rect|mesh]
+      writes OUT_DIR/scene.xml (--lamps mesh: ceiling disks and fluorescent tubes, emissive
+      triangle meshes, instead of rectangles)
   python3 bench/make_room.py SEED OUT_DIR --reference 1024      and a Mitsuba 3 reference:
       reference.exr (mean of 256-spp chunks, seeds 1000...), reference.json (seconds, spp and the
       reference's own noise: relmse_half_vs_half of the even and odd chunks and
@@ -43,7 +45,7 @@ def rgb(v):
     return ", ".join(f"{c:.4f}" for c in v)
 
 
-def make_room(seed, window=None):
+def make_room(seed, window=None, lamps_kind="rect"):
     rnd = random.Random(seed)
     W, H, D = rnd.uniform(3.5, 7.0), rnd.uniform(2.5, 3.3), rnd.uniform(3.0, 5.5)
     if window is None:
@@ -108,14 +110,48 @@ def make_room(seed, window=None):
         <ref id="mat-box{i}"/>
     </shape>
 """)
-    # Lamps under the ceiling, facing down.
+    # Lamps under the ceiling, facing down (rectangles); with lamps="mesh", lamps whose emitting
+    # shape is a triangle mesh: a ceiling disk, a fluorescent tube hung under the ceiling, or an
+    # upright tube standing by a wall (a cylinder emits from its whole side).
     lamps = []
     for i in range(rnd.randint(1, 3)):
         lw, ld = rnd.uniform(0.15, 0.6), rnd.uniform(0.15, 0.6)
         x, z = rnd.uniform(lw + 0.3, W - lw - 0.3), rnd.uniform(ld + 0.3, D - ld - 0.3)
         power = rnd.uniform(20, 50) * (0.3 / math.sqrt(lw * ld)) ** 0.5
-        lamps.append(rect(f"light{i}", "mat-lamp", (lw, ld), [("x", 90)], (x, H - 0.01, z),
-                          emitter=rgb([power, power * 0.92, power * 0.78])))
+        colour = rgb([power, power * 0.92, power * 0.78])
+        if lamps_kind != "mesh":
+            lamps.append(rect(f"light{i}", "mat-lamp", (lw, ld), [("x", 90)], (x, H - 0.01, z),
+                              emitter=colour))
+            continue
+        kind = rnd.choice(["disk", "tube", "upright"])
+        em = f'<emitter type="area"><rgb name="radiance" value="{{}}"/></emitter>'
+        if kind == "disk":
+            r = math.sqrt(lw * ld)  # about the rectangle's area
+            lamps.append(f"""    <shape type="disk" id="light{i}">
+        <transform name="to_world"><scale value="{r:.4f}"/><rotate x="1" angle="90"/><translate x="{x:.4f}" y="{H - 0.01:.4f}" z="{z:.4f}"/></transform>
+        <ref id="mat-lamp"/>{em.format(colour)}
+    </shape>
+""")
+            continue
+        radius, length = rnd.uniform(0.02, 0.05), rnd.uniform(0.6, min(1.5, W - 1.0))
+        # The same power as the rectangle would have: its area 4 lw ld against the tube's
+        # 2 pi r l (emitting all round, so about a third of it goes down).
+        tube = [c * (4 * lw * ld) / (2 * math.pi * radius * length) * 2.5
+                for c in (power, power * 0.92, power * 0.78)]
+        if kind == "tube":
+            y = H - rnd.uniform(0.1, 0.3)
+            x0 = rnd.uniform(0.5, W - 0.5 - length)
+            p0, p1 = (x0, y, z), (x0 + length, y, z)
+        else:
+            wall_x = rnd.choice([0.15 + radius, W - 0.15 - radius])
+            y0 = rnd.uniform(0.2, 0.6)
+            length = min(length, H - y0 - 0.3)
+            p0, p1 = (wall_x, y0, z), (wall_x, y0 + length, z)
+        lamps.append(f"""    <shape type="cylinder" id="light{i}">
+        <point name="p0" value="{rgb(p0)}"/><point name="p1" value="{rgb(p1)}"/><float name="radius" value="{radius:.4f}"/>
+        <ref id="mat-lamp"/>{em.format(rgb(tube))}
+    </shape>
+""")
     eye = (rnd.uniform(0.3 * W, 0.7 * W), rnd.uniform(1.2, 1.6), rnd.uniform(0.25, 0.5))
     target = (rnd.uniform(0.2 * W, 0.8 * W), rnd.uniform(0.8, 1.4), D * 0.8)
     head = f"""<?xml version="1.0" encoding="utf-8"?>
@@ -173,12 +209,14 @@ def main():
     ap.add_argument("seed", type=int)
     ap.add_argument("out")
     ap.add_argument("--window", choices=["yes", "no"])
+    ap.add_argument("--lamps", choices=["rect", "mesh"], default="rect",
+                    help="rectangle lamps, or lamps of triangle meshes (disks and tubes)")
     ap.add_argument("--reference", type=int, default=0, help="spp of a Mitsuba 3 reference")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     window = None if a.window is None else a.window == "yes"
     with open(os.path.join(a.out, "scene.xml"), "w") as f:
-        f.write(make_room(a.seed, window))
+        f.write(make_room(a.seed, window, a.lamps))
     if a.reference > 0:
         seconds, est = make_reference(a.out, a.reference)
         print(f"{a.out}: reference {a.reference} spp in {seconds:.0f} s, "

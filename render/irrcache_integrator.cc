@@ -133,7 +133,7 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
       float u2, u3;
       uv(j, &u2, &u3);
       LightSample s;
-      if (!ls.SampleOne(i, hit.p, u1, u2, u3, &s)) continue;
+      if (!ls.SampleOne(i, hit.p, nf, u1, u2, u3, &s)) continue;
       const float cos_i = Dot(s.wi, nf);
       if (cos_i <= 0) continue;
       const Vec3 c = weight * s.value * (cos_i / float(n));

@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "cache/math.h"
+#include "render/light_tree.h"
+#include "render/light_triangle.h"
 #include "render/texture.h"
 
 namespace irfarm {
@@ -16,14 +18,6 @@ enum class LightType { kArea, kPoint, kSpot, kDirectional, kConstant, kEnvmap };
 
 // The shape of an area light.
 enum class AreaShape { kRect, kSphere, kMesh };
-
-struct LightTriangle {
-  Vec3 p0, p1, p2;
-  Vec3 ng;          // unit geometric normal: the emitting side
-  Vec3 n0, n1, n2;  // vertex normals (shading); equal to ng when the mesh has none
-  float area = 0;
-  float error_scale = 0;  // magnitude of the vertex coordinates (ray offsets)
-};
 
 struct Light {
   LightType type = LightType::kArea;
@@ -42,9 +36,11 @@ struct Light {
   float radius = 0;
   bool flip = false;
   // kMesh (and kRect, whose two triangles are kept for the fallback): triangles and their
-  // cumulative areas, to pick one by area.
+  // cumulative areas, to pick one by area (photon emission); kMesh: the tree that picks one by
+  // its estimated contribution at a shading point (next-event estimation).
   std::vector<LightTriangle> triangles;
   std::vector<float> cdf;
+  LightTree tree;
   float area = 0;
   float error_scale = 0;
   // Envmap

@@ -98,12 +98,8 @@ float LightSampler::Weight(int i, const Vec3& p, const Vec3& n) const {
         }
         return lum * w;
       }
-      // Large mesh: its area over the squared distance to its centroid, softened near it.
-      Vec3 centroid;
-      for (const LightTriangle& t : l.triangles) centroid += (t.p0 + t.p1 + t.p2) * t.area;
-      centroid = centroid / (3 * l.area);
-      const float d2 = LengthSquared(centroid - p);
-      return lum * l.area / (d2 + l.area);
+      // Larger meshes: the root of their light tree (0 exactly when no triangle can reach p).
+      return l.tree.Importance(p, n);
     }
     case LightType::kPoint:
     case LightType::kSpot: {
@@ -156,7 +152,7 @@ bool RectBySolidAngle(const Light& l, const Vec3& p) {
 }
 }  // namespace
 
-bool LightSampler::SampleOne(int i, const Vec3& p, float u1, float u2, float u3,
+bool LightSampler::SampleOne(int i, const Vec3& p, const Vec3& n, float u1, float u2, float u3,
                              LightSample* s) const {
   const Light& l = lights_[i];
   s->light = i;
@@ -211,9 +207,11 @@ bool LightSampler::SampleOne(int i, const Vec3& p, float u1, float u2, float u3,
           pdf = -1;
         }
       } else {
-        const LightTriangle& t = l.PickTriangle(u1);
+        float pick = 0;
+        const int k = l.tree.Sample(p, n, u1, &pick);
+        if (k < 0) return false;
+        const LightTriangle& t = l.triangles[size_t(k)];
         if (t.area <= 0 || Dot(p - t.p0, t.ng) <= 0) return false;
-        const float pick = t.area / l.area;
         SphericalTriangle st;
         float b1, b2;
         if (st.Init(p, t.p0, t.p1, t.p2)) {
@@ -287,8 +285,8 @@ bool LightSampler::SampleOne(int i, const Vec3& p, float u1, float u2, float u3,
   return false;
 }
 
-float LightSampler::PdfOne(int i, const Vec3& p, const Vec3& q, const Vec3& nq, unsigned prim,
-                           const Vec3& wi) const {
+float LightSampler::PdfOne(int i, const Vec3& p, const Vec3& n, const Vec3& q, const Vec3& nq,
+                           unsigned prim, const Vec3& wi) const {
   const Light& l = lights_[i];
   if (l.type != LightType::kArea) return 0;
   const float cos_l = -Dot(wi, nq);
@@ -315,7 +313,8 @@ float LightSampler::PdfOne(int i, const Vec3& p, const Vec3& q, const Vec3& nq, 
   if (prim >= l.triangles.size()) return 0;
   const LightTriangle& t = l.triangles[prim];
   if (t.area <= 0 || Dot(p - t.p0, t.ng) <= 0) return 0;
-  const float pick = t.area / l.area;
+  const float pick = l.tree.Pmf(p, n, prim);
+  if (!(pick > 0)) return 0;
   SphericalTriangle st;
   if (st.Init(p, t.p0, t.p1, t.p2)) return pick * float(1 / st.solid_angle());
   return pick * AreaToSolidAngle(dist2, cos_l, t.area);
@@ -394,7 +393,7 @@ bool LightSampler::Sample(const Vec3& p, const Vec3& n, float u1, float u2, floa
     s->value = Vec3(1.0f / s->pdf);  // times EvalEnvironment(wi): Scene::LightValue
     return true;
   }
-  if (!SampleOne(chosen, p, u1r, u2, u3, s)) return false;
+  if (!SampleOne(chosen, p, n, u1r, u2, u3, s)) return false;
   s->pdf *= psel;
   s->value = s->value / psel;
   return true;
@@ -450,7 +449,7 @@ float LightSampler::PdfEnvironmentAlone(const Vec3& n, const Vec3& wi, bool impo
 float LightSampler::PdfArea(const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
                             unsigned prim, const Vec3& wi) const {
   if (light < 0 || light >= num_local_) return 0;
-  const float one = PdfOne(light, p, q, nq, prim, wi);
+  const float one = PdfOne(light, p, n, q, nq, prim, wi);
   return one > 0 ? one * SelectPdf(p, n, light) : 0;
 }
 
@@ -460,7 +459,7 @@ float LightSampler::NeePdfArea(bool all, const Vec3& p, const Vec3& n, int light
   // A light that got weight 0 at p (e.g. behind the horizon of a transmitter) was not sampled:
   // what reaches it through the BSDF counts in full.
   if (light < 0 || light >= num_local_ || Weight(light, p, n) <= 0) return 0;
-  return PdfOne(light, p, q, nq, prim, wi);
+  return PdfOne(light, p, n, q, nq, prim, wi);
 }
 
 float LightSampler::NeePdfEnvironment(bool all, const Vec3& p, const Vec3& n, const Vec3& wi,

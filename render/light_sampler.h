@@ -8,13 +8,13 @@
 // O(lights) per sample) and the choice is uniform.
 //
 // Sampling one light: rectangles by solid angle (spherical rectangles), spheres by their cone of
-// directions, emissive meshes by a triangle picked by area and then sampled by solid angle
-// (spherical triangles); by area only where the solid angle is too small to sample that way
-// (far away, where the area pdf is harmless). The environment (all constant + envmap lights
-// together) is sampled cosine-weighted around n (uniformly over the sphere when n is zero), and,
-// when it holds an envmap, by its radiance (EnvironmentMapSampler) with probability
-// 1 - kEnvCosineShare: a mixture, so that the cosine part still covers the light an envmap
-// holds where the map's density is low.
+// directions, emissive meshes by a triangle picked by its estimated contribution at (p, n) (the
+// mesh's LightTree) and then sampled by solid angle (spherical triangles); by area only where
+// the solid angle is too small to sample that way (far away, where the area pdf is harmless). The
+// environment (all constant + envmap lights together) is sampled cosine-weighted around n
+// (uniformly over the sphere when n is zero), and, when it holds an envmap, by its radiance
+// (EnvironmentMapSampler) with probability 1 - kEnvCosineShare: a mixture, so that the cosine part
+// still covers the light an envmap holds where the map's density is low.
 //
 // n may be the zero vector: no horizon test (points that also transmit light).
 #pragma once
@@ -49,12 +49,14 @@ class LightSampler {
   // else a negative value. n must be a unit normal.
   Vec3 AnalyticIrradiance(int i, const Vec3& p, const Vec3& n) const;
 
-  // Samples local light i alone from p: s->pdf is the solid-angle pdf of this light alone (0 for
-  // delta lights), s->value = Le / pdf (delta lights: I / d^2, or E). False: nothing reaches p.
-  bool SampleOne(int i, const Vec3& p, float u1, float u2, float u3, LightSample* s) const;
-  // Solid-angle pdf of SampleOne(i, p, ...) giving direction wi that reaches point q (shading
-  // normal nq, triangle prim) of area light i.
-  float PdfOne(int i, const Vec3& p, const Vec3& q, const Vec3& nq, unsigned prim,
+  // Samples local light i alone from (p, n): s->pdf is the solid-angle pdf of this light alone
+  // (0 for delta lights), s->value = Le / pdf (delta lights: I / d^2, or E). False: nothing
+  // reaches p. n (which may be zero) guides the choice of a mesh's triangle.
+  bool SampleOne(int i, const Vec3& p, const Vec3& n, float u1, float u2, float u3,
+                 LightSample* s) const;
+  // Solid-angle pdf of SampleOne(i, p, n, ...) giving direction wi that reaches point q
+  // (shading normal nq, triangle prim) of area light i.
+  float PdfOne(int i, const Vec3& p, const Vec3& n, const Vec3& q, const Vec3& nq, unsigned prim,
                const Vec3& wi) const;
 
   // Samples the environment alone from (p, n): cosine-weighted around n (uniform over the sphere
@@ -112,7 +114,7 @@ class LightSampler {
       }
       LightSample s;
       const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
-      if (SampleOne(i, p, u1, u2, u3, &s)) f(s);
+      if (SampleOne(i, p, n, u1, u2, u3, &s)) f(s);
     }
     if (has_environment()) {
       LightSample s;

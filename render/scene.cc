@@ -125,6 +125,7 @@ Light MakeAreaLight(const MeshView& m, const Vec3& radiance, unsigned geom) {
       }
     }
   }
+  l.tree.Build(l.triangles, Luminance(l.radiance));
   return l;
 }
 

@@ -308,7 +308,7 @@ TEST(LightSamplerTest, SampleOneIsUnbiasedAgainstAnalyticIrradiance) {
     LightSample s;
     const float u1 = rng.Next(), u2 = rng.Next();
     double v = 0;
-    if (sampler.SampleOne(0, p, u1, u2, rng.Next(), &s))
+    if (sampler.SampleOne(0, p, n, u1, u2, rng.Next(), &s))
       v = s.value.x * std::max(0.0f, Dot(s.wi, n));
     sum += v;
     sum2 += v * v;

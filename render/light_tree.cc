@@ -1,0 +1,354 @@
+#include "render/light_tree.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+namespace irfarm {
+namespace {
+
+// A cone of directions: a unit axis and the cosine of its half-angle (-1: every direction).
+struct Cone {
+  Vec3 axis;
+  float cos_half = 1;
+  bool empty = true;
+};
+
+// Angle between unit vectors, accurate for nearly equal and nearly opposite ones.
+float AngleBetween(const Vec3& a, const Vec3& b) {
+  const float d = Dot(a, b);
+  if (d < 0) return kPi - 2 * std::asin(std::min(1.0f, Length(a + b) * 0.5f));
+  return 2 * std::asin(std::min(1.0f, Length(a - b) * 0.5f));
+}
+
+// The smallest cone holding both (Conty Estevez and Kulla's merge), widened by a hair so that
+// rounding never leaves a normal outside it.
+Cone Union(const Cone& a, const Cone& b) {
+  if (a.empty) return b;
+  if (b.empty) return a;
+  constexpr float kMargin = 1e-4f;
+  const float ta = std::acos(std::clamp(a.cos_half, -1.0f, 1.0f));
+  const float tb = std::acos(std::clamp(b.cos_half, -1.0f, 1.0f));
+  const float td = AngleBetween(a.axis, b.axis);
+  if (std::min(td + tb, kPi) <= ta) return a;
+  if (std::min(td + ta, kPi) <= tb) return b;
+  const float to = 0.5f * (ta + td + tb) + kMargin;
+  Cone c;
+  c.empty = false;
+  const Vec3 k = Cross(a.axis, b.axis);
+  if (to >= kPi || LengthSquared(k) < 1e-12f) {  // every direction (or opposite axes)
+    c.axis = a.axis;
+    c.cos_half = -1;
+    return c;
+  }
+  // Rotate a's axis towards b's by to - ta (about k, which is perpendicular to it).
+  const float tr = to - kMargin - ta;
+  const Vec3 kn = Normalize(k);
+  c.axis = Normalize(a.axis * std::cos(tr) + Cross(kn, a.axis) * std::sin(tr));
+  c.cos_half = std::cos(to);
+  return c;
+}
+
+// Measure of the directions a cone of normals emits into (one-sided emitters: each normal's
+// hemisphere, cosine-weighted): 2 pi (1 - cos t) + pi/2 (2 w sin t - cos(t - 2w) - 2 t sin t +
+// cos t), w = min(t + pi/2, pi). pi for a single direction.
+float OrientationMeasure(const Cone& c) {
+  const float t = std::acos(std::clamp(c.cos_half, -1.0f, 1.0f));
+  const float w = std::min(t + 0.5f * kPi, kPi);
+  const float s = std::sin(t);
+  return 2 * kPi * (1 - std::cos(t)) +
+         0.5f * kPi * (2 * w * s - std::cos(t - 2 * w) - 2 * t * s + std::cos(t));
+}
+
+float BoxArea(const Vec3& lo, const Vec3& hi) {
+  const Vec3 e = Max(hi - lo, Vec3());
+  return 2 * (e.x * e.y + e.y * e.z + e.z * e.x);
+}
+
+// cos(max(0, a - b)) from the cosines and sines of a and b.
+float CosMinusClamped(float cos_a, float sin_a, float cos_b, float sin_b) {
+  return cos_a >= cos_b ? 1.0f : cos_a * cos_b + sin_a * sin_b;
+}
+// sin(max(0, a - b)).
+float SinMinusClamped(float cos_a, float sin_a, float cos_b, float sin_b) {
+  return cos_a >= cos_b ? 0.0f : sin_a * cos_b - cos_a * sin_b;
+}
+
+float SafeSqrt(float x) { return std::sqrt(std::max(0.0f, x)); }
+
+}  // namespace
+
+struct LightTree::Prim {
+  int index = 0;
+  Vec3 lo, hi, centroid;
+  Cone cone;
+  float power = 0;
+  Vec3 p0, p1, p2;
+};
+
+void LightTree::Build(const std::vector<LightTriangle>& triangles, float luminance) {
+  nodes_.clear();
+  path_.assign(triangles.size(), 0);
+  leaf_.assign(triangles.size(), -1);
+  depth_ = 0;
+  std::vector<Prim> prims;
+  prims.reserve(triangles.size());
+  for (size_t i = 0; i < triangles.size(); ++i) {
+    const LightTriangle& t = triangles[i];
+    const float power = luminance * t.area;
+    if (!(t.area > 0) || !(power > 0) || !std::isfinite(power)) continue;
+    Prim p;
+    p.index = int(i);
+    p.lo = Min(t.p0, Min(t.p1, t.p2));
+    p.hi = Max(t.p0, Max(t.p1, t.p2));
+    p.centroid = (t.p0 + t.p1 + t.p2) / 3.0f;
+    p.cone.axis = t.ng;
+    p.cone.cos_half = 1;
+    p.cone.empty = false;
+    p.power = power;
+    p.p0 = t.p0;
+    p.p1 = t.p1;
+    p.p2 = t.p2;
+    prims.push_back(p);
+  }
+  if (prims.empty()) return;
+  nodes_.reserve(2 * prims.size());
+  BuildRange(prims, 0, prims.size(), 0);
+}
+
+int LightTree::BuildRange(std::vector<Prim>& prims, size_t begin, size_t end, int depth) {
+  depth_ = std::max(depth_, depth);
+  const int me = int(nodes_.size());
+  nodes_.push_back(Node{});
+  if (end - begin == 1) {
+    const Prim& p = prims[begin];
+    Node& n = nodes_[size_t(me)];
+    SetBounds(&n, p.lo, p.hi, p.cone.axis, 1, p.power);
+    n.triangle = p.index;
+    n.p0 = p.p0;
+    n.p1 = p.p1;
+    n.p2 = p.p2;
+    n.ng = p.cone.axis;
+    leaf_[size_t(p.index)] = me;
+    return me;
+  }
+  Vec3 lo = prims[begin].lo, hi = prims[begin].hi;
+  Vec3 clo = prims[begin].centroid, chi = clo;
+  Cone cone;
+  float power = 0;
+  for (size_t i = begin; i < end; ++i) {
+    lo = Min(lo, prims[i].lo);
+    hi = Max(hi, prims[i].hi);
+    clo = Min(clo, prims[i].centroid);
+    chi = Max(chi, prims[i].centroid);
+    cone = Union(cone, prims[i].cone);
+    power += prims[i].power;
+  }
+  // The split: the bucket boundary of least surface-area-orientation cost over the three axes;
+  // the middle element along the widest axis when the centroids coincide.
+  constexpr int kBuckets = 12;
+  const Vec3 extent = hi - lo;
+  const float max_extent = MaxComponent(extent);
+  float best_cost = INFINITY;
+  int best_axis = -1, best_bucket = -1;
+  for (int axis = 0; axis < 3; ++axis) {
+    const float span = chi[axis] - clo[axis];
+    if (!(span > 0)) continue;
+    struct Bucket {
+      Vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+      Cone cone;
+      float power = 0;
+      int count = 0;
+    };
+    std::array<Bucket, kBuckets> b;
+    const auto bucket_of = [&](const Prim& p) {
+      return std::min(kBuckets - 1, int(kBuckets * (p.centroid[axis] - clo[axis]) / span));
+    };
+    for (size_t i = begin; i < end; ++i) {
+      Bucket& k = b[size_t(bucket_of(prims[i]))];
+      k.lo = Min(k.lo, prims[i].lo);
+      k.hi = Max(k.hi, prims[i].hi);
+      k.cone = Union(k.cone, prims[i].cone);
+      k.power += prims[i].power;
+      ++k.count;
+    }
+    // Regularisation (Conty Estevez and Kulla): thin slabs along a short axis cost more.
+    const float kr = extent[axis] > 0 ? max_extent / extent[axis] : 1.0f;
+    for (int split = 1; split < kBuckets; ++split) {
+      Bucket l, r;
+      for (int k = 0; k < kBuckets; ++k) {
+        Bucket& side = k < split ? l : r;
+        if (b[size_t(k)].count == 0) continue;
+        side.lo = Min(side.lo, b[size_t(k)].lo);
+        side.hi = Max(side.hi, b[size_t(k)].hi);
+        side.cone = Union(side.cone, b[size_t(k)].cone);
+        side.power += b[size_t(k)].power;
+        side.count += b[size_t(k)].count;
+      }
+      if (l.count == 0 || r.count == 0) continue;
+      const float cost = kr * (l.power * OrientationMeasure(l.cone) * BoxArea(l.lo, l.hi) +
+                               r.power * OrientationMeasure(r.cone) * BoxArea(r.lo, r.hi));
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_axis = axis;
+        best_bucket = split;
+      }
+    }
+  }
+  size_t mid;
+  // Past kMaxCostDepth the range is halved, so that a path fits its 64 bits.
+  constexpr int kMaxCostDepth = 30;
+  if (best_axis >= 0 && depth < kMaxCostDepth) {
+    const int axis = best_axis;
+    const float span = chi[axis] - clo[axis];
+    mid = size_t(std::partition(prims.begin() + long(begin), prims.begin() + long(end),
+                                [&](const Prim& p) {
+                                  return std::min(kBuckets - 1,
+                                                  int(kBuckets * (p.centroid[axis] - clo[axis]) /
+                                                      span)) < best_bucket;
+                                }) -
+                 prims.begin());
+  } else {
+    mid = begin;
+  }
+  if (mid == begin || mid == end) {  // coincident centroids (or an empty side): halve the range
+    int axis = 0;
+    for (int a = 1; a < 3; ++a)
+      if (extent[a] > extent[axis]) axis = a;
+    mid = (begin + end) / 2;
+    std::nth_element(
+        prims.begin() + long(begin), prims.begin() + long(mid), prims.begin() + long(end),
+        [axis](const Prim& a, const Prim& b) { return a.centroid[axis] < b.centroid[axis]; });
+  }
+  BuildRange(prims, begin, mid, depth + 1);
+  const int second = BuildRange(prims, mid, end, depth + 1);
+  for (size_t i = mid; i < end; ++i) path_[size_t(prims[i].index)] |= uint64_t(1) << depth;
+  Node& n = nodes_[size_t(me)];
+  SetBounds(&n, lo, hi, cone.axis, cone.cos_half, power);
+  n.second = second;
+  return me;
+}
+
+void LightTree::SetBounds(Node* node, const Vec3& lo, const Vec3& hi, const Vec3& axis,
+                          float cos_cone, float power) const {
+  node->centre = (lo + hi) * 0.5f;
+  node->half = Max(hi - lo, Vec3()) * 0.5f;
+  node->r2 = LengthSquared(node->half);
+  node->radius = std::sqrt(node->r2);
+  node->axis = axis;
+  node->cos_cone = cos_cone;
+  node->sin_cone = SafeSqrt(1 - cos_cone * cos_cone);
+  const Vec3& h = node->half;
+  node->spread = std::abs(axis.x) * h.x + std::abs(axis.y) * h.y + std::abs(axis.z) * h.z +
+                 SafeSqrt(2 * (1 - cos_cone)) * node->radius;
+  node->power = power;
+}
+
+inline float LightTree::NodeImportance(const Node& node, const Vec3& p, const Vec3& n) const {
+  const bool has_normal = !IsBlack(n);
+  if (node.triangle >= 0) {
+    // Exact for one triangle: p behind its emitting side, or all its corners below p's horizon.
+    if (Dot(p - node.p0, node.ng) <= 0) return 0;
+    if (has_normal && Dot(node.p0 - p, n) <= 0 && Dot(node.p1 - p, n) <= 0 &&
+        Dot(node.p2 - p, n) <= 0)
+      return 0;
+  }
+  const Vec3& h = node.half;
+  const float r2 = node.r2;
+  const Vec3 d = p - node.centre;  // from the box towards p
+  const float d2 = LengthSquared(d);
+  const float dist2 = std::max(d2, r2);
+  if (!(dist2 > 0)) return 0;
+  // The box's own tests, which hold inside its bounding sphere too. Below p's horizon: every
+  // point x of the box has n.(x - p) <= 0 (exact for the box).
+  if (has_normal &&
+      -Dot(n, d) + std::abs(n.x) * h.x + std::abs(n.y) * h.y + std::abs(n.z) * h.z <= 0)
+    return 0;
+  // Behind every emitting side: for a normal m of the cone, max over x of m.(p - x) is
+  // m.d + sum |m_k| h_k, at most |d| cos(theta_x) + sum |axis_k| h_k + |m - axis| |h| (the
+  // node's spread), with theta_x = max(0, angle(axis, d) - cone) and |m - axis| <= 2 sin(cone/2).
+  const float cos_o = node.cos_cone, sin_o = node.sin_cone;
+  const float dist = std::sqrt(d2);
+  const float inv_dist = dist > 0 ? 1 / dist : 0.0f;
+  const Vec3 wi = dist > 0 ? d * inv_dist : node.axis;
+  const float cos_w = Dot(node.axis, wi), sin_w = SafeSqrt(1 - cos_w * cos_w);
+  const float cos_x = CosMinusClamped(cos_w, sin_w, cos_o, sin_o);
+  const float sin_x = SinMinusClamped(cos_w, sin_w, cos_o, sin_o);
+  if (dist * cos_x + node.spread <= 0) return 0;
+  if (d2 <= r2) return node.power / dist2;  // p inside the bounding sphere: any direction
+  // The box seen from p: within the cone of half-angle b around the direction to its centre.
+  const float sin_b = node.radius * inv_dist;
+  const float cos_b = SafeSqrt(1 - sin_b * sin_b);
+  // theta' = max(0, angle(axis, wi) - cone - b): the least angle a normal can make with a
+  // direction from the box to p.
+  const float cos_e = CosMinusClamped(cos_x, sin_x, cos_b, sin_b);
+  if (cos_e <= 0) return 0;  // every triangle emits away from p
+  float cos_i = 1;
+  if (has_normal) {
+    const float c_i = -Dot(n, wi), s_i = SafeSqrt(1 - c_i * c_i);
+    cos_i = CosMinusClamped(c_i, s_i, cos_b, sin_b);
+    if (cos_i <= 0) return 0;  // the whole box is below p's horizon
+  }
+  return node.power * cos_e * cos_i * (inv_dist * inv_dist);
+}
+
+float LightTree::Importance(const Vec3& p, const Vec3& n) const {
+  return nodes_.empty() ? 0.0f : NodeImportance(nodes_[0], p, n);
+}
+
+bool LightTree::ChildProbabilities(int at, const Vec3& p, const Vec3& n, float* pa,
+                                   float* pb) const {
+  const float ia = NodeImportance(nodes_[size_t(at + 1)], p, n);
+  const float ib = NodeImportance(nodes_[size_t(nodes_[size_t(at)].second)], p, n);
+  const float total = ia + ib;
+  if (!(total > 0)) return false;
+  *pa = ia / total;
+  *pb = ib / total;
+  return true;
+}
+
+int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf) const {
+  *pmf = 0;
+  // No test of the root here (the callers have made it: LightSampler::Weight), nor in Pmf.
+  if (nodes_.empty()) return -1;
+  int at = 0;
+  float prob = 1;
+  while (nodes_[size_t(at)].triangle < 0) {
+    float pa, pb;
+    if (!ChildProbabilities(at, p, n, &pa, &pb)) return -1;
+    if (u < pa) {
+      u = std::min(u / pa, 0x1.fffffep-1f);
+      prob *= pa;
+      at = at + 1;
+    } else {
+      u = std::min((u - pa) / (1 - pa), 0x1.fffffep-1f);
+      prob *= pb;
+      at = nodes_[size_t(at)].second;
+    }
+  }
+  if (!(prob > 0)) return -1;
+  *pmf = prob;
+  return nodes_[size_t(at)].triangle;
+}
+
+float LightTree::Pmf(const Vec3& p, const Vec3& n, unsigned index) const {
+  if (index >= leaf_.size() || leaf_[index] < 0) return 0;
+  const uint64_t path = path_[index];
+  int at = 0, depth = 0;
+  float prob = 1;
+  while (nodes_[size_t(at)].triangle < 0) {
+    float pa, pb;
+    if (!ChildProbabilities(at, p, n, &pa, &pb)) return 0;
+    if ((path >> depth) & 1) {
+      prob *= pb;
+      at = nodes_[size_t(at)].second;
+    } else {
+      prob *= pa;
+      at = at + 1;
+    }
+    ++depth;
+  }
+  return prob;
+}
+
+}  // namespace irfarm

@@ -1,0 +1,80 @@
+// A light tree over the triangles of one emissive mesh: picks a triangle in proportion to an
+// estimate of what it sends to a shading point, instead of by area.
+//
+// Each node bounds its triangles' positions (a box), their emitting directions (a cone of
+// normals) and their power (radiance luminance x area). Its importance at a point p with facing
+// normal n is power x cos(theta') x cos(theta_i') / d^2, where theta' is the smallest angle any
+// of its triangles' normals can make with a direction from the box towards p, theta_i' the
+// smallest angle a direction from p into the box can make with n, and d the distance to the
+// box's centre (not less than the box's half diagonal) (Conty Estevez and Kulla 2018, "Importance
+// sampling of many lights with adaptive tree splitting"; pbrt-v4's BVH light sampler). The bounds
+// are conservative: a node whose importance is 0 holds no triangle that can light p (all emit
+// away from p, or all lie below p's horizon), so picking stays unbiased. A leaf (one triangle)
+// also tests p against the triangle's plane and its three corners against p's horizon exactly.
+//
+// Sample() walks from the root, choosing a child in proportion to the two importances; Pmf()
+// walks the same way to a given triangle (its path is stored as bits) and multiplies the same
+// probabilities, so that the two agree exactly (MIS). Both allocate nothing.
+//
+// The tree is built by splitting at the bucket boundary with the lowest surface-area-orientation
+// cost (box area x orientation measure x power, Conty Estevez and Kulla), along each axis.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "cache/math.h"
+#include "render/light_triangle.h"
+
+namespace irfarm {
+
+class LightTree {
+ public:
+  // Builds the tree over `triangles` (indices into it are what Sample returns), each with power
+  // `luminance` x its area. Triangles of zero area are left out (they emit nothing).
+  void Build(const std::vector<LightTriangle>& triangles, float luminance);
+
+  bool empty() const { return nodes_.empty(); }
+  // The root's importance at (p, n): 0 exactly when no triangle can light p. n may be zero (a
+  // point that takes light from all directions: no horizon test).
+  float Importance(const Vec3& p, const Vec3& n) const;
+  // Picks a triangle with probability *pmf, or returns -1 (no triangle reached; always when
+  // Importance(p, n) is 0, which the caller tests first).
+  int Sample(const Vec3& p, const Vec3& n, float u, float* pmf) const;
+  // The probability that Sample(p, n, ...) picks triangle `index`.
+  float Pmf(const Vec3& p, const Vec3& n, unsigned index) const;
+
+  int depth() const { return depth_; }
+  size_t node_count() const { return nodes_.size(); }
+
+ private:
+  struct Node {
+    // Bounds of the triangles' positions: centre, half extents and squared half diagonal.
+    Vec3 centre, half;
+    float r2 = 0, radius = 0;
+    // Cone of emitting normals: axis, cosine and sine of its half-angle, and `spread`, how far
+    // a point of the box can lie beyond the centre along such a normal (see NodeImportance).
+    Vec3 axis;
+    float cos_cone = 1, sin_cone = 0, spread = 0;
+    float power = 0;    // luminance x area, summed
+    int second = -1;    // interior: index of the second child (the first is the next node)
+    int triangle = -1;  // leaf: the triangle
+    // Leaf: the triangle's corners and plane, for the exact tests.
+    Vec3 p0, p1, p2, ng;
+  };
+  void SetBounds(Node* node, const Vec3& lo, const Vec3& hi, const Vec3& axis, float cos_cone,
+                 float power) const;
+  struct Prim;  // a triangle during the build
+
+  int BuildRange(std::vector<Prim>& prims, size_t begin, size_t end, int depth);
+  float NodeImportance(const Node& node, const Vec3& p, const Vec3& n) const;
+  // The probabilities of interior node `at`'s two children; false when neither can light p.
+  bool ChildProbabilities(int at, const Vec3& p, const Vec3& n, float* pa, float* pb) const;
+
+  std::vector<Node> nodes_;
+  std::vector<uint64_t> path_;  // per triangle: the child taken at each depth (bit d)
+  std::vector<int> leaf_;       // per triangle: its leaf node, -1 when left out
+  int depth_ = 0;
+};
+
+}  // namespace irfarm
