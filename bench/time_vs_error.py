@@ -303,7 +303,7 @@ def main():
     names = a.scenes.split(",") if a.scenes else sorted(
         n for n in os.listdir(a.scenes_dir)
         if os.path.exists(os.path.join(a.scenes_dir, n, "reference.exr"))
-        and os.path.exists(os.path.join(a.scenes_dir, n, "mitsuba-curve.json")))
+        and (a.mitsuba_live or os.path.exists(os.path.join(a.scenes_dir, n, "mitsuba-curve.json"))))
     os.makedirs(a.out, exist_ok=True)
     summary = ["| scene | irrcache default: relMSE, s | path time at that relMSE | "
                "Mitsuba time at that relMSE | Mitsuba 256 spp relMSE | "
