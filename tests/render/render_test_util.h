@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -69,6 +70,43 @@ inline Image QuarterReference(const std::string& name) {
   return ref.ok() ? *ref : Image();
 }
 
+// The full-size reference (reference.exr).
+inline Image FullReference(const std::string& name) {
+  absl::StatusOr<Image> ref =
+      ReadExr(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference.exr");
+  EXPECT_TRUE(ref.ok()) << ref.status();
+  return ref.ok() ? *ref : Image();
+}
+
+// The largest of Mitsuba's own full-size 256-spp errors against the reference
+// (mitsuba_full_256spp_relmse_vs_ref in reference.json, written by mitsuba_reference.py with
+// full_256); 0 when absent.
+inline double Mitsuba256SppMax(const std::string& name) {
+  std::ifstream f(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference.json");
+  const nlohmann::json j = nlohmann::json::parse(f, nullptr, /*allow_exceptions=*/false);
+  EXPECT_TRUE(j.is_object()) << name << "/reference.json";
+  double worst = 0;
+  if (j.is_object() && j.contains("mitsuba_full_256spp_relmse_vs_ref"))
+    for (const auto& v : j["mitsuba_full_256spp_relmse_vs_ref"])
+      worst = std::max(worst, v.get<double>());
+  EXPECT_GT(worst, 0) << name << ": no Mitsuba 256-spp errors in reference.json";
+  return worst;
+}
+
+// Test scene `name` with `from` replaced by `to` in its XML (`from` must occur exactly once).
+inline LoadedScene LoadVariant(const std::string& name, const std::string& from,
+                               const std::string& to) {
+  std::ifstream f(TestScenePath(name));
+  std::stringstream ss;
+  ss << f.rdbuf();
+  std::string xml = ss.str();
+  const size_t at = xml.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  EXPECT_EQ(xml.find(from, at + 1), std::string::npos) << from;
+  if (at != std::string::npos) xml.replace(at, from.size(), to);
+  return BuildLoaded(LoadSceneString(xml, TestScenePath(name), {}));
+}
+
 inline RenderOutput RenderWith(const LoadedScene& s, const std::string& integrator, int spp,
                                uint64_t seed, int threads = 0) {
   RenderSettings settings = *SettingsForScene(s.desc, integrator);
@@ -76,6 +114,29 @@ inline RenderOutput RenderWith(const LoadedScene& s, const std::string& integrat
   settings.seed = seed;
   settings.threads = threads;
   return Render(*s.scene, settings);
+}
+
+// Test scene `name` rendered by `path` and by `irrcache` at 256 spp (seed 1), full size: each
+// must be below Mitsuba's own largest error at 256 spp against the reference.
+inline void ExpectWithinMitsuba256Spp(const std::string& name, const LoadedScene& scene) {
+  const Image ref = FullReference(name);
+  const double bound = Mitsuba256SppMax(name);
+  const double path = CompareImages(RenderWith(scene, "path", 256, 1).image, ref).relmse;
+  const double irrcache = CompareImages(RenderWith(scene, "irrcache", 256, 1).image, ref).relmse;
+  std::printf("MEASURED path %.3g, irrcache %.3g (256 spp); Mitsuba 256 spp at most %.3g\n", path,
+              irrcache, bound);
+  EXPECT_LT(path, bound) << name;
+  EXPECT_LT(irrcache, bound) << name;
+}
+
+// A variant of test scene `name` (`what` it gets wrong) rendered by `path` at 256 spp must be
+// above that bound: the test above can fail.
+inline void ExpectFarFromMitsuba256Spp(const std::string& name, const char* what,
+                                       const LoadedScene& variant) {
+  const double e =
+      CompareImages(RenderWith(variant, "path", 256, 1).image, FullReference(name)).relmse;
+  std::printf("MEASURED %s: %.3g\n", what, e);
+  EXPECT_GT(e, Mitsuba256SppMax(name)) << what;
 }
 
 // Per channel, the standard error of image a's mean, estimated from two independent renders a

@@ -1,11 +1,6 @@
-"""Makes this scene's Mitsuba 3 reference (reference.exr, reference-x4.exr, reference.json).
-
-Run from this folder, (64 x 48):
-  python3 make_reference.py --spp 16384
-What it renders and records: ../mitsuba_reference.py, with eight full-size 256-spp renders
-against the reference (seeds 1 ... 8: the largest of their errors is the tolerance of
-mesh_lamps_test.cc).
-"""
+"""Mitsuba 3 reference of mesh-lamps (python3 make_reference.py --spp 16384, from this folder):
+../mitsuba_reference.py with eight full-size 256-spp renders, whose largest error against the
+reference is mesh_lamps_test.cc's tolerance."""
 import os
 import sys
 
