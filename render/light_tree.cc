@@ -76,6 +76,12 @@ float SinMinusClamped(float cos_a, float sin_a, float cos_b, float sin_b) {
 
 float SafeSqrt(float x) { return std::sqrt(std::max(0.0f, x)); }
 
+// The split search's buckets along one axis: kBuckets equal slices of the centroids' span from lo.
+constexpr int kBuckets = 12;
+int BucketOf(float centroid, float lo, float span) {
+  return std::min(kBuckets - 1, int(kBuckets * (centroid - lo) / span));
+}
+
 }  // namespace
 
 struct LightTree::Prim {
@@ -146,7 +152,6 @@ int LightTree::BuildRange(std::vector<Prim>& prims, size_t begin, size_t end, in
   }
   // The split: the bucket boundary of least surface-area-orientation cost over the three axes;
   // the middle element along the widest axis when the centroids coincide.
-  constexpr int kBuckets = 12;
   const Vec3 extent = hi - lo;
   const float max_extent = MaxComponent(extent);
   float best_cost = INFINITY;
@@ -161,11 +166,8 @@ int LightTree::BuildRange(std::vector<Prim>& prims, size_t begin, size_t end, in
       int count = 0;
     };
     std::array<Bucket, kBuckets> b;
-    const auto bucket_of = [&](const Prim& p) {
-      return std::min(kBuckets - 1, int(kBuckets * (p.centroid[axis] - clo[axis]) / span));
-    };
     for (size_t i = begin; i < end; ++i) {
-      Bucket& k = b[size_t(bucket_of(prims[i]))];
+      Bucket& k = b[size_t(BucketOf(prims[i].centroid[axis], clo[axis], span))];
       k.lo = Min(k.lo, prims[i].lo);
       k.hi = Max(k.hi, prims[i].hi);
       k.cone = Union(k.cone, prims[i].cone);
@@ -203,9 +205,7 @@ int LightTree::BuildRange(std::vector<Prim>& prims, size_t begin, size_t end, in
     const float span = chi[axis] - clo[axis];
     mid = size_t(std::partition(prims.begin() + long(begin), prims.begin() + long(end),
                                 [&](const Prim& p) {
-                                  return std::min(kBuckets - 1,
-                                                  int(kBuckets * (p.centroid[axis] - clo[axis]) /
-                                                      span)) < best_bucket;
+                                  return BucketOf(p.centroid[axis], clo[axis], span) < best_bucket;
                                 }) -
                  prims.begin());
   } else {
