@@ -109,12 +109,15 @@ void IrradianceCache::ForEachWithin(const Block* head, const Vec3& p, float alph
 struct IrradianceCache::Accumulator {
   // A constructor, not aggregate initialization, which zero-filled `pending` on every lookup (a
   // 256-byte memset, 4% of a region lookup's time).
-  Accumulator(const Vec3& x_in, const Vec3& n_in, float a_in, int max_level_in)
-      : x(x_in), n(n_in), a(a_in), max_level(max_level_in) {}
+  Accumulator(const Vec3& x_in, const Vec3& n_in, float a_in, int max_level_in, float narrow_in)
+      : x(x_in), n(n_in), a(a_in), max_level(max_level_in), narrow(narrow_in) {}
   Vec3 x, n;
   float a;
   int max_level;
-  double weight = 0, weight_sq = 0;
+  float narrow;  // LookupInfo::counts_at_narrow's accuracy (0: none)
+  bool counts_at_narrow = false;
+  double weight = 0, weight_sq = 0, narrow_weight = 0;
+  double narrow_e[3] = {0, 0, 0};
   double e[3] = {0, 0, 0};
   int count = 0;
   int remote = 0;  // counted records with origin != 0
@@ -125,7 +128,22 @@ struct IrradianceCache::Accumulator {
   void Add(const IrradianceRecord& r) {
     if (r.level > max_level) return;
     const float w = RecordWeight(x, n, a, r);
-    if (w > 0) Take(w, r.irradiance, r.origin != 0);
+    if (w > 0) {
+      Take(w, r.irradiance, r.origin != 0);
+      Narrow(w, r.position, r.normal, r.radius, r.irradiance);
+    }
+  }
+  // For a record that counts at a (weight w): does it count at the narrow accuracy too? Of
+  // RecordWeight's tests, only eps < narrow (w > 1 / narrow; the reach test follows from it) and
+  // the in-front tolerance, which scales with the accuracy, can differ.
+  void Narrow(float w, const Vec3& position, const Vec3& normal, float radius,
+              const Vec3& irradiance) {
+    if (narrow > 0 && w > 1 / narrow &&
+        !(Dot(position - x, (n + normal) * 0.5f) > kInFrontTolerance * narrow * radius)) {
+      counts_at_narrow = true;
+      narrow_weight += w;
+      for (int k = 0; k < 3; ++k) narrow_e[k] += double(w) * irradiance[k];
+    }
   }
   // A record that counts with weight w > 0.
   void Take(float w, const Vec3& irradiance, bool from_elsewhere) {
@@ -164,6 +182,11 @@ struct IrradianceCache::Accumulator {
       info->weight_sum = float(weight);
       info->weight_sq_sum = float(weight_sq);
       info->remote_records_used = remote;
+      info->counts_at_narrow = counts_at_narrow;
+      if (counts_at_narrow)
+        info->narrow_irradiance =
+            Vec3(float(narrow_e[0] / narrow_weight), float(narrow_e[1] / narrow_weight),
+                 float(narrow_e[2] / narrow_weight));
       info->from_region = false;
     }
     if (count == 0) return false;
@@ -549,8 +572,8 @@ void IrradianceCache::WalkNodes(const Vec3& x, unsigned classes, int max_level, 
 }
 
 bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradiance,
-                             LookupInfo* info, int max_level) const {
-  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level};
+                             LookupInfo* info, int max_level, float narrow_a) const {
+  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level, narrow_a};
   const float reach_scale = float(double(acc.a) * grid_scale_ * (1 + kReachSlack));
   // The walk only collects the record blocks of the nodes it enters, prefetching each, and scans
   // them afterwards: the cache misses on blocks then overlap each other and the walk instead of
@@ -680,7 +703,7 @@ void IrradianceCache::Gather(const Vec3& x, const Vec3& n, float a, float radius
 
 bool IrradianceCache::LookupNear(const Vec3& x, const Vec3& n, float a, float radius, float angle,
                                  LookupRegion* region, Vec3* irradiance, LookupInfo* info,
-                                 int max_level) const {
+                                 int max_level, float narrow_a) const {
   a = std::min(a, max_accuracy_);
   const auto covers = [&] {
     return region->cache == this && region->a == a && region->max_level == max_level &&
@@ -692,12 +715,12 @@ bool IrradianceCache::LookupNear(const Vec3& x, const Vec3& n, float a, float ra
   if (!reused) {
     if (!(radius >= 0) || !(angle >= 0) || !IsFinite(x) || !IsFinite(n)) {
       region->cos_angle = 2;  // nothing to gather around: an empty region
-      return Lookup(x, n, a, irradiance, info, max_level);
+      return Lookup(x, n, a, irradiance, info, max_level, narrow_a);
     }
     Gather(x, n, a, radius, angle, max_level, region);
   }
-  if (region->count < 0) return Lookup(x, n, a, irradiance, info, max_level);
-  Accumulator acc{x, n, a, max_level};
+  if (region->count < 0) return Lookup(x, n, a, irradiance, info, max_level, narrow_a);
+  Accumulator acc{x, n, a, max_level, narrow_a};
   // Squared-distance reject on the copied hot parts (RecordWeight's expression: never rejects a
   // record the rule counts), then the full rule on the few within reach.
   for (int k0 = 0; k0 < region->count; k0 += 4) {
@@ -708,8 +731,12 @@ bool IrradianceCache::LookupNear(const Vec3& x, const Vec3& n, float a, float ra
     RegionWeights4(*region, k0, x, n, a, w);
     for (int m = near; m != 0; m &= m - 1) {
       const int l = __builtin_ctz(m), k = k0 + l;
-      if (w[l] > 0)
+      if (w[l] > 0) {
         acc.Take(w[l], Vec3(region->ex[k], region->ey[k], region->ez[k]), region->remote[k]);
+        acc.Narrow(w[l], Vec3(region->x[k], region->y[k], region->z[k]),
+                   Vec3(region->nx[k], region->ny[k], region->nz[k]), region->r[k],
+                   Vec3(region->ex[k], region->ey[k], region->ez[k]));
+      }
     }
   }
   const bool found = acc.Finish(irradiance, info);
@@ -718,8 +745,8 @@ bool IrradianceCache::LookupNear(const Vec3& x, const Vec3& n, float a, float ra
 }
 
 bool IrradianceCache::LookupBruteForce(const Vec3& x, const Vec3& n, float a, Vec3* irradiance,
-                                       LookupInfo* info, int max_level) const {
-  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level};
+                                       LookupInfo* info, int max_level, float narrow_a) const {
+  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level, narrow_a};
   ForEach([&acc](const IrradianceRecord& r) { acc.Add(r); });
   return acc.Finish(irradiance, info);
 }

@@ -72,7 +72,11 @@ struct LookupInfo {
   float weight_sq_sum = 0;      // sum of w_i^2: sum w_i^2 / (sum w_i)^2 is the share of one
                                 // record's variance that the weighted mean keeps
   int remote_records_used = 0;  // of records_used, those with origin != 0 (made elsewhere)
-  bool from_region = false;     // LookupNear: answered from the region's records, no walk
+  // Given a narrow accuracy (the lookups' `narrow_a`): whether some record counts under the rule
+  // at that smaller accuracy too (RecordWeight(x, n, narrow_a, r) > 0 for one of them).
+  bool counts_at_narrow = false;
+  Vec3 narrow_irradiance;    // ... and their interpolated irradiance (when counts_at_narrow)
+  bool from_region = false;  // LookupNear: answered from the region's records, no walk
 };
 
 // The records that may count at any point within `radius` of `center` with a normal within
@@ -134,8 +138,11 @@ class IrradianceCache {
   // count. a is clamped to max_accuracy(). Returns false and leaves *irradiance untouched when no
   // record counts. info may be null; when given it is always filled. Thread-safe, allocation-free.
   // Only records with level <= max_level count.
+  // With 0 < narrow_a < a, info->counts_at_narrow also tells whether any record counts at
+  // narrow_a (the renderer weighs records at a and makes a new one where none counts at
+  // narrow_a).
   bool Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradiance, LookupInfo* info,
-              int max_level = kAnyLevel) const;
+              int max_level = kAnyLevel, float narrow_a = 0) const;
 
   // Same rule and result as Lookup (up to summation order), for a run of lookups close together
   // (the samples of a pixel). When `region` covers (x, n) at (a, max_level) and nothing was
@@ -144,11 +151,11 @@ class IrradianceCache {
   // many candidates are not kept: lookups they cover walk the octree. Allocation-free.
   bool LookupNear(const Vec3& x, const Vec3& n, float a, float radius, float angle,
                   LookupRegion* region, Vec3* irradiance, LookupInfo* info,
-                  int max_level = kAnyLevel) const;
+                  int max_level = kAnyLevel, float narrow_a = 0) const;
 
   // Same rule and result as Lookup (up to summation order) by scanning every record; for tests.
   bool LookupBruteForce(const Vec3& x, const Vec3& n, float a, Vec3* irradiance, LookupInfo* info,
-                        int max_level = kAnyLevel) const;
+                        int max_level = kAnyLevel, float narrow_a = 0) const;
   static constexpr int kAnyLevel = 255;
 
   // Number of records inserted (records of inserts still in progress may be missing).

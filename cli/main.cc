@@ -37,7 +37,7 @@ struct RenderArgs {
   double target_error = 0, time_limit = 0, sampling_error = 0;
   std::string integrator, spacing, light_sampling;
   int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
-  float accuracy = 0, min_spacing = 0, max_spacing = 0;
+  float accuracy = 0, min_spacing = 0, max_spacing = 0, lookup_factor = 0;
   uint64_t seed = 0;
   bool no_overture = false, quiet = false, caustics = true;
   bool aovs = false;     // write the AOV layers (render/aov.h) into the output EXR
@@ -117,6 +117,7 @@ int RunRender(const RenderArgs& args) {
   }
   if (args.min_spacing > 0) ic.min_spacing_px = args.min_spacing;
   if (args.max_spacing > 0) ic.max_spacing_px = args.max_spacing;
+  if (args.lookup_factor > 0) ic.lookup_factor = args.lookup_factor;
   if (!(ic.accuracy > 0 && ic.accuracy <= 1)) {
     std::fprintf(stderr, "error: --accuracy must be in (0, 1], got %g\n", ic.accuracy);
     return 2;
@@ -319,6 +320,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"split-sphere", "hessian"}));
   render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
   render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
+  render
+      ->add_option("--lookup-factor", ra.lookup_factor,
+                   "irrcache: camera lookups weigh records out to eps < a x this (default 1.5; 1 = "
+                   "Ward's rule)")
+      ->check(CLI::Range(1.0f, 4.0f));
   render->add_flag("--no-overture", ra.no_overture, "irrcache: skip the cache-filling prepass");
   render->add_flag(
       "--caustics,!--no-caustics", ra.caustics,

@@ -340,6 +340,28 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   return r;
 }
 
+bool IrrcacheIntegrator::CachedIrradiance(const Vec3& p, const Vec3& nf, int level,
+                                          float region_radius, float region_angle,
+                                          LookupRegion* region, Vec3* E, LookupInfo* info) const {
+  // Camera lookups weigh records out to eps_i < a * lookup_factor; a record is made where none
+  // counts at a (LookupInfo::counts_at_narrow).
+  const float a = settings_.accuracy, a_lookup = LookupAccuracy(level);
+  const bool wider = a_lookup > a;
+  const bool found = region != nullptr
+                         ? cache_->LookupNear(p, nf, a_lookup, region_radius, region_angle, region,
+                                              E, info, level, wider ? a : 0)
+                         : cache_->Lookup(p, nf, a_lookup, E, info, level, wider ? a : 0);
+  if (!wider) return found;
+  if (!found || !info->counts_at_narrow) return false;
+  // Where the wider answer departs from the records at a by more than lookup_agreement, the
+  // difference is structure (a lamp's edge, a panel's foot), not the records' noise: the records
+  // at a answer alone.
+  const float narrow = Luminance(info->narrow_irradiance);
+  if (std::abs(Luminance(*E) - narrow) > settings_.lookup_agreement * narrow)
+    *E = info->narrow_irradiance;
+  return true;
+}
+
 Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth,
                                     float distance, bool relax, Rng& rng, RenderCounters& counters,
                                     bool* made, int level, float ray_fraction,
@@ -353,10 +375,8 @@ Vec3 IrrcacheIntegrator::Irradiance(const SurfaceHit& hit, const Vec3& nf, int d
   // (curved surfaces).
   constexpr float kRegionPixels = 2.0f, kRegionAngle = 0.1f;
   const bool found =
-      reuse != nullptr
-          ? cache_->LookupNear(hit.p, nf, a, kRegionPixels * scene_.camera().PixelSpread(distance),
-                               kRegionAngle, &reuse->region, &E, &info, level)
-          : cache_->Lookup(hit.p, nf, a, &E, &info, level);
+      CachedIrradiance(hit.p, nf, level, kRegionPixels * scene_.camera().PixelSpread(distance),
+                       kRegionAngle, reuse != nullptr ? &reuse->region : nullptr, &E, &info);
   counters.region_lookups += uint64_t(info.from_region);
   // The records leave caustics out (their rays skip them); the photon map's estimate takes their
   // place at every level.
@@ -650,7 +670,7 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
   if (!FirstDiffuse(ray, rng, counters, &dv)) return false;
   Vec3 interp;
   LookupInfo info;
-  if (!cache_->Lookup(dv.hit.p, dv.nf, settings_.accuracy, &interp, &info, 0)) return false;
+  if (!CachedIrradiance(dv.hit.p, dv.nf, 0, 0, 0, nullptr, &interp, &info)) return false;
   Vec3 half_diff;
   const IrradianceRecord fresh =
       ComputeRecord(dv.hit, dv.nf, dv.depth, scene_.camera().PixelSpread(dv.distance), rng,

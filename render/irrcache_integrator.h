@@ -17,6 +17,7 @@
 // surface have separate records: a record's normal faces the side it was made on.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -50,6 +51,15 @@ struct IrrcacheSettings {
   // Such misses are mostly camera samples that land, within an edge pixel, on a surface other
   // than the one the overture saw at the pixel's centre: a small part of that pixel.
   float relaxed_factor = 2.0f;
+  // Camera lookups (level 0) weigh the records within eps_i < a * lookup_factor, while a record
+  // is still made wherever none counts at a: the records are spaced as before, and each point
+  // averages more of them, so that one record's noise covers no patch of its own (the blotches of
+  // a room lit by a small bright patch of ceiling). 1 = Ward's rule. The wider answer is taken
+  // only where its luminance is within lookup_agreement of the answer of the records at a alone:
+  // a larger difference is structure, not noise (the dark gap between a lamp and the ceiling, the
+  // foot of a panel), and the records at a answer there. Measured: README, "Wider lookups".
+  float lookup_factor = 1.5f;
+  float lookup_agreement = 0.25f;
   // Neighbour clamping of record radii (CacheSettings::neighbour_slope): R_i <= R_j + 3 |x_i -
   // x_j|. Measured on the 9 shared scenes at defaults: cornell-box 2.9x lower relMSE (its lamp-gap
   // leak), specular 1.8x, thin-panels 1.3x, veach-ajar 1.2x, the others unchanged, for 5-11% more
@@ -198,6 +208,12 @@ class IrrcacheIntegrator {
   bool CacheError(const Ray& ray, Rng& rng, RenderCounters& counters, double* error, double* noise,
                   float ray_fraction = 1) const;
 
+  // The cache's irradiance at (p, nf) for a lookup at `level` (lookup_factor and
+  // lookup_agreement at level 0), through `region` when given; false when no record counts at a
+  // (a new record is due there).
+  bool CachedIrradiance(const Vec3& p, const Vec3& nf, int level, float region_radius,
+                        float region_angle, LookupRegion* region, Vec3* E, LookupInfo* info) const;
+
   // Pilot for balancing record rays (render/record_balance.h): computes (does not insert) a
   // record at the first diffuse surface seen along `ray` with the settings' rays, and gives its
   // weight in the pixel (throughput * albedo / pi), the variance of its irradiance (from its two
@@ -217,6 +233,11 @@ class IrrcacheIntegrator {
                                  float pixel_spread, Rng& rng, RenderCounters& counters,
                                  Vec3* half_difference = nullptr, int level = 0,
                                  float ray_fraction = 1) const;
+  // The accuracy a level's lookups weigh records at (IrrcacheSettings::lookup_factor).
+  float LookupAccuracy(int level) const {
+    return level == 0 ? std::min(1.0f, settings_.accuracy * std::max(1.0f, settings_.lookup_factor))
+                      : settings_.accuracy;
+  }
   int strata_theta() const { return strata_t_; }
   // DirectTerms slots in use (rectangle lights with the ratio estimator).
   int ratio_slots() const { return ratio_slots_; }

@@ -777,7 +777,8 @@ CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& setting
   const float a = settings.target_error > 0
                       ? std::max(settings.irrcache.accuracy, float(TargetAccuracy(settings)))
                       : settings.irrcache.accuracy;
-  cs.max_accuracy = std::min(1.0f, a * std::max(1.0f, settings.irrcache.relaxed_factor));
+  cs.max_accuracy = std::min(1.0f, a * std::max({1.0f, settings.irrcache.relaxed_factor,
+                                                 settings.irrcache.lookup_factor}));
   cs.neighbour_slope = settings.irrcache.neighbour_slope;
   return cs;
 }
@@ -1172,6 +1173,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
     st.cache_levels = ic.cache_levels;
     st.min_spacing_px = settings.irrcache.min_spacing_px;
     st.max_spacing_px = settings.irrcache.max_spacing_px;
+    st.lookup_factor = settings.irrcache.lookup_factor;
     st.records_in_cache = cache->size();
   }
   double m[3] = {0, 0, 0};

@@ -392,6 +392,55 @@ TEST(IrradianceCacheTest, OctreeMatchesBruteForceAtEveryScale) {
   }
 }
 
+// LookupInfo::counts_at_narrow: whether some record counts at a smaller accuracy than the one
+// looked up at (the renderer weighs records at a wider accuracy than the one that decides where a
+// new record is made). Checked against RecordWeight over all records, for the octree walk, the
+// region lookup and brute force, on queries where the two accuracies disagree.
+TEST(IrradianceCacheTest, CountsAtNarrowIsTheRuleAtTheSmallerAccuracy) {
+  const RandomScene scene(2000, 3000, 4321);
+  IrradianceCache cache(UnitSettings(0.3f));
+  for (const IrradianceRecord& r : scene.records) cache.Insert(r);
+  int compared = 0, only_wide = 0;
+  LookupRegion region;
+  for (const Query& q : scene.queries) {
+    const float narrow = 0.6f * q.a, wide = q.a;  // wide <= 0.3: not clamped
+    bool expect_wide = false, expect_narrow = false;
+    for (const IrradianceRecord& r : scene.records) {
+      expect_wide = expect_wide || RecordWeight(q.x, q.n, wide, r) > 0;
+      expect_narrow = expect_narrow || RecordWeight(q.x, q.n, narrow, r) > 0;
+    }
+    Vec3 e;
+    LookupInfo walk, near, brute;
+    ASSERT_EQ(cache.Lookup(q.x, q.n, wide, &e, &walk, IrradianceCache::kAnyLevel, narrow),
+              expect_wide);
+    ASSERT_EQ(cache.LookupNear(q.x, q.n, wide, 0.01f, 0.1f, &region, &e, &near,
+                               IrradianceCache::kAnyLevel, narrow),
+              expect_wide);
+    ASSERT_EQ(
+        cache.LookupBruteForce(q.x, q.n, wide, &e, &brute, IrradianceCache::kAnyLevel, narrow),
+        expect_wide);
+    if (!expect_wide) continue;
+    ++compared;
+    EXPECT_EQ(walk.counts_at_narrow, expect_narrow);
+    EXPECT_EQ(near.counts_at_narrow, expect_narrow);
+    EXPECT_EQ(brute.counts_at_narrow, expect_narrow);
+    if (expect_narrow) {
+      // The narrow records' interpolation: what a lookup at the narrow accuracy answers.
+      Vec3 e_narrow;
+      ASSERT_TRUE(cache.Lookup(q.x, q.n, narrow, &e_narrow, nullptr));
+      for (int k = 0; k < 3; ++k) {
+        const float tol = 1e-5f * std::abs(e_narrow[k]);
+        EXPECT_NEAR(walk.narrow_irradiance[k], e_narrow[k], tol);
+        EXPECT_NEAR(near.narrow_irradiance[k], e_narrow[k], tol);
+        EXPECT_NEAR(brute.narrow_irradiance[k], e_narrow[k], tol);
+      }
+    }
+    only_wide += !expect_narrow;
+  }
+  EXPECT_GT(compared, 500);
+  EXPECT_GT(only_wide, compared / 10);  // many queries where only the wider accuracy finds
+}
+
 // The octree keeps one tree per signed dominant axis of the records' normals and a lookup walks
 // only the classes its normal can reach (IrradianceCache::ClassesNear). Records whose normals lie
 // on and next to the class boundaries (cube edges and corners), looked up with normals just inside
@@ -485,11 +534,14 @@ void CheckLookupNearMatchesLookup(bool full_rule) {
       if (s == 8 && next_insert < scene.records.size()) cache.Insert(scene.records[next_insert++]);
       Vec3 e_near, e_walk;
       LookupInfo near, walk;
-      const bool f = cache.LookupNear(x, n, base.a, radius, angle, &region, &e_near, &near);
-      const bool w = cache.Lookup(x, n, base.a, &e_walk, &walk);
+      const float narrow = 0.7f * base.a;
+      const bool f = cache.LookupNear(x, n, base.a, radius, angle, &region, &e_near, &near,
+                                      IrradianceCache::kAnyLevel, narrow);
+      const bool w = cache.Lookup(x, n, base.a, &e_walk, &walk, IrradianceCache::kAnyLevel, narrow);
       ASSERT_EQ(f, w) << "run " << q << " sample " << s;
       ASSERT_EQ(near.records_used, walk.records_used) << "run " << q << " sample " << s;
       ASSERT_EQ(near.remote_records_used, walk.remote_records_used);
+      ASSERT_EQ(near.counts_at_narrow, walk.counts_at_narrow) << "run " << q << " sample " << s;
       if (w) {
         EXPECT_NEAR(near.weight_sum, walk.weight_sum, 1e-5f * walk.weight_sum);
         for (int k = 0; k < 3; ++k) EXPECT_NEAR(e_near[k], e_walk[k], 1e-5f * std::abs(e_walk[k]));
