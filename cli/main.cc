@@ -320,11 +320,12 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"split-sphere", "hessian"}));
   render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
   render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
-  render
-      ->add_option("--lookup-factor", ra.lookup_factor,
-                   "irrcache: camera lookups weigh records out to eps < a x this (default 1.5; 1 = "
-                   "Ward's rule)")
-      ->check(CLI::Range(1.0f, 4.0f));
+  CLI::Option* lookup_factor =
+      render
+          ->add_option("--lookup-factor", ra.lookup_factor,
+                       "irrcache: camera lookups weigh records out to eps < a x this (default 1.5; "
+                       "1 = Ward's rule; --target-error uses 1)")
+          ->check(CLI::Range(1.0f, 4.0f));
   render->add_flag("--no-overture", ra.no_overture, "irrcache: skip the cache-filling prepass");
   render->add_flag(
       "--caustics,!--no-caustics", ra.caustics,
@@ -354,7 +355,8 @@ int main(int argc, char** argv) {
       ->add_option("--target-error", ra.target_error,
                    "stop when the estimated relMSE (cache + sampling) reaches this (or "
                    "--time-limit); no sample budget then")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::PositiveNumber)
+      ->excludes(lookup_factor);
   render->add_option("--time-limit", ra.time_limit, "stop adding samples after this many seconds")
       ->check(CLI::PositiveNumber);
   render->add_option("-D", ra.defines, "name=value for the scene's <default>s");
