@@ -342,10 +342,11 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
 
 bool IrrcacheIntegrator::CachedIrradiance(const Vec3& p, const Vec3& nf, int level,
                                           float region_radius, float region_angle,
-                                          LookupRegion* region, Vec3* E, LookupInfo* info) const {
+                                          LookupRegion* region, Vec3* E, LookupInfo* info,
+                                          float factor) const {
   // Camera lookups weigh records out to eps_i < a * lookup_factor; a record is made where none
   // counts at a (LookupInfo::counts_at_narrow).
-  const float a = settings_.accuracy, a_lookup = LookupAccuracy(level);
+  const float a = settings_.accuracy, a_lookup = LookupAccuracy(level, factor);
   const bool wider = a_lookup > a;
   const bool found = region != nullptr
                          ? cache_->LookupNear(p, nf, a_lookup, region_radius, region_angle, region,
@@ -665,12 +666,18 @@ bool IrrcacheIntegrator::FirstDiffuse(const Ray& ray, Rng& rng, RenderCounters& 
 }
 
 bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& counters,
-                                    double* error, double* noise, float ray_fraction) const {
+                                    double* error, double* noise, float ray_fraction,
+                                    float other_factor, double* other_error,
+                                    double* other_noise) const {
   DiffuseVertex dv;
   if (!FirstDiffuse(ray, rng, counters, &dv)) return false;
-  Vec3 interp;
-  LookupInfo info;
-  if (!CachedIrradiance(dv.hit.p, dv.nf, 0, 0, 0, nullptr, &interp, &info)) return false;
+  Vec3 interp[2];
+  LookupInfo info[2];
+  if (!CachedIrradiance(dv.hit.p, dv.nf, 0, 0, 0, nullptr, &interp[0], &info[0])) return false;
+  // Both rules make a record at the same places (where none counts at a): the other finds too.
+  const bool other =
+      other_factor > 0 && other_error != nullptr && other_noise != nullptr &&
+      CachedIrradiance(dv.hit.p, dv.nf, 0, 0, 0, nullptr, &interp[1], &info[1], other_factor);
   Vec3 half_diff;
   const IrradianceRecord fresh =
       ComputeRecord(dv.hit, dv.nf, dv.depth, scene_.camera().PixelSpread(dv.distance), rng,
@@ -684,21 +691,30 @@ bool IrrcacheIntegrator::CacheError(const Ray& ray, Rng& rng, RenderCounters& co
   const Vec3 w = dv.beta * bsdf.DiffuseAlbedo(dv.hit.Context(), frame.ToLocal(-ray.dir)) * kInvPi;
   const Vec3 direct =
       DirectLight(dv.hit, dv.nf, -ray.dir, w, LightStrata{}, rng, counters, nullptr);
-  const Vec3 v = direct + w * interp;  // the point's radiance (emission on the way left out)
-  const double kept = info.weight_sum > 0
-                          ? double(info.weight_sq_sum) / (double(info.weight_sum) * info.weight_sum)
-                          : 1.0;
-  double e = 0, nz = 0;
-  for (int c = 0; c < 3; ++c) {
-    const double d = double(w[c]) * (double(interp[c]) - double(fresh.irradiance[c]));
-    // Var(E_fresh) = E[(E_even - E_odd)^2] / 4 for two independent halves.
-    const double var = double(w[c]) * w[c] * double(half_diff[c]) * half_diff[c] / 4;
-    const double scale = double(v[c]) * v[c] + 0.01;
-    e += (d * d - var) / scale;
-    nz += var * share * kept / scale;
+  const Vec3 v = direct + w * interp[0];  // the point's radiance (emission on the way left out)
+  double* errors[2] = {error, other_error};
+  double* noises[2] = {noise, other_noise};
+  for (int k = 0; k < (other ? 2 : 1); ++k) {
+    const double kept =
+        info[k].weight_sum > 0
+            ? double(info[k].weight_sq_sum) / (double(info[k].weight_sum) * info[k].weight_sum)
+            : 1.0;
+    double e = 0, nz = 0;
+    for (int c = 0; c < 3; ++c) {
+      const double d = double(w[c]) * (double(interp[k][c]) - double(fresh.irradiance[c]));
+      // Var(E_fresh) = E[(E_even - E_odd)^2] / 4 for two independent halves.
+      const double var = double(w[c]) * w[c] * double(half_diff[c]) * half_diff[c] / 4;
+      const double scale = double(v[c]) * v[c] + 0.01;
+      e += (d * d - var) / scale;
+      nz += var * share * kept / scale;
+    }
+    *errors[k] = e / 3;
+    *noises[k] = nz / 3;
   }
-  *error = e / 3;
-  *noise = nz / 3;
+  if (!other && other_error != nullptr && other_noise != nullptr) {
+    *other_error = *error;
+    *other_noise = *noise;
+  }
   return true;
 }
 

@@ -205,14 +205,20 @@ class IrrcacheIntegrator {
   // hit, or the lookup fails).
   // `ray_fraction` < 1: the fresh record takes that share of the rays (cheaper checks; its larger
   // variance is subtracted all the same, and `noise` is scaled back to the records' rays).
+  // With `other_factor` > 0, *other_error and *other_noise receive the same figures for camera
+  // lookups at that lookup_factor, from the same fresh record (the renderer's --target-error
+  // compares two lookup rules on one set of checks).
   bool CacheError(const Ray& ray, Rng& rng, RenderCounters& counters, double* error, double* noise,
-                  float ray_fraction = 1) const;
+                  float ray_fraction = 1, float other_factor = 0, double* other_error = nullptr,
+                  double* other_noise = nullptr) const;
 
   // The cache's irradiance at (p, nf) for a lookup at `level` (lookup_factor and
   // lookup_agreement at level 0), through `region` when given; false when no record counts at a
   // (a new record is due there).
+  // `factor` < 0: the settings' lookup_factor.
   bool CachedIrradiance(const Vec3& p, const Vec3& nf, int level, float region_radius,
-                        float region_angle, LookupRegion* region, Vec3* E, LookupInfo* info) const;
+                        float region_angle, LookupRegion* region, Vec3* E, LookupInfo* info,
+                        float factor = -1) const;
 
   // Pilot for balancing record rays (render/record_balance.h): computes (does not insert) a
   // record at the first diffuse surface seen along `ray` with the settings' rays, and gives its
@@ -234,8 +240,10 @@ class IrrcacheIntegrator {
                                  Vec3* half_difference = nullptr, int level = 0,
                                  float ray_fraction = 1) const;
   // The accuracy a level's lookups weigh records at (IrrcacheSettings::lookup_factor).
-  float LookupAccuracy(int level) const {
-    return level == 0 ? std::min(1.0f, settings_.accuracy * std::max(1.0f, settings_.lookup_factor))
+  // `factor` < 0: the settings' lookup_factor.
+  float LookupAccuracy(int level, float factor = -1) const {
+    if (factor < 0) factor = settings_.lookup_factor;
+    return level == 0 ? std::min(1.0f, settings_.accuracy * std::max(1.0f, factor))
                       : settings_.accuracy;
   }
   int strata_theta() const { return strata_t_; }
