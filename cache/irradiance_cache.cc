@@ -138,8 +138,7 @@ struct IrradianceCache::Accumulator {
   // the in-front tolerance, which scales with the accuracy, can differ.
   void Narrow(float w, const Vec3& position, const Vec3& normal, float radius,
               const Vec3& irradiance) {
-    if (narrow > 0 && w > 1 / narrow &&
-        !(Dot(position - x, (n + normal) * 0.5f) > kInFrontTolerance * narrow * radius)) {
+    if (narrow > 0 && w > 1 / narrow && !IsInFront(x, n, narrow, position, normal, radius)) {
       counts_at_narrow = true;
       narrow_weight += w;
       for (int k = 0; k < 3; ++k) narrow_e[k] += double(w) * irradiance[k];

@@ -39,8 +39,13 @@ inline float WardWeight(float eps) { return std::min(1.0f / eps, kWardMaxWeight)
 
 // True when x_i lies in front of x, measured along the mean normal (n + n_i) / 2 (RADIANCE's
 // "behind" test), beyond kInFrontTolerance * a * R_i.
+// (The record given by its position x_i, normal n_i and radius R_i: for copies of its fields.)
+inline bool IsInFront(const Vec3& x, const Vec3& n, float a, const Vec3& position,
+                      const Vec3& normal, float radius) {
+  return Dot(position - x, (n + normal) * 0.5f) > kInFrontTolerance * a * radius;
+}
 inline bool IsInFront(const Vec3& x, const Vec3& n, float a, const IrradianceRecord& r) {
-  return Dot(r.position - x, (n + r.normal) * 0.5f) > kInFrontTolerance * a * r.radius;
+  return IsInFront(x, n, a, r.position, r.normal, r.radius);
 }
 
 // The weight record r gets at shading point (x, n) with accuracy a in (0, 1], or 0 if it does not

@@ -214,7 +214,7 @@ class IrrcacheIntegrator {
 
   // The cache's irradiance at (p, nf) for a lookup at `level` (lookup_factor and
   // lookup_agreement at level 0), through `region` when given; false when no record counts at a
-  // (a new record is due there).
+  // (a new record is due there). `info` must not be null.
   // `factor` < 0: the settings' lookup_factor.
   bool CachedIrradiance(const Vec3& p, const Vec3& nf, int level, float region_radius,
                         float region_angle, LookupRegion* region, Vec3* E, LookupInfo* info,

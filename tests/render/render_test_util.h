@@ -63,20 +63,20 @@ inline double ReferenceError(const std::string& name) {
   return j["relmse_est_ref_vs_truth"].get<double>() / 16.0;
 }
 
-inline Image QuarterReference(const std::string& name) {
+// Image `file` of test scene `name` (a test failure, and an empty image, when it cannot be read).
+inline Image SceneImage(const std::string& name, const std::string& file) {
   absl::StatusOr<Image> ref =
-      ReadExr(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference-x4.exr");
+      ReadExr(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/" + file);
   EXPECT_TRUE(ref.ok()) << ref.status();
   return ref.ok() ? *ref : Image();
 }
 
-// The full-size reference (reference.exr).
-inline Image FullReference(const std::string& name) {
-  absl::StatusOr<Image> ref =
-      ReadExr(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference.exr");
-  EXPECT_TRUE(ref.ok()) << ref.status();
-  return ref.ok() ? *ref : Image();
+inline Image QuarterReference(const std::string& name) {
+  return SceneImage(name, "reference-x4.exr");
 }
+
+// The full-size reference (reference.exr).
+inline Image FullReference(const std::string& name) { return SceneImage(name, "reference.exr"); }
 
 // The largest of Mitsuba's own full-size 256-spp errors against the reference
 // (mitsuba_full_256spp_relmse_vs_ref in reference.json, written by mitsuba_reference.py with
