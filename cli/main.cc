@@ -313,11 +313,13 @@ int main(int argc, char** argv) {
                    "next-event estimation along paths: all (every light at each vertex, the "
                    "default) or one (one light picked by its unoccluded contribution)")
       ->check(CLI::IsMember({"all", "one"}));
-  render
-      ->add_option("--spacing", ra.spacing,
-                   "irrcache: record radii by split-sphere (Ward) or hessian (the record's own "
-                   "derivatives)")
-      ->check(CLI::IsMember({"split-sphere", "hessian"}));
+  CLI::Option* spacing =
+      render
+          ->add_option(
+              "--spacing", ra.spacing,
+              "irrcache: record radii by hessian (the record's own derivatives; default) or "
+              "split-sphere (Ward's, for comparison)")
+          ->check(CLI::IsMember({"split-sphere", "hessian"}));
   render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
   render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
   CLI::Option* lookup_factor =
@@ -356,7 +358,8 @@ int main(int argc, char** argv) {
                    "stop when the estimated relMSE (cache + sampling) reaches this (or "
                    "--time-limit); no sample budget then")
       ->check(CLI::PositiveNumber)
-      ->excludes(lookup_factor);
+      ->excludes(lookup_factor)
+      ->excludes(spacing);
   render->add_option("--time-limit", ra.time_limit, "stop adding samples after this many seconds")
       ->check(CLI::PositiveNumber);
   render->add_option("-D", ra.defines, "name=value for the scene's <default>s");

@@ -20,7 +20,21 @@ assert s["records"]["computed"] > 0 and s["rays"]["record"] > 0, s["records"]
 assert s["cache"]["lookups"] >= s["cache"]["hits"] > 0, s["cache"]
 assert s["seconds"]["render"] > 0 and s["peak_rss_mib"] > 0
 assert s["image"]["nonfinite_pixels"] == 0
+assert s["settings"]["spacing"] == "hessian", s["settings"]
 PY
+
+# --target-error calibrated its model with one spacing and one lookup rule: choosing either is
+# refused with the reason, and nothing is written.
+for opt in "--spacing split-sphere" "--lookup-factor 2"; do
+  set +e
+  # shellcheck disable=SC2086
+  err=$("$irfarm" render "$data/scenes/cornell-box/scene.xml" --target-error 1e-3 $opt \
+    -o "$tmp/t.exr" -q 2>&1)
+  code=$?
+  set -e
+  [[ $code -ne 0 && $err == *"excludes"* ]] || fail "$opt with --target-error: $code $err"
+  [[ ! -e $tmp/t.exr ]] || fail "$opt with --target-error wrote an image"
+done
 
 # compare: an image against itself has relMSE 0.
 "$irfarm" compare "$tmp/out.exr" "$tmp/out.exr" |
