@@ -686,13 +686,27 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
     return absl::FailedPreconditionError("tile region: one per lease, this one ignored");
   r.lease = *token;
   metrics_.regions_accepted->Add();
-  if (!Filtered(w) || !job.workers.count(worker_id)) return absl::OkStatus();
+  // RegionReady after whatever reaches the region: a warm-started job's worker waits for it.
+  const auto ready = [&region](Worker& to) {
+    v1::CoordinatorMessage m;
+    m.mutable_region_ready()->set_job_id(region.job_id());
+    m.mutable_region_ready()->set_lease_token(region.lease_token());
+    to.outbox.push_back(std::move(m));
+    WakeWorker(to);
+  };
+  if (!Filtered(w) || !job.workers.count(worker_id)) {
+    ready(w);
+    return absl::OkStatus();
+  }
   const Bounds3 old = r.box;
   r.box.Extend(*box);
   const auto same = [](const Vec3& u, const Vec3& v) {
     return u.x == v.x && u.y == v.y && u.z == v.z;
   };
-  if (!old.Empty() && same(old.lo, r.box.lo) && same(old.hi, r.box.hi)) return absl::OkStatus();
+  if (!old.Empty() && same(old.lo, r.box.lo) && same(old.hi, r.box.hi)) {
+    ready(w);
+    return absl::OkStatus();
+  }
   job.index_stale = true;
   // Backlog: records that reach the grown region but not the old one were withheld (every
   // record reaching the old region was sent, by fan-out or backlog). Records merged from now on
@@ -745,10 +759,8 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
     metrics_.record_bytes_sent->Add(bytes);
     CountFanout(job2, worker_id, w2, counts[k], 0, counts[k]);
   }
-  if (was_empty && !messages.empty()) {
-    w2.records_queued_at = std::chrono::steady_clock::now();
-    WakeWorker(w2);
-  }
+  if (was_empty && !messages.empty()) w2.records_queued_at = std::chrono::steady_clock::now();
+  ready(w2);
   Touched(&w2);
   return absl::OkStatus();
 }

@@ -35,6 +35,7 @@ absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec
   c->cache_ = std::make_unique<IrradianceCache>(CacheSettingsFor(*c->scene_, c->settings_));
   // Default rays: balanced once per job over the whole image, so every tile uses the same; a
   // seeded job keeps the settings' rays (its cache is mostly there already).
+  c->warm_ = spec.warm_cache();
   if (spec.warm_cache())
     c->settings_.irrcache.balance_record_rays = false;
   else

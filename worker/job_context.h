@@ -32,6 +32,8 @@ class JobContext {
   const Scene& scene() const { return *scene_; }
   const RenderSettings& settings() const { return settings_; }
   IrradianceCache* cache() const { return cache_.get(); }
+  // Warm-started (JobSpec.warm_cache): its tiles wait for their regions' records (RegionReady).
+  bool warm() const { return warm_; }
 
   // Inserts other workers' records (validated); returns how many were inserted.
   size_t InsertRemote(const std::vector<IrradianceRecord>& records);
@@ -53,6 +55,7 @@ class JobContext {
  private:
   JobContext() = default;
   std::string job_id_, dir_;
+  bool warm_ = false;
   std::unique_ptr<Scene> scene_;
   // The job's caustic photon map, built once for all of its tiles (settings_.irrcache.caustics
   // points here); null where the job uses none.

@@ -145,6 +145,37 @@ TEST_F(FanoutRegionTest, RegionGrowthSendsTheBacklog) {
   EXPECT_TRUE(Received(a_).empty());
 }
 
+// Every accepted region is answered by a RegionReady after the records that reach it (the
+// backlog here), so that a warm-started job's worker can wait for them before the tile; filtered
+// or not, and for a region that did not grow.
+TEST_F(FanoutRegionTest, RegionReadyFollowsTheRegionsRecords) {
+  for (const bool filter : {true, false}) {
+    Start(filter);
+    Received(a_);
+    ASSERT_TRUE(Publish(b_, lease_b_, RightRoomRecords()).ok());
+    if (filter) {
+      EXPECT_TRUE(Received(a_).empty());
+    }
+    ASSERT_TRUE(manager_->AddTileRegion(a_, Region(lease_a_, -2.5f, -0.5f)).ok());
+    const std::vector<v1::CoordinatorMessage> out =
+        manager_->Poll(a_, std::chrono::milliseconds(0));
+    ASSERT_FALSE(out.empty()) << "filter " << filter;
+    const v1::CoordinatorMessage& last = out.back();
+    ASSERT_TRUE(last.has_region_ready()) << "filter " << filter;
+    EXPECT_EQ(last.region_ready().job_id(), lease_a_.job_id());
+    EXPECT_EQ(last.region_ready().lease_token(), lease_a_.lease_token());
+    size_t records = 0, ready = 0;
+    for (const v1::CoordinatorMessage& m : out) {
+      if (m.has_records()) records += size_t(m.records().batch().origins_size());
+      ready += m.has_region_ready();
+    }
+    EXPECT_EQ(ready, 1u);
+    if (filter) {
+      EXPECT_EQ(records, 1u);  // the backlog: the record reaching across the divider
+    }
+  }
+}
+
 TEST_F(FanoutRegionTest, MalformedRegionsAreRefused) {
   Start(true);
   const float nan = std::numeric_limits<float>::quiet_NaN();
