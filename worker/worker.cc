@@ -17,10 +17,10 @@
 namespace irfarm {
 namespace {
 
-// State shared by a session's reader, publisher and render threads.
 // How long a warm-started job's tile waits for its region's records (RegionReady).
 constexpr auto kRegionReadyWait = std::chrono::seconds(5);
 
+// State shared by a session's reader, publisher and render threads.
 struct SessionState {
   std::mutex mu;
   std::condition_variable cv;
@@ -258,7 +258,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       if (!write(rm)) break;
       // A warm-started job's records come from the snapshot: with filtered fan-out those that
       // reach this tile come with the region's backlog, and a tile rendered before they arrive
-      // remakes them (two workers, cornell-box at 64x64: 61-89 new records against 8-15 for a
+      // remakes them (two workers, cornell-box at 64x64: 61-89 new records against 4-16 for a
       // local render of the same snapshot). Wait for them, a bounded time (an older coordinator
       // sends no RegionReady).
       if (job->warm()) {
