@@ -110,7 +110,9 @@ int RunRender(const RenderArgs& args) {
   if (args.light_samples > 0) ic.light_samples = args.light_samples;
   if (!args.light_sampling.empty()) ic.path.all_lights = args.light_sampling == "all";
   if (!args.spacing.empty())
-    ic.spacing = args.spacing == "hessian" ? RecordSpacing::kHessian : RecordSpacing::kSplitSphere;
+    ic.spacing = args.spacing == RecordSpacingName(RecordSpacing::kHessian)
+                     ? RecordSpacing::kHessian
+                     : RecordSpacing::kSplitSphere;
   if (args.cache_levels > 0) {
     ic.cache_levels = args.cache_levels;
     ic.choose_cache_levels = false;  // the user's levels, as asked
@@ -319,7 +321,9 @@ int main(int argc, char** argv) {
               "--spacing", ra.spacing,
               "irrcache: record radii by hessian (the record's own derivatives; default) or "
               "split-sphere (Ward's, for comparison)")
-          ->check(CLI::IsMember({"split-sphere", "hessian"}));
+          ->check(CLI::IsMember(std::vector<std::string>{
+              irfarm::RecordSpacingName(irfarm::RecordSpacing::kSplitSphere),
+              irfarm::RecordSpacingName(irfarm::RecordSpacing::kHessian)}));
   render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
   render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
   CLI::Option* lookup_factor =

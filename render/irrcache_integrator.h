@@ -35,6 +35,10 @@ enum class RecordSpacing {
   kSplitSphere,  // Ward's: the harmonic mean of the rays' hit distances (worst-case gradient)
   kHessian,      // the record's own gradient and Hessian (render/irradiance_hessian.h)
 };
+// The names the CLI takes (--spacing) and the stats print.
+inline const char* RecordSpacingName(RecordSpacing s) {
+  return s == RecordSpacing::kHessian ? "hessian" : "split-sphere";
+}
 
 struct IrrcacheSettings {
   float accuracy = 0.1f;   // Ward's a: records count when eps_i < a (RADIANCE rtrace -aa 0.1)

@@ -1211,7 +1211,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
     st.min_spacing_px = settings.irrcache.min_spacing_px;
     st.max_spacing_px = settings.irrcache.max_spacing_px;
     st.lookup_factor = ic.lookup_factor;
-    st.spacing = ic.spacing == RecordSpacing::kHessian ? "hessian" : "split-sphere";
+    st.spacing = RecordSpacingName(ic.spacing);
     st.records_in_cache = cache->size();
   }
   double m[3] = {0, 0, 0};

@@ -33,10 +33,10 @@ absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec
   c->caustics_ = BuildCausticMap(*c->scene_, c->settings_, &caustic_stats);
   c->settings_.irrcache.caustics = c->caustics_.get();
   c->cache_ = std::make_unique<IrradianceCache>(CacheSettingsFor(*c->scene_, c->settings_));
+  c->warm_ = spec.warm_cache();
   // Default rays: balanced once per job over the whole image, so every tile uses the same; a
   // seeded job keeps the settings' rays (its cache is mostly there already).
-  c->warm_ = spec.warm_cache();
-  if (spec.warm_cache())
+  if (c->warm_)
     c->settings_.irrcache.balance_record_rays = false;
   else
     c->settings_ = BalancedSettings(*c->scene_, c->settings_, c->cache_.get());

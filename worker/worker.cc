@@ -7,7 +7,6 @@
 
 #include <algorithm>
 #include <optional>
-#include <set>
 #include <thread>
 
 #include "service/coordinator_list.h"
@@ -28,7 +27,10 @@ struct SessionState {
   std::map<std::string, std::shared_ptr<JobContext>> jobs;
   std::map<std::string, std::string> failed_jobs;  // job id -> why its scene did not load
   bool broken = false;
-  std::set<std::string> regions_ready;  // lease tokens of RegionReady messages not yet consumed
+  // The lease token a warm-started job's tile waits on (empty: none) and whether its RegionReady
+  // has arrived.
+  std::string region_wait;
+  bool region_ready = false;
   uint32_t worker_id = 0;
   std::mutex write_mu;  // one writer at a time on the stream
   // Held while records are taken and written, so that a tile's records are all on the stream
@@ -153,11 +155,10 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
         s.cv.notify_all();
       } else if (m.has_region_ready()) {
         // In stream order: the region's records, read before it, are in the job's cache.
-        // Kept only for warm-started jobs, whose tiles wait for it.
+        // Only the one a tile waits on counts (other jobs' tiles do not wait).
         std::lock_guard<std::mutex> lock(s.mu);
-        auto it = s.jobs.find(m.region_ready().job_id());
-        if (it != s.jobs.end() && it->second->warm()) {
-          s.regions_ready.insert(m.region_ready().lease_token());
+        if (!s.region_wait.empty() && m.region_ready().lease_token() == s.region_wait) {
+          s.region_ready = true;
           s.cv.notify_all();
         }
       } else if (m.has_job_closed()) {
@@ -255,22 +256,22 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       tr->set_max_x(box->hi.x);
       tr->set_max_y(box->hi.y);
       tr->set_max_z(box->hi.z);
-      if (!write(rm)) break;
       // A warm-started job's records come from the snapshot: with filtered fan-out those that
       // reach this tile come with the region's backlog, and a tile rendered before they arrive
       // remakes them (two workers, cornell-box at 64x64: 61-89 new records against 4-16 for a
       // local render of the same snapshot). Wait for them, a bounded time (an older coordinator
-      // sends no RegionReady).
+      // sends no RegionReady). Armed before the region goes out, so an early reply counts.
+      if (job->warm()) {
+        std::lock_guard<std::mutex> lock(s.mu);
+        s.region_wait = lease.lease_token();
+        s.region_ready = false;
+      }
+      if (!write(rm)) break;
       if (job->warm()) {
         std::unique_lock<std::mutex> lock(s.mu);
-        s.cv.wait_for(lock, kRegionReadyWait, [&] {
-          return s.regions_ready.count(lease.lease_token()) > 0 || s.broken || stop_;
-        });
+        s.cv.wait_for(lock, kRegionReadyWait, [&] { return s.region_ready || s.broken || stop_; });
+        s.region_wait.clear();
       }
-    }
-    {
-      std::lock_guard<std::mutex> lock(s.mu);
-      s.regions_ready.erase(lease.lease_token());
     }
     RenderSettings tile_settings = job->settings();
     tile_settings.budget_carry = job->TakeBudgetCarry();
