@@ -140,6 +140,18 @@ std::string RenderStats::ToJson() const {
                          {"sampling_relmse", estimated_sampling_relmse},
                          {"cache_relmse", estimated_cache_relmse},
                          {"target_error", target_error}};
+  if (!cache_rounds.empty()) {
+    Json rounds = Json::array();
+    for (const CacheRound& r : cache_rounds)
+      rounds.push_back({{"accuracy", Short(r.accuracy)},
+                        {"record_rays", r.record_rays},
+                        {"lookup_factor", Short(r.lookup_factor)},
+                        {"cache_relmse", r.error},
+                        {"noise_relmse", r.noise},
+                        {"share", r.share},
+                        {"rebuilt", r.rebuilt}});
+    j["error_estimate"]["cache_rounds"] = rounds;
+  }
   if (balanced)
     j["record_balance"] = {{"record_rays", balance.record_rays},
                            {"record_noise_relmse", balance.record_noise},

@@ -19,6 +19,15 @@ struct PhaseTime {
   double wall_seconds = 0, cpu_seconds = 0;
 };
 
+// --target-error: one round of the cache's refinement (render/renderer.cc), as its checks
+// measured it. rebuilt: the round's cache replaced a coarser-needed one (an easy scene).
+struct CacheRound {
+  float accuracy = 0, lookup_factor = 0;
+  int record_rays = 0;
+  double error = 0, noise = 0, share = 0;  // estimated relMSE, its records' noise part, the goal
+  bool rebuilt = false;
+};
+
 struct RenderStats {
   std::string scene, integrator;
   int width = 0, height = 0, spp = 0, threads = 0;
@@ -50,6 +59,7 @@ struct RenderStats {
   double budget_left = 0;
   double estimated_cache_relmse = -1;  // cross-validated records (target-error mode), -1: none
   double target_error = 0;
+  std::vector<CacheRound> cache_rounds;  // --target-error's refinement, in order
   // Default settings: the pilot's balance of record rays (record_balance.h), when it ran.
   bool balanced = false;
   BalanceResult balance;

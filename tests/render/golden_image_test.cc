@@ -248,6 +248,10 @@ TEST(GoldenImageTest, TargetErrorLandsWithinAFactorOfTwo) {
       RecordProperty(std::string(name) + "_relmse", std::to_string(err));
       // Their one-level records' noise is far inside the cache's share: one level.
       EXPECT_EQ(out.stats.cache_levels, 1) << name << " E " << target;
+      // Its refinement's rounds are in the stats, the last one the cache the render used.
+      ASSERT_FALSE(out.stats.cache_rounds.empty()) << name << " E " << target;
+      EXPECT_EQ(out.stats.cache_rounds.back().error, out.stats.estimated_cache_relmse);
+      EXPECT_EQ(out.stats.cache_rounds.back().accuracy, out.stats.accuracy);
       EXPECT_GT(err, 0.5 * target - ReferenceError(name)) << name << " E " << target;
       EXPECT_LT(err, 2 * target + ReferenceError(name)) << name << " E " << target;
     }

@@ -76,5 +76,27 @@ TEST(RenderStatsTest, TotalErrorEstimateOnlyWhenTheCacheWasEstimated) {
   EXPECT_DOUBLE_EQ(j["error_estimate"]["relmse"].get<double>(), 5e-5);
 }
 
+// --target-error's refinement rounds are listed in order under error_estimate.cache_rounds; a
+// render without them writes no list.
+TEST(RenderStatsTest, CacheRoundsAreListedInOrder) {
+  RenderStats st;
+  st.integrator = "irrcache";
+  nlohmann::json j = nlohmann::json::parse(st.ToJson());
+  EXPECT_FALSE(j["error_estimate"].contains("cache_rounds"));
+  st.cache_rounds.push_back(CacheRound{0.36f, 1.0f, 128, 1.8e-2, 1.6e-2, 2e-3, false});
+  st.cache_rounds.push_back(CacheRound{0.15f, 1.5f, 2048, 4.4e-3, 8e-4, 2e-3, true});
+  j = nlohmann::json::parse(st.ToJson());
+  const nlohmann::json& rounds = j["error_estimate"]["cache_rounds"];
+  ASSERT_EQ(rounds.size(), 2u);
+  EXPECT_EQ(rounds[0]["record_rays"], 128);
+  EXPECT_DOUBLE_EQ(rounds[0]["cache_relmse"].get<double>(), 1.8e-2);
+  EXPECT_FALSE(rounds[0]["rebuilt"].get<bool>());
+  EXPECT_EQ(rounds[1]["record_rays"], 2048);
+  EXPECT_DOUBLE_EQ(rounds[1]["noise_relmse"].get<double>(), 8e-4);
+  EXPECT_DOUBLE_EQ(rounds[1]["share"].get<double>(), 2e-3);
+  EXPECT_NEAR(rounds[1]["lookup_factor"].get<double>(), 1.5, 1e-6);
+  EXPECT_TRUE(rounds[1]["rebuilt"].get<bool>());
+}
+
 }  // namespace
 }  // namespace irfarm
