@@ -1017,10 +1017,15 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   if (irrcache) {
     PhaseTimer timer("overture");
     if (settings.target_error > 0) {
-      // Two levels (the pilot chose them for noisy one-level records, and their rays for half
-      // of E): the model's nominal half. Built coarser, veach-ajar took more rounds to the same
-      // band (E = 1e-3: 186 s against 65 s).
-      ic.accuracy = float(TargetAccuracy(settings, pilot_rays > 0 ? 0.5 : kFirstCacheShare));
+      // Only a cache this render made itself may be dropped and rebuilt coarser.
+      const bool may_rebuild = own_cache != nullptr && cache->size() == 0;
+      // The first cache's share: kFirstCacheShare where the first round can measure the samples'
+      // error and so raise the cache's share to match (a cache this render made). Two levels (the
+      // pilot chose them for noisy one-level records, and their rays for half of E) and a shared
+      // or imported cache keep the model's nominal half; built coarser, veach-ajar took more
+      // rounds to the same band (E = 1e-3: 186 s against 65 s).
+      const double first_share = may_rebuild && pilot_rays == 0 ? kFirstCacheShare : 0.5;
+      ic.accuracy = float(TargetAccuracy(settings, first_share));
       // Ward's rule to start with: the error model above and its coarsest cache
       // (kCoarsestAccuracy, kFewestRecordRays) were calibrated with it. With wider lookups from
       // the start the coarsest cache is more accurate, and easy scenes ended below E/2
@@ -1034,12 +1039,10 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
       ic.lookup_factor = 1;
       const float wider_factor =
           settings.irrcache.lookup_factor > 1 ? settings.irrcache.lookup_factor : 0.0f;
-      ic.record_rays = pilot_rays > 0 ? pilot_rays : TargetRecordRays(settings);
+      ic.record_rays = pilot_rays > 0 ? pilot_rays : TargetRecordRays(settings, first_share);
       const int most_rays = 4 * std::max(4, settings.irrcache.record_rays);
       // The cache's share of the error: half, until the first round has measured the samples'.
       double cache_budget = 0.5 * settings.target_error;
-      // Only a cache this render made itself may be dropped and rebuilt coarser.
-      const bool may_rebuild = own_cache != nullptr && cache->size() == 0;
       int rebuilds = 0;
       double previous_error = 0, previous_noise = 0, first_round = 0, round_start = 0;
       // The last refinement lowered a too little to take a third off the interpolation error (about
@@ -1091,8 +1094,8 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
         // first estimate is from 256 checks only, and a larger a may buy nothing where the
         // validity radius is clamped at max_spacing_px).
         // Also where the first cache and the samples at their minimum would end below E/2
-        // (unseen room-222 and room-226, seed 7: first caches at 0.29 and 0.25 of the share,
-        // renders at 0.32 E and 0.31 E at both E, the estimates within 1.2x of the truth).
+        // (bench/make_room.py's rooms 222 and 226, seed 7: first caches at 0.29 and 0.25 of the
+        // share, renders at 0.32 E and 0.31 E at both E, the estimates within 1.2x of the truth).
         const bool far_below =
             rebuilds == 0 ? cache_error < std::max(0.25 * left_by_samples,
                                                    left_by_samples - 0.5 * settings.target_error)
