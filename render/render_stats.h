@@ -20,7 +20,8 @@ struct PhaseTime {
 };
 
 // --target-error: one round of the cache's refinement (render/renderer.cc), as its checks
-// measured it. rebuilt: the round's cache replaced a coarser-needed one (an easy scene).
+// measured it. rebuilt: the round's cache is one rebuilt coarser, replacing a cache that came out
+// far finer than the error asked needs (an easy scene).
 struct CacheRound {
   float accuracy = 0, lookup_factor = 0;
   int record_rays = 0;

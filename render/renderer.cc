@@ -1095,7 +1095,8 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
         // validity radius is clamped at max_spacing_px).
         // Also where the first cache and the samples at their minimum would end below E/2
         // (bench/make_room.py's rooms 222 and 226, seed 7: first caches at 0.29 and 0.25 of the
-        // share, renders at 0.32 E and 0.31 E at both E, the estimates within 1.2x of the truth).
+        // share, renders at 0.28 E to 0.35 E at E = 4e-3 and 1e-3, the estimates within 1.2x of the
+        // truth).
         const bool far_below =
             rebuilds == 0 ? cache_error < std::max(0.25 * left_by_samples,
                                                    left_by_samples - 0.5 * settings.target_error)

@@ -12,8 +12,8 @@
 #    tiles wait for their regions' records, RegionReady; before they did, the snapshot's records
 #    reached a tile with its region's backlog while it rendered, and the job made 61-89 new
 #    records of about 830, where a local `render --cache-in` makes 4-16; with the wait, 4-26 in
-#    13 runs), its image is within the same bound, and a snapshot of another scene is refused (submit and local
-#    render).
+#    13 runs), its image is within the same bound, and a snapshot of another scene is refused
+#    (submit and local render).
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/cornell-box/scene.xml
 REF=$DATA/scenes/cornell-box/reference-x4.exr
