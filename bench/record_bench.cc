@@ -6,9 +6,13 @@
 // traces T x P hemisphere rays and continues each as a path (bounce and shadow rays); every Embree
 // call it makes is counted (RenderCounters: record, bounce and shadow rays). The bare loop traces
 // one T x P stratified cosine hemisphere per point, built the same way (same frame, same strata),
-// with closest-hit rtcIntersect1 only. Reported: both rates and their ratio (goal >= 0.8), and the
-// bare rate of the same rays traced as rtcIntersect8 packets (bare8), to see whether packets for
-// a record's first hits would pay.
+// with closest-hit rtcIntersect1 only. A second bare loop replays the records' own rays: every
+// ray the records traced once before the timed loops (Scene's ray log: hemisphere, bounce and
+// shadow rays, in their order), as rtcIntersect1 and rtcOccluded1 calls and nothing else; bounce
+// and shadow rays start at scattered points and cost Embree more than a hemisphere from one
+// point. Reported: the rates, the ratio against the hemisphere loop (`ratio`) and against the
+// replay of the same rays (`ratio_same_rays`; goal >= 0.8), and the hemisphere rays traced as
+// rtcIntersect8 packets (bare8), to see whether packets for a record's first hits would pay.
 // Run: build/bench/bench_record (one thread; the two loops alternate within each iteration, timed
 // in thread CPU time).
 #include <benchmark/benchmark.h>
@@ -49,6 +53,7 @@ struct Fixture {
   RenderSettings settings;
   std::vector<RecordPoint> points;
   std::vector<RTCRayHit> bare_rays;  // T x P per point, prepared outside the timed loop
+  std::vector<TracedRay> replay;     // the records' own rays, logged once
 };
 
 // Loads a test scene and finds up to `grid` x `grid` record points (diffuse first hits).
@@ -98,6 +103,13 @@ std::unique_ptr<Fixture> MakeFixture(const std::string& name, int grid) {
       }
     }
   }
+  // The records' own rays: one pass of the records with the scene's ray log on.
+  RenderCounters counters;
+  Rng record_rng(3, 4);
+  f->scene->set_ray_log(&f->replay);
+  for (const RecordPoint& p : f->points)
+    integrator.ComputeRecord(p.hit, p.nf, 1, p.pixel_spread, record_rng, counters);
+  f->scene->set_ray_log(nullptr);
   return f;
 }
 
@@ -109,7 +121,8 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
   Rng rng(1, 2);
   double record_seconds = 0, bare_seconds = 0;
   uint64_t bare_rays = 0, bare_hits = 0, packet_hits = 0;
-  double packet_seconds = 0;
+  double packet_seconds = 0, replay_seconds = 0;
+  uint64_t replay_rays = 0, replay_hits = 0;
   std::vector<RTCRayHit> rays = f->bare_rays;
   for (auto _ : state) {
     const double t0 = ThreadSeconds();
@@ -154,11 +167,26 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
         packet_hits += valid[k] && packet.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
     }
     const double t3 = ThreadSeconds();
+    // The records' own rays, bare.
+    for (const TracedRay& tr : f->replay) {
+      if (tr.shadow) {
+        RTCRay r = Scene::ToRtcRay(tr.ray);
+        rtcOccluded1(f->scene->embree_scene(), &ctx, &r);
+        replay_hits += r.tfar < 0;
+      } else {
+        RTCRayHit rh = Scene::ToRtcRayHit(tr.ray);
+        rtcIntersect1(f->scene->embree_scene(), &ctx, &rh);
+        replay_hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+      }
+    }
+    const double t4 = ThreadSeconds();
+    replay_seconds += t4 - t3;
+    replay_rays += f->replay.size();
     packet_seconds += t3 - t2;
     bare_rays += rays.size();
     record_seconds += t1 - t0;
     bare_seconds += t2 - t1;
-    state.SetIterationTime(t3 - t0);
+    state.SetIterationTime(t4 - t0);
   }
   const double record_rays =
       double(counters.record_rays + counters.bounce_rays + counters.shadow_rays);
@@ -168,6 +196,12 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
   state.counters["record_Mrays_s"] = record_rate * 1e-6;
   state.counters["bare_Mrays_s"] = bare_rate * 1e-6;
   state.counters["ratio"] = record_rate / bare_rate;
+  const double replay_rate = double(replay_rays) / replay_seconds;
+  state.counters["replay_Mrays_s"] = replay_rate * 1e-6;
+  state.counters["ratio_same_rays"] = record_rate / replay_rate;
+  // The log holds as many rays per record as the counters count (a check on the replay).
+  state.counters["replay_rays_per_record"] = double(f->replay.size()) / double(f->points.size());
+  benchmark::DoNotOptimize(replay_hits);
   state.counters["bare8_Mrays_s"] = double(bare_rays) / packet_seconds * 1e-6;
   state.counters["hits_8_vs_1"] = double(packet_hits) / double(bare_hits);
   state.counters["rays_per_record"] = record_rays / double(counters.records_computed);

@@ -371,7 +371,24 @@ RTCRayHit Scene::ToRtcRayHit(const Ray& ray) {
   return rh;
 }
 
+RTCRay Scene::ToRtcRay(const Ray& ray) {
+  RTCRay r;
+  r.org_x = ray.origin.x;
+  r.org_y = ray.origin.y;
+  r.org_z = ray.origin.z;
+  r.dir_x = ray.dir.x;
+  r.dir_y = ray.dir.y;
+  r.dir_z = ray.dir.z;
+  r.tnear = 0;
+  r.tfar = ray.tmax;
+  r.mask = 0xFFFFFFFFu;
+  r.flags = 0;
+  r.time = 0;
+  return r;
+}
+
 bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
+  if (ray_log_ != nullptr) ray_log_->push_back(TracedRay{ray, false});
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   RTCRayHit rh = Scene::ToRtcRayHit(ray);
@@ -453,20 +470,10 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
 
 bool Scene::Occluded(const Ray& ray) const {
   if (has_pass_through_ && !pass_through_filter_) return OccludedPassThrough(ray);
+  if (ray_log_ != nullptr) ray_log_->push_back(TracedRay{ray, true});
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
-  RTCRay r;
-  r.org_x = ray.origin.x;
-  r.org_y = ray.origin.y;
-  r.org_z = ray.origin.z;
-  r.dir_x = ray.dir.x;
-  r.dir_y = ray.dir.y;
-  r.dir_z = ray.dir.z;
-  r.tnear = 0;
-  r.tfar = ray.tmax;
-  r.mask = 0xFFFFFFFFu;
-  r.flags = 0;
-  r.time = 0;
+  RTCRay r = ToRtcRay(ray);
   rtcOccluded1(rtc_scene_, &ctx, &r);
   return r.tfar < 0;
 }

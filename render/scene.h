@@ -47,6 +47,13 @@ struct SurfaceHit {
   BsdfContext Context() const { return BsdfContext{u, v, ns, dpdu, dpdv}; }
 };
 
+// One ray a Scene traced, for benchmarks that replay a renderer's own rays as bare Embree calls
+// (bench_record): Intersect's closest-hit rays and Occluded's shadow rays.
+struct TracedRay {
+  Ray ray;
+  bool shadow = false;
+};
+
 struct SceneStatsCounts {
   long triangles = 0, spheres = 0, degenerate_dropped = 0;
 };
@@ -104,6 +111,11 @@ class Scene {
   RTCScene embree_scene() const { return rtc_scene_; }
   // `ray` as Embree's ray-hit query (no hit yet): what Intersect passes to rtcIntersect1.
   static RTCRayHit ToRtcRayHit(const Ray& ray);
+  // `ray` as Embree's occlusion query: what Occluded passes to rtcOccluded1.
+  static RTCRay ToRtcRay(const Ray& ray);
+  // Benchmarks only: while `log` is set, Intersect and Occluded append every ray they trace to
+  // it (one thread; nullptr stops). The renderer never sets it: one predictable branch per ray.
+  void set_ray_log(std::vector<TracedRay>* log) { ray_log_ = log; }
 
  private:
   Scene() = default;
@@ -151,6 +163,7 @@ class Scene {
   Camera camera_;
   Bounds3 bounds_;
   SceneStatsCounts counts_;
+  std::vector<TracedRay>* ray_log_ = nullptr;  // see set_ray_log
 };
 
 }  // namespace irfarm
