@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cache/irradiance_cache.h"
+#include "render/irradiance_hessian.h"
 #include "render/sampling.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
@@ -114,6 +115,30 @@ void BM_Occluded(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_Occluded);
+
+// A record's Hessian spacing (EstimateIrradianceDerivatives) on the default 22 x 70 strata of a
+// cluttered hemisphere (hit distances and values varying from stratum to stratum), per record.
+void BM_RecordDerivatives(benchmark::State& state) {
+  const int T = 22, P = 70;
+  Rng rng(3, 5);
+  std::vector<Vec3> pts(size_t(T * P));
+  std::vector<float> lum(size_t(T * P));
+  double sum = 0;
+  for (int i = 0; i < T; ++i)
+    for (int j = 0; j < P; ++j) {
+      const Vec3 d = StratifiedCosineHemisphere(i, j, T, P, rng.Next(), rng.Next());
+      pts[size_t(i * P + j)] = d * (0.5f + 2 * rng.Next());
+      lum[size_t(i * P + j)] = 0.2f + rng.Next();
+      sum += lum[size_t(i * P + j)];
+    }
+  IrradianceDerivatives d;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(EstimateIrradianceDerivatives(T, P, pts.data(), lum.data(),
+                                                           float(sum / (T * P)), Vec3(0, 0, 1),
+                                                           Vec3(1, 0, 0), Vec3(0, 1, 0), &d));
+  }
+}
+BENCHMARK(BM_RecordDerivatives)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace irfarm

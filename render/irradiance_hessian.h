@@ -38,6 +38,21 @@ struct EdgeTerm {
 bool ProjectedSolidAngleEdge(const double r0[3], const double r1[3], const double n[3],
                              EdgeTerm* out);
 
+// The same edge term's derivatives in a frame whose z axis is n, tangent components only: for
+// vertices given in that frame (r, with q = |r|^2 and 1 / q), adds weight times d phi / dx,
+// d phi / dy to sum->grad and the Hessian's xx, yy, xy to sum->hess. False (nothing added) where
+// ProjectedSolidAngleEdge is false.
+struct LocalVertex {
+  double r[3];
+  double q, inv_q;
+};
+struct TangentDerivatives {
+  double grad[2] = {0, 0};
+  double hess[3] = {0, 0, 0};  // xx, yy, xy
+};
+bool ProjectedSolidAngleEdgeLocal(const LocalVertex& v0, const LocalVertex& v1, double weight,
+                                  TangentDerivatives* sum);
+
 struct IrradianceDerivatives {
   // Relative to the record's irradiance luminance, in the tangent frame (s, t) given.
   float gradient[2] = {0, 0};

@@ -108,6 +108,48 @@ TEST(IrradianceHessianTest, DegenerateEdgesAreRejected) {
   EXPECT_EQ(e.phi, 0);
 }
 
+// The tangent-frame edge terms the estimator sums (ProjectedSolidAngleEdgeLocal) are the world
+// ones' tangent block with n = z, for random edges near and far, short and long.
+TEST(IrradianceHessianTest, LocalEdgeTermsMatchTheWorldOnes) {
+  Rng rng(21, 4);
+  const double n[3] = {0, 0, 1};
+  int compared = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const double scale = trial % 2 ? 0.01 : 1.0;  // every other edge short (fine strata)
+    double r0[3], r1[3];
+    for (int k = 0; k < 3; ++k) {
+      r0[k] = 4 * rng.Next() - 2;
+      r1[k] = r0[k] + scale * (2 * rng.Next() - 1);
+    }
+    EdgeTerm world;
+    const bool w = ProjectedSolidAngleEdge(r0, r1, n, &world);
+    LocalVertex v0{{r0[0], r0[1], r0[2]}, 0, 0}, v1{{r1[0], r1[1], r1[2]}, 0, 0};
+    v0.q = r0[0] * r0[0] + r0[1] * r0[1] + r0[2] * r0[2];
+    v1.q = r1[0] * r1[0] + r1[1] * r1[1] + r1[2] * r1[2];
+    v0.inv_q = 1 / v0.q;
+    v1.inv_q = 1 / v1.q;
+    TangentDerivatives sum;
+    ASSERT_EQ(ProjectedSolidAngleEdgeLocal(v0, v1, 2.0, &sum), w);
+    if (!w) continue;
+    ++compared;
+    const double g = std::max(std::abs(world.grad[0]), std::abs(world.grad[1]));
+    const double h =
+        std::max({std::abs(world.hess[0]), std::abs(world.hess[1]), std::abs(world.hess[3])});
+    EXPECT_NEAR(sum.grad[0], 2 * world.grad[0], 1e-9 * g);
+    EXPECT_NEAR(sum.grad[1], 2 * world.grad[1], 1e-9 * g);
+    EXPECT_NEAR(sum.hess[0], 2 * world.hess[0], 1e-9 * h);
+    EXPECT_NEAR(sum.hess[1], 2 * world.hess[1], 1e-9 * h);
+    EXPECT_NEAR(sum.hess[2], 2 * world.hess[3], 1e-9 * h);
+  }
+  EXPECT_GT(compared, 1900);
+  // Degenerate edges add nothing.
+  TangentDerivatives none;
+  const LocalVertex a{{0, 0, 1}, 1, 1}, b{{0, 0, 2}, 4, 0.25};
+  EXPECT_FALSE(ProjectedSolidAngleEdgeLocal(a, b, 1.0, &none));
+  EXPECT_EQ(none.grad[0], 0);
+  EXPECT_EQ(none.hess[0], 0);
+}
+
 // A point under an infinite ceiling z = 1 of radiance `base`, with a lamp rectangle of radiance
 // `lamp` on it: E(x) = pi base + (lamp - base) * Phi_rect(x), exact by Lambert's formula.
 struct CeilingScene {
@@ -169,6 +211,47 @@ TEST(IrradianceHessianTest, GridDerivativesConvergeToTheExactOnes) {
   EXPECT_LT(h3, h1);
   EXPECT_LT(g3, 0.1);
   EXPECT_LT(h3, 0.2);
+}
+
+// A record's derivatives in its own frame do not depend on how that frame lies in the world:
+// the same hemisphere (hit points and values in the frame) under a random rotation, and under a
+// mirrored (left-handed) frame, gives the same tangent gradient and eigenvalues.
+TEST(IrradianceHessianTest, DerivativesDoNotDependOnTheFramesPlacement) {
+  const int T = 22, P = 70;
+  Rng rng(8, 8);
+  std::vector<Vec3> local(size_t(T * P));
+  std::vector<float> lum(size_t(T * P));
+  double sum = 0;
+  for (int i = 0; i < T; ++i)
+    for (int j = 0; j < P; ++j) {
+      const Vec3 d = StratifiedCosineHemisphere(i, j, T, P, rng.Next(), rng.Next());
+      local[size_t(i * P + j)] = d * (0.5f + 2 * rng.Next());  // a cluttered room
+      lum[size_t(i * P + j)] = rng.Next() < 0.1f ? 5.0f : 0.2f + rng.Next();
+      sum += lum[size_t(i * P + j)];
+    }
+  const auto derivatives = [&](const Vec3& s, const Vec3& t, const Vec3& n) {
+    std::vector<Vec3> pts(local.size());
+    for (size_t k = 0; k < local.size(); ++k)
+      pts[k] = s * local[k].x + t * local[k].y + n * local[k].z;
+    IrradianceDerivatives d;
+    EXPECT_TRUE(EstimateIrradianceDerivatives(T, P, pts.data(), lum.data(), float(sum / (T * P)), n,
+                                              s, t, &d));
+    return d;
+  };
+  const IrradianceDerivatives base = derivatives(Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1));
+  EXPECT_GT(base.hessian_max, 0);
+  for (int trial = 0; trial < 8; ++trial) {
+    const Vec3 n = UniformSphere(rng.Next(), rng.Next());
+    Vec3 s, t;
+    MakeFrame(n, &s, &t);
+    if (trial % 2) std::swap(s, t);                        // mirrored: left-handed about n
+    const IrradianceDerivatives d = derivatives(s, t, n);  // the same hemisphere in (s, t, n)
+    const float tol = 1e-4f;
+    EXPECT_NEAR(d.gradient[0], base.gradient[0], tol * std::abs(base.gradient[0]) + 1e-6f);
+    EXPECT_NEAR(d.gradient[1], base.gradient[1], tol * std::abs(base.gradient[1]) + 1e-6f);
+    EXPECT_NEAR(d.hessian_max, base.hessian_max, tol * base.hessian_max);
+    EXPECT_NEAR(d.hessian_min, base.hessian_min, tol * base.hessian_max);
+  }
 }
 
 TEST(IrradianceHessianTest, ErrorRadiusSolvesTheErrorModel) {
