@@ -106,10 +106,10 @@ BalanceResult ChooseRecordRays(const PilotFigures& pilot, const BalanceInputs& i
 //   room-a 5.1e-4 / 5.2e-4, 7.6 / 6.0 s; room-c 3.4e-4 / 3.5e-4, 4.1 / 3.4 s (6.7); and where two
 //   levels lose: room-d 4.8e-4 / 5.4e-4 (N/S 1.15) and living-room 2.9e-2 in 21 s / 3.1e-2 in
 //   34 s (0.97: its rough plastic, metal and glass make the samples' error).
-// Again at 46c3e93 (docs/bench/cache-levels-2026-12-04, seeds 7-9, 22 scenes with the unseen
-// rooms): two levels are no worse in error x time on 20 of 22; room-d and room-c are now even
-// (0.98, 1.02), room-226 1.13 (the pilot picks two there); living-room still loses (same error in
-// 13.5 s against 10 s; N/S 0.78, 1.01). room-221 gains 17% with two but its N/S spans 1.0-6.7
+// Again at 46c3e93 (docs/bench/cache-levels-2026-12-04, seeds 7-9, 21 scenes with the unseen
+// rooms): two levels are no worse in error x time on 18 of 21, within 2% on room-c and room-201,
+// room-d now even (0.98); room-226 1.13 (the pilot picks two there); living-room still loses
+// (same error in 13.5 s against 10 s; N/S 0.78, 1.01). room-221 gains 17% with two but its N/S spans 1.0-6.7
 // over seeds (the pilot's S, not its N, varies 7x), so 3 picks one level on half its seeds. A
 // ratio of 1.5 would pick two there on 5 of 6 seeds, with living-room's 1.01 close below: kept
 // at 3 until the pilot's S is steadier.
