@@ -116,7 +116,7 @@ struct IrrcacheSettings {
   // ray's cone, used only by other records' rays). At default settings the pilot chooses
   // (choose_cache_levels; PrefersTwoLevels in render/record_balance.h): two where the records'
   // noise dominates the image's error (veach-ajar 4.5x lower relMSE, sunlit-room 1.8x), one where
-  // the camera samples' does (living-room, room-d). Off when the levels are given (scene,
+  // the camera samples' does (living-room). Off when the levels are given (scene,
   // --cache-levels, the job's settings) and with --target-error.
   int cache_levels = 1;
   bool choose_cache_levels = true;
