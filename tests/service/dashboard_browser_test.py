@@ -29,6 +29,7 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
 URL, TOKEN, BIN, COORD, SCENE, WORKER, CHROME, DRIVER, SHOT = sys.argv[1:10]
+RES = 320  # the first job's film, square
 WORKERS = [int(p) for p in WORKER.split(",")]
 env = dict(os.environ, IRFARM_TOKEN=TOKEN)
 
@@ -105,8 +106,10 @@ try:
     # Fixed record rays: the default balance may pick fewer, and then the job can finish between
     # two polls with no mid-job state to see. Up to 256 spp and a = 0.05 for the same reason: at
     # the defaults the job took about 3 s and the page saw 28%, 72%, 100% (no poll within
-    # 30-70%); now about 8 s, five or more progress values.
-    job = irfarm("submit", SCENE, "-Dresx=160", "-Dresy=160", "--tile-size", "16",
+    # 30-70%); then about 8 s, five or more progress values. At 160 x 160 it later took about 2 s
+    # (adaptive sampling stops early) and the page saw 27%, 77%, 100% in one run of three: now
+    # 320 x 320 in tiles of 32 (the same 100 tiles, four times the pixels).
+    job = irfarm("submit", SCENE, "-Dresx=%d" % RES, "-Dresy=%d" % RES, "--tile-size", "32",
                  "--record-rays", "1536", "--spp", "256", "--accuracy", "0.05", "-q").strip()
     wait_for("job row", lambda: driver.find_element(By.ID, "job-" + job))
     print("ok: submitted %s appears in the jobs table" % job)
@@ -157,7 +160,7 @@ try:
         """, job))
     w, h, mean, black = info
     print("MEASURED shown image %dx%d, mean 8-bit value %.1f, black pixels %.3f" % (w, h, mean, black))
-    assert (w, h) == (160, 160), info
+    assert (w, h) == (RES, RES), info
     # The film has a thin black frame (the camera sees past the box: ~5%); a blank or half-done
     # image would be far darker.
     assert mean > 20 and black < 0.2, info
@@ -167,7 +170,7 @@ try:
     (mw, mh, colours), swatches = map_colours(driver, job)
     print("MEASURED record map %dx%d, colours %s; workers' swatches %s; mid-job %s" %
           (mw, mh, colours, swatches, mid_map[2]))
-    assert (mw, mh) == (160, 160), (mw, mh)
+    assert (mw, mh) == (RES, RES), (mw, mh)
     assert sorted(swatches) == ["w1", "w2"] and swatches["w1"] != swatches["w2"], swatches
     counts = {name: colours.get(rgb, 0) for name, rgb in swatches.items()}
     others = {k: v for k, v in colours.items() if k != "0,0,0" and k not in swatches.values()}
