@@ -212,7 +212,16 @@ void SimWorker::Run() {
   std::shared_ptr<grpc::Channel> channel =
       grpc::CreateCustomChannel(options_.coordinator, grpc::InsecureChannelCredentials(), args);
   std::unique_ptr<v1::WorkerService::Stub> stub = v1::WorkerService::NewStub(channel);
+  // Wait for the connection, and let the session wait for it too: with many simulated workers
+  // connecting at once, a first connection attempt failed now and then ("failed to connect to
+  // all addresses"), and a call without wait-for-ready gave up at once (service_scale_smoke saw
+  // 1 of 8 workers not register in 30 s, in one run of three beside other tests).
+  if (!channel->WaitForConnected(std::chrono::system_clock::now() + std::chrono::seconds(20))) {
+    stats_.error = "session refused: no connection to " + options_.coordinator + " in 20 s";
+    return;
+  }
   grpc::ClientContext context;
+  context.set_wait_for_ready(true);
   auto stream = stub->Session(&context);
   const MeasureWindow& window = *options_.window;
   auto heartbeat = std::chrono::milliseconds(1000);
