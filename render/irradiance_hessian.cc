@@ -139,13 +139,9 @@ bool EstimateIrradianceDerivatives(int T, int P, const Vec3* points, const float
   // six edges, and the derivatives are wanted in the tangent plane only.
   const auto local = [&](int k) {
     const Vec3& p = points[k];
-    LocalVertex v;
-    v.r[0] = double(p.x) * s.x + double(p.y) * s.y + double(p.z) * s.z;
-    v.r[1] = double(p.x) * t.x + double(p.y) * t.y + double(p.z) * t.z;
-    v.r[2] = double(p.x) * n.x + double(p.y) * n.y + double(p.z) * n.z;
-    v.q = Dot3(v.r, v.r);
-    v.inv_q = 1 / v.q;
-    return v;
+    return LocalVertex::At(double(p.x) * s.x + double(p.y) * s.y + double(p.z) * s.z,
+                           double(p.x) * t.x + double(p.y) * t.y + double(p.z) * t.z,
+                           double(p.x) * n.x + double(p.y) * n.y + double(p.z) * n.z);
   };
   TangentDerivatives sum;
   const auto edge = [&](const LocalVertex& v0, const LocalVertex& v1, double weight) {

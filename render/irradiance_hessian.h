@@ -45,6 +45,10 @@ bool ProjectedSolidAngleEdge(const double r0[3], const double r1[3], const doubl
 struct LocalVertex {
   double r[3];
   double q, inv_q;
+  static LocalVertex At(double x, double y, double z) {
+    const double q = x * x + y * y + z * z;
+    return LocalVertex{{x, y, z}, q, 1 / q};
+  }
 };
 struct TangentDerivatives {
   double grad[2] = {0, 0};

@@ -123,11 +123,8 @@ TEST(IrradianceHessianTest, LocalEdgeTermsMatchTheWorldOnes) {
     }
     EdgeTerm world;
     const bool w = ProjectedSolidAngleEdge(r0, r1, n, &world);
-    LocalVertex v0{{r0[0], r0[1], r0[2]}, 0, 0}, v1{{r1[0], r1[1], r1[2]}, 0, 0};
-    v0.q = r0[0] * r0[0] + r0[1] * r0[1] + r0[2] * r0[2];
-    v1.q = r1[0] * r1[0] + r1[1] * r1[1] + r1[2] * r1[2];
-    v0.inv_q = 1 / v0.q;
-    v1.inv_q = 1 / v1.q;
+    const LocalVertex v0 = LocalVertex::At(r0[0], r0[1], r0[2]);
+    const LocalVertex v1 = LocalVertex::At(r1[0], r1[1], r1[2]);
     TangentDerivatives sum;
     ASSERT_EQ(ProjectedSolidAngleEdgeLocal(v0, v1, 2.0, &sum), w);
     if (!w) continue;
@@ -144,7 +141,7 @@ TEST(IrradianceHessianTest, LocalEdgeTermsMatchTheWorldOnes) {
   EXPECT_GT(compared, 1900);
   // Degenerate edges add nothing.
   TangentDerivatives none;
-  const LocalVertex a{{0, 0, 1}, 1, 1}, b{{0, 0, 2}, 4, 0.25};
+  const LocalVertex a = LocalVertex::At(0, 0, 1), b = LocalVertex::At(0, 0, 2);
   EXPECT_FALSE(ProjectedSolidAngleEdgeLocal(a, b, 1.0, &none));
   EXPECT_EQ(none.grad[0], 0);
   EXPECT_EQ(none.hess[0], 0);

@@ -1,4 +1,7 @@
 #!/bin/bash
+# The run behind summary.md (2026-12-04): B is a build of 46c3e93 (cmake --build build, copied);
+# the unseen rooms are `python3 bench/make_room.py S /tmp/unseen/room-S --reference 1024` (S =
+# 201..206) and `... S /tmp/fresh/room-S --reference 4096` (S = 221..226). Paths as run.
 B=/tmp/irfarm-46c3e93
 out=/tmp/levels.txt; : > $out
 for sc in /work/shared/scenes/{cornell-box,sunlit-room,specular,thin-panels,veach-ajar,room-a,room-b,room-c,room-d} /tmp/unseen/room-20{1,2,3,4,5,6} /tmp/fresh/room-22{1,2,3,4,5,6}; do
