@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Metrics (issue 11, part 1): a real coordinator on a real redis-server and two real workers on
-# 127.0.0.1, each with --metrics, render the Cornell box at 192x192 (144 tiles: at 128x128 the
-# job once ended before three scrapes, after the renders got faster). Both endpoints
+# 127.0.0.1, each with --metrics, render the Cornell box at 320x320 (400 tiles: at 128x128 the
+# job once ended before three scrapes, after the renders got faster; at 192x192, on 2026-12-04, it
+# ran for exactly 3 scrapes when idle and failed once in a full ctest run). Both endpoints
 # are scraped every 0.2 s during the job and once after it; every scrape must parse with the
 # Prometheus project's own parser (prometheus_client.parser.text_string_to_metric_families), and:
 #  - the coordinator's irfarm_job_tiles_done{job} and irfarm_job_records_merged{job} and each
@@ -38,7 +39,7 @@ for m in "$CM" "${WM[@]}"; do
   curl -sf "http://$m/metrics" >/dev/null || fail "no metrics on $m"
 done
 
-JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" -Dresx=192 -Dresy=192 --tile-size 16 -q)
+JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" -Dresx=320 -Dresy=320 --tile-size 16 -q)
 mkdir -p "$WORK/scrapes"
 n=0
 end=$((SECONDS + 180))
