@@ -42,25 +42,30 @@ inline LoadedScene BuildLoaded(const absl::StatusOr<SceneDesc>& desc) {
   return s;
 }
 
-// Loads test scene `name` at 1/4 of its resolution (matching reference-x4.exr).
-inline LoadedScene LoadQuarter(const std::string& name) {
+// Loads test scene `name` at 1/`factor` of its resolution (matching reference-x<factor>.exr).
+inline LoadedScene LoadScaledDown(const std::string& name, int factor) {
   absl::StatusOr<SceneDesc> full = LoadSceneFile(TestScenePath(name), LoadOptions{});
   EXPECT_TRUE(full.ok()) << full.status();
+  if (!full.ok()) return LoadedScene{};
   LoadOptions opt;
-  opt.defines["resx"] = std::to_string(full->camera.width / 4);
-  opt.defines["resy"] = std::to_string(full->camera.height / 4);
+  opt.defines["resx"] = std::to_string(full->camera.width / factor);
+  opt.defines["resy"] = std::to_string(full->camera.height / factor);
   return BuildLoaded(LoadSceneFile(TestScenePath(name), opt));
 }
 
-// relmse_est_ref_vs_truth from the scene's reference.json; box-filtering by 4x4 divides the
-// variance of the reference's noise by 16 (the error of reference-x4.exr); 0 when absent.
-inline double ReferenceError(const std::string& name) {
+// Loads test scene `name` at 1/4 of its resolution (matching reference-x4.exr).
+inline LoadedScene LoadQuarter(const std::string& name) { return LoadScaledDown(name, 4); }
+
+// relmse_est_ref_vs_truth from the scene's reference.json; box-filtering by `bin` x `bin` divides
+// the variance of the reference's noise by bin^2 (by 16: the error of reference-x4.exr); 0 when
+// absent.
+inline double ReferenceError(const std::string& name, int bin = 4) {
   std::ifstream f(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference.json");
   if (!f) return 0;
   const nlohmann::json j = nlohmann::json::parse(f, nullptr, /*allow_exceptions=*/false);
   EXPECT_FALSE(j.is_discarded()) << name << "/reference.json is not JSON";
   if (!j.is_object() || !j.contains("relmse_est_ref_vs_truth")) return 0;
-  return j["relmse_est_ref_vs_truth"].get<double>() / 16.0;
+  return j["relmse_est_ref_vs_truth"].get<double>() / double(bin * bin);
 }
 
 // Image `file` of test scene `name` (a test failure, and an empty image, when it cannot be read).
