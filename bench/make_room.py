@@ -9,9 +9,11 @@ opening in the far wall (z = D) with a directional sun shining in through it and
 The camera stands near the z = 0 wall at eye height and looks into the room. Only the scene
 subset of ../shared/scenes/README.md, so Mitsuba 3 reads the same file.
 
-  python3 bench/make_room.py SEED OUT_DIR [--window yes|no] [--lamps rect|mesh]
+  python3 bench/make_room.py SEED OUT_DIR [--window yes|no] [--lamps rect|mesh|bulb]
+      [--finish matte|glossy]
       writes OUT_DIR/scene.xml (--lamps mesh: ceiling disks and fluorescent tubes, emissive
-      triangle meshes, instead of rectangles)
+      triangle meshes, instead of rectangles; --lamps bulb: small spheres, spot and point
+      lights; --finish glossy: a rough plastic floor and a rough metal box)
   python3 bench/make_room.py SEED OUT_DIR --reference 1024      and a Mitsuba 3 reference:
       reference.exr (mean of 256-spp chunks, seeds 1000...), reference.json (seconds, spp and the
       reference's own noise: relmse_half_vs_half of the even and odd chunks and
@@ -45,7 +47,7 @@ def rgb(v):
     return ", ".join(f"{c:.4f}" for c in v)
 
 
-def make_room(seed, window=None, lamps_kind="rect"):
+def make_room(seed, window=None, lamps_kind="rect", finish="matte"):
     rnd = random.Random(seed)
     W, H, D = rnd.uniform(3.5, 7.0), rnd.uniform(2.5, 3.3), rnd.uniform(3.0, 5.5)
     if window is None:
@@ -119,6 +121,9 @@ def make_room(seed, window=None, lamps_kind="rect"):
         x, z = rnd.uniform(lw + 0.3, W - lw - 0.3), rnd.uniform(ld + 0.3, D - ld - 0.3)
         power = rnd.uniform(20, 50) * (0.3 / math.sqrt(lw * ld)) ** 0.5
         colour = rgb([power, power * 0.92, power * 0.78])
+        if lamps_kind == "bulb":
+            lamps.append(bulb(rnd, i, x, H, z, 4 * lw * ld * power))
+            continue
         if lamps_kind != "mesh":
             lamps.append(rect(f"light{i}", "mat-lamp", (lw, ld), [("x", 90)], (x, H - 0.01, z),
                               emitter=colour))
@@ -175,9 +180,52 @@ def make_room(seed, window=None, lamps_kind="rect"):
     </sensor>
 """
     bsdfs = "".join(f"""    <bsdf type="diffuse" id="{n}"><rgb name="reflectance" value="{rgb(c)}"/></bsdf>
-""" for n, c in mats.items())
+""" for n, c in mats.items() if not (finish == "glossy" and n in ("mat-floor", "mat-box0")))
+    if finish == "glossy":
+        # A varnished floor and a metal first box, as in real interiors (issue 7's materials).
+        bsdfs += f"""    <bsdf type="roughplastic" id="mat-floor">
+        <rgb name="diffuse_reflectance" value="{rgb(mats["mat-floor"])}"/>
+        <float name="alpha" value="{rnd.uniform(0.05, 0.3):.3f}"/>
+    </bsdf>
+    <bsdf type="roughconductor" id="mat-box0">
+        <string name="material" value="{rnd.choice(["Al", "Cu", "Au"])}"/>
+        <float name="alpha" value="{rnd.uniform(0.1, 0.35):.3f}"/>
+    </bsdf>
+"""
     return head + bsdfs + "".join(out) + "".join(emitters) + "".join(boxes) + "".join(lamps) + \
         "</scene>\n"
+
+
+def bulb(rnd, i, x, H, z, flux_scale):
+    """A lamp that is not a rectangle: a small sphere hanging under the ceiling, a spot light at
+    the ceiling shining down, or a point light; about the flux of the rectangle it replaces
+    (flux_scale = its area x radiance, whose flux is pi x that)."""
+    kind = rnd.choice(["sphere", "spot", "point"])
+    tint = (1.0, 0.92, 0.78)
+    y = H - rnd.uniform(0.3, 0.8)
+    if kind == "sphere":
+        r = rnd.uniform(0.04, 0.1)
+        L = [c * flux_scale / (4 * math.pi * r * r) for c in tint]
+        return f"""    <shape type="sphere" id="light{i}">
+        <point name="center" value="{rgb((x, y, z))}"/><float name="radius" value="{r:.4f}"/>
+        <ref id="mat-lamp"/><emitter type="area"><rgb name="radiance" value="{rgb(L)}"/></emitter>
+    </shape>
+"""
+    if kind == "point":
+        intensity = [c * flux_scale / 4 for c in tint]
+        return f"""    <emitter type="point" id="light{i}">
+        <point name="position" value="{rgb((x, y, z))}"/><rgb name="intensity" value="{rgb(intensity)}"/>
+    </emitter>
+"""
+    cutoff = rnd.uniform(25, 50)
+    intensity = [c * flux_scale / (2 * (1 - math.cos(math.radians(cutoff)))) for c in tint]
+    target = (x + rnd.uniform(-0.5, 0.5), 0, z + rnd.uniform(-0.5, 0.5))
+    return f"""    <emitter type="spot" id="light{i}">
+        <transform name="to_world"><lookat origin="{rgb((x, H - 0.02, z))}" target="{rgb(target)}"/></transform>
+        <rgb name="intensity" value="{rgb(intensity)}"/>
+        <float name="cutoff_angle" value="{cutoff:.2f}"/><float name="beam_width" value="{0.75 * cutoff:.2f}"/>
+    </emitter>
+"""
 
 
 def make_reference(folder, spp):
@@ -209,14 +257,17 @@ def main():
     ap.add_argument("seed", type=int)
     ap.add_argument("out")
     ap.add_argument("--window", choices=["yes", "no"])
-    ap.add_argument("--lamps", choices=["rect", "mesh"], default="rect",
-                    help="rectangle lamps, or lamps of triangle meshes (disks and tubes)")
+    ap.add_argument("--lamps", choices=["rect", "mesh", "bulb"], default="rect",
+                    help="rectangle lamps, lamps of triangle meshes (disks and tubes), or bulbs "
+                    "(sphere, spot and point lights)")
+    ap.add_argument("--finish", choices=["matte", "glossy"], default="matte",
+                    help="glossy: a rough plastic floor and a rough metal box")
     ap.add_argument("--reference", type=int, default=0, help="spp of a Mitsuba 3 reference")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     window = None if a.window is None else a.window == "yes"
     with open(os.path.join(a.out, "scene.xml"), "w") as f:
-        f.write(make_room(a.seed, window, a.lamps))
+        f.write(make_room(a.seed, window, a.lamps, a.finish))
     if a.reference > 0:
         seconds, est = make_reference(a.out, a.reference)
         print(f"{a.out}: reference {a.reference} spp in {seconds:.0f} s, "
