@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # bench/make_room.py (random rooms for judging irfarm on scenes it has not seen): rooms of several
-# seeds, with and without a window, with rectangle, mesh and bulb lamps, matte and glossy, load in irfarm without a warning and render lit (every channel
-# mean above 0.01, no non-finite pixel): what the generator writes is a scene the loader accepts
-# as it is, whatever the seed.
+# seeds, with and without a window, with rectangle, mesh and bulb lamps, matte and glossy, load
+# in irfarm without a warning and render lit (every channel mean above 0.01, no non-finite pixel):
+# what the generator writes is a scene the loader accepts as it is, whatever the seed.
 #   make_room_test.sh IRFARM_BINARY SOURCE_DIR
 set -euo pipefail
 irfarm=$1 src=$2
