@@ -82,19 +82,6 @@ std::vector<Tile> MakeTiles(const PixelRect& r, int size) {
   return tiles;
 }
 
-// --target-error: half of the error asked goes to the cache. Calibrated on the shared scenes from
-// the cross-validated cache error that --target-error 1e-3 and 4e-3 runs measured (8 scenes,
-// 2026-11-30, with neighbour clamping): scaled back to the defaults (a = 0.1, 1536 record rays)
-// by the model below, 2.1e-4 and 2.2e-4 on average (room-b 0.4e-4 ... room-a 4.6e-4); its
-// interpolation part grows about as a^2, its noise as 1 / rays. (7e-4 before neighbour clamping
-// made every cache 3x more accurate, and runs then ended far below the error asked.)
-constexpr double kCacheErrorAtDefaults = 2.2e-4;
-
-// --target-error on an easy scene: the coarsest cache it may rebuild. a beyond 0.5 makes Ward's
-// interpolation blotchy where light changes (and the validity radius is clamped at
-// max_spacing_px anyway); 16 rays are 2 x 8 strata, the fewest for two half-records of 8 rays.
-constexpr float kCoarsestAccuracy = 0.5f;
-constexpr int kFewestRecordRays = 16;
 // Caustic photons stored: two per pixel of the image, within these bounds; and emitted: at most
 // kCausticEmitRatio per photon wanted. Where fewer photons find a mirror or smooth glass, the
 // caustics carry little of the light: materials (1.6% of the photons stored) rendered the same
@@ -102,50 +89,6 @@ constexpr int kFewestRecordRays = 16;
 // 3.30e-3 / 3.26e-3 / 3.31e-3), and 40x cost 1.5 CPU s more; specular stores 1 in 12.
 constexpr long kFewestCausticPhotons = 50000, kMostCausticPhotons = 1000000;
 constexpr long kCausticEmitRatio = 16;
-
-// --target-error: the samples every pixel gets before adaptive rounds, from the sampling error
-// at 16 spp on the shared scenes (0.9e-4 to 3.3e-4 of relMSE, falling as 1 / spp) and the half
-// of the error left to sampling; never more than the settings' own min_spp.
-constexpr double kSamplingErrorAt16Spp = 2.5e-4;
-// The fewest samples per pixel a --target-error render starts its pixels at (TargetMinSpp).
-constexpr int kFewestTargetSpp = 4;
-int TargetMinSpp(const RenderSettings& s) {
-  const double spp = 16 * kSamplingErrorAt16Spp / (0.5 * s.target_error);
-  // At least 4. The error estimate compares two halves of a pixel's samples, and a pixel that
-  // stops on its first two agreeing by chance is noisier than they say (the pixels left at 2 spp
-  // held 3x-5x the error they estimated on cornell-box at E = 4e-3: the estimate 0.63x of the
-  // measured error; at 4 spp, 0.82x).
-  return std::clamp(int(std::ceil(spp)), kFewestTargetSpp, std::max(kFewestTargetSpp, s.min_spp));
-}
-
-// --target-error: the share of E the first cache is built for by the model above. More than the
-// refinement's nominal half: the caches came out at 0.45-0.95 of the model's figure on rooms it
-// was not calibrated on (six unseen rooms and room-301, E = 4e-3 at a = 0.3 and 168 rays: 0.23 E
-// to 0.47 E), and with the camera samples at their minimum adding 0.05 E to 0.6 E, those renders
-// ended at 0.36 E to 0.55 E, at or below the band's lower end and at more cost than the error
-// asked needs. The first cache's estimate then sets the share the refinement works to.
-constexpr double kFirstCacheShare = 0.7;
-// A first cache that, with the camera samples at their minimum, is estimated to end below this
-// fraction of E is rebuilt coarser. The truth (measured less the reference's own error) ran
-// 0.77x-1.22x of the estimate in the issue-6 run at 2aa34a0 (seed 7, 18 targets), 0.89x-1.35x at
-// 156f673 but for veach-ajar at 1e-3 (0.56x); the band is [E/2, 2E], and an end estimated at
-// 1.25 E/2 is inside it unless the estimate is more than 1.25x high. It was E/2 before: room-c at E
-// = 1e-3 was estimated at 0.51 E, not rebuilt, and ended at 0.455 E in two runs (2aa34a0, 156f673).
-constexpr double kLowestPlannedEnd = 0.625;
-
-// --target-error: the starting accuracy.
-double TargetAccuracy(const RenderSettings& s, double share = kFirstCacheShare) {
-  return std::clamp(0.1 * std::sqrt(share * s.target_error / kCacheErrorAtDefaults), 0.03, 0.4);
-}
-
-// Record rays for --target-error: the cache's error is mostly its records' noise (measured on
-// the shared scenes: half-rays records have 4-18% relative standard error), which falls as
-// 1 / rays, so the rays are scaled from the settings' count by the cache's share of the error.
-int TargetRecordRays(const RenderSettings& s, double share = kFirstCacheShare) {
-  const double base = std::max(4, s.irrcache.record_rays);
-  return int(std::lround(
-      std::clamp(base * kCacheErrorAtDefaults / (share * s.target_error), 128.0, 4 * base)));
-}
 
 // Mean over random pixels of IrrcacheIntegrator::CacheError, clamped at 0: batches of
 // `checks` until the mean's standard error is within kCheckPrecision of it, or
@@ -168,12 +111,6 @@ constexpr float kTwoLevelCheckFraction = 0.25f;
 constexpr double kTwoLevelCheckBias = 1.5;
 constexpr int kCheckBatches = 16;
 constexpr size_t kMostChecks = 8192;
-struct CacheErrorEstimate {
-  double error = 0;  // clamped at 0
-  double noise = 0;  // the part of it the records' own noise explains (at most `error`)
-  // The same for camera lookups at `other_factor` (EstimateCacheError), from the same checks.
-  double other_error = 0, other_noise = 0;
-};
 CacheErrorEstimate EstimateCacheError(const IrrcacheIntegrator& integrator, int levels,
                                       const Camera& cam, uint64_t seed, uint64_t iteration,
                                       int checks, const PixelRect& rect, tbb::task_arena& arena,
@@ -802,9 +739,9 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
 CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& settings) {
   CacheSettings cs;
   cs.bounds = scene.bounds();
-  const float a = settings.target_error > 0
-                      ? std::max(settings.irrcache.accuracy, float(TargetAccuracy(settings)))
-                      : settings.irrcache.accuracy;
+  const float a = settings.target_error > 0 ? std::max(settings.irrcache.accuracy,
+                                                       float(TargetAccuracy(settings.target_error)))
+                                            : settings.irrcache.accuracy;
   cs.max_accuracy = std::min(1.0f, a * std::max({1.0f, settings.irrcache.relaxed_factor,
                                                  settings.irrcache.lookup_factor}));
   cs.neighbour_slope = settings.irrcache.neighbour_slope;
@@ -971,8 +908,9 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   double cache_error = -1;
   const char* cache_stop = nullptr;  // why the cache's refinement ended above its share
   double cache_budget_final = 0;
-  // The camera samples' error measured by the first round at TargetMinSpp (-1: not measured).
-  double first_sampling = -1;
+  // --target-error: the final pass's starting samples per pixel and the error asked of it.
+  int final_min_spp = 0;
+  double final_target_error = 0;
   // The pilot. At the defaults it balances the record rays and chooses the cache levels. A cache
   // that already holds records (--cache-in, the service's) keeps the settings' rays: the pilot's
   // records would mostly repeat what it has.
@@ -1014,7 +952,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
             int(std::lround(std::clamp(base * b.record_noise / cache_budget, 128.0, 4 * base)));
         b.record_rays = pilot_rays;
       } else {
-        b.record_rays = TargetRecordRays(settings);
+        b.record_rays = TargetRecordRays(settings.target_error, settings.irrcache.record_rays);
       }
     }
     for (const RenderCounters& c : pilot_counters) {
@@ -1028,200 +966,57 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   if (irrcache) {
     PhaseTimer timer("overture");
     if (settings.target_error > 0) {
+      RefinementStart start;
+      start.target_error = settings.target_error;
+      start.settings_rays = settings.irrcache.record_rays;
+      start.settings_min_spp = settings.min_spp;
+      start.wider_factor = settings.irrcache.lookup_factor;
       // Only a cache this render made itself may be dropped and rebuilt coarser.
-      const bool may_rebuild = own_cache != nullptr && cache->size() == 0;
-      // The first cache's share: kFirstCacheShare where the first round can measure the samples'
-      // error and so raise the cache's share to match (a cache this render made). Two levels (the
-      // pilot chose them for noisy one-level records, and their rays for half of E) and a shared
-      // or imported cache keep the model's nominal half; built coarser, veach-ajar took more
-      // rounds to the same band (E = 1e-3: 186 s against 65 s).
-      const double first_share = may_rebuild && pilot_rays == 0 ? kFirstCacheShare : 0.5;
-      ic.accuracy = float(TargetAccuracy(settings, first_share));
-      // Ward's rule to start with: the error model above and its coarsest cache
-      // (kCoarsestAccuracy, kFewestRecordRays) were calibrated with it. With wider lookups from
-      // the start the coarsest cache is more accurate, and easy scenes ended below E/2
-      // (2026-12-03, seed 7, E = 4e-3 and 1e-3 on eight shared scenes and six unseen rooms,
-      // against the truth: 17 of 28 in [E/2, 2E] at factor 1.5, 22 of 28 with the model's
-      // constant recalibrated to 1.5e-4, 25 of 28 at factor 1; README, "Wider lookups"). Each
-      // round's checks also measure the settings' wider lookups; where the cache is above its
-      // share, mostly by its records' noise, and they measure lower but not below the
-      // refinement's aim (0.8 of the share, below: the calibrated rounds get there without
-      // overshooting), the render takes them from then on.
-      ic.lookup_factor = 1;
-      const float wider_factor =
-          settings.irrcache.lookup_factor > 1 ? settings.irrcache.lookup_factor : 0.0f;
-      ic.record_rays = pilot_rays > 0 ? pilot_rays : TargetRecordRays(settings, first_share);
-      const int most_rays = 4 * std::max(4, settings.irrcache.record_rays);
-      // The cache's share of the error: half, until the first round has measured the samples'.
-      double cache_budget = 0.5 * settings.target_error;
-      int rebuilds = 0;
-      double previous_error = 0, previous_noise = 0, first_round = 0, round_start = 0;
-      // The last refinement lowered a too little to take a third off the interpolation error (about
-      // as a^2): it raised the rays and kept a, or lowered a by less than a factor sqrt(3/2).
-      bool last_rays_only = false;
-      // What the first round of samples (TargetMinSpp) leaves of E, within [E/2, 0.9 E].
-      double left_by_samples = 0.5 * settings.target_error;
-      // `streams`: the random streams of the round (a rebuilt cache's rounds get new ones).
-      for (int iteration = 0, streams = 0;; ++iteration, ++streams) {
+      start.may_rebuild = own_cache != nullptr && cache->size() == 0;
+      start.pilot_rays = pilot_rays;
+      start.pilot_work = double(pilot_work);
+      start.time_limit = settings.time_limit;
+      CacheRefinement refinement(start);
+      for (;;) {
+        ic.accuracy = refinement.accuracy();
+        ic.record_rays = refinement.record_rays();
+        ic.lookup_factor = refinement.lookup_factor();
+        const uint64_t streams = uint64_t(refinement.streams());
         const IrrcacheIntegrator trial(scene, cache, ic);
-        if (settings.overture) overture(trial, uint64_t(streams));
-        // 256 check pixels, or more for a rebuilt coarser cache, as many as cost the first
-        // round's record rays: its few records each cover many pixels, and 256 checks saw the
-        // noise of too few of them (room-b, 16 rays: estimates 0.57x to 0.95x of the measured).
-        const int checks = int(std::min<long>(
-            4096, 256L * std::max(1, TargetRecordRays(settings) / std::max(1, ic.record_rays))));
-        CacheErrorEstimate estimate = EstimateCacheError(
-            trial, ic.cache_levels, cam, settings.seed, uint64_t(streams), checks, rect, arena,
-            counters, ic.lookup_factor < wider_factor ? wider_factor : 0.0f);
-        // The first round also measures what the camera samples at their minimum leave of E:
-        // that is the cache's share from then on (at least half of E, at most 0.9 E).
-        if (may_rebuild && rebuilds == 0 && iteration == 0) {
-          const double sampling = EstimateSamplingError(
-              trial, cam, settings.seed, TargetMinSpp(settings), std::max(1, ic.light_samples),
-              settings.splat, rect, arena, counters);
-          first_sampling = sampling;
-          left_by_samples = std::clamp(settings.target_error - sampling,
-                                       0.5 * settings.target_error, 0.9 * settings.target_error);
-          cache_budget = left_by_samples;
-        }
-        if (ic.lookup_factor < wider_factor && estimate.error > cache_budget &&
-            estimate.noise > 0.5 * estimate.error && estimate.other_error < estimate.error &&
-            estimate.other_error >= 0.8 * cache_budget) {
-          ic.lookup_factor = wider_factor;
-          estimate.error = estimate.other_error;
-          estimate.noise = estimate.other_noise;
-        }
-        cache_error = estimate.error;
-        out.stats.cache_rounds.push_back(CacheRound{ic.accuracy, ic.lookup_factor, ic.record_rays,
-                                                    cache_error, estimate.noise, cache_budget,
-                                                    rebuilds > 0 && iteration == 0});
-        // An easy scene: the first cache is far inside what the first round of samples
-        // (TargetMinSpp) leaves of E, below a quarter of it, and the render would end far below E
-        // (room-b: 4.8e-4 at E = 4e-3, at 2 spp). That share is E minus those samples' error,
-        // within [E/2, 0.9 E]: where they leave more than half of E (room-c at E = 4e-3: 9.7e-4
-        // of sampling error at 4 spp, cache 5.4e-4), the cache may take more than its nominal
-        // half. Rebuild the cache coarser by the model the first round used (interpolation error
-        // ~ a^2, noise ~ 1 / rays), aiming at that share; the adaptive samples then stop at or
-        // near their minimum. Once more if the rebuilt cache is still below half of it (the
-        // first estimate is from 256 checks only, and a larger a may buy nothing where the
-        // validity radius is clamped at max_spacing_px).
-        // Also where the first cache and the samples would end below kLowestPlannedEnd E even at
-        // the fewest samples per pixel the final pass may start at (kFewestTargetSpp; where the
-        // cache leaves room, the final pass starts at fewer than TargetMinSpp, see below).
-        // bench/make_room.py's rooms 222 and 226, seed 7: first caches at 0.29 and 0.25 of the
-        // share, renders at 0.28 E to 0.35 E at E = 4e-3 and 1e-3, the estimates within 1.2x of the
-        // truth.
-        const double sampling_at_fewest =
-            std::max(0.0, first_sampling) * TargetMinSpp(settings) / double(kFewestTargetSpp);
-        const bool far_below =
-            rebuilds == 0 ? cache_error < std::max(0.25 * left_by_samples,
-                                                   kLowestPlannedEnd * settings.target_error -
-                                                       sampling_at_fewest)
-                          : iteration == 0 && cache_error < 0.5 * cache_budget;
-        if (may_rebuild && rebuilds < 2 && far_below) {
-          if (rebuilds == 0) cache_budget = left_by_samples;
-          const double r = std::min(16.0, cache_budget / std::max(cache_error, 1e-12));
-          const float a = std::min(kCoarsestAccuracy, float(ic.accuracy * std::sqrt(r)));
-          const int rays = std::max(kFewestRecordRays, int(std::lround(ic.record_rays / r)));
-          if (a != ic.accuracy || rays != ic.record_rays) {
-            ic.accuracy = a;
-            ic.record_rays = rays;
-            RenderSettings coarse = settings;  // the cache's largest accuracy follows a
-            coarse.irrcache.accuracy = ic.accuracy;
-            own_cache = std::make_unique<IrradianceCache>(CacheSettingsFor(scene, coarse));
-            cache = own_cache.get();
-            ++rebuilds;
-            iteration = -1;  // the rebuilt cache's rounds start afresh
-            continue;
-          }
+        if (settings.overture) overture(trial, streams);
+        const CacheErrorEstimate estimate = EstimateCacheError(
+            trial, ic.cache_levels, cam, settings.seed, streams, refinement.checks(), rect, arena,
+            counters, refinement.other_factor());
+        double sampling = 0;
+        if (refinement.measures_sampling()) {
+          sampling = EstimateSamplingError(
+              trial, cam, settings.seed, TargetMinSpp(settings.target_error, settings.min_spp),
+              std::max(1, ic.light_samples), settings.splat, rect, arena, counters);
         }
         const double elapsed =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
-        // Stop also when the last refinement bought less than a third off the error: what is
-        // left is not the noise or interpolation error that more rays and records remove (a
-        // light leak); going on multiplies the cost for nothing.
-        // (RefinementStalled: not when the last round raised only the rays and what is left is
-        // interpolation error. living-room at E = 2e-2 stopped here before, at a = 0.4: 7.2e-2
-        // -> 6.7e-2 at 4x the rays, the noise part 7.0e-2 -> 1.8e-2.)
-        const bool stalled =
-            iteration > 0 && RefinementStalled(CacheErrorCheck{previous_error, previous_noise},
-                                               CacheErrorCheck{cache_error, estimate.noise},
-                                               last_rays_only, cache_budget);
-        // Each round costs several times the one before (up to 4x the rays, more records): no
-        // round that would end past 10x the first round's time, at 4x the last round's cost
-        // (veach-ajar at E = 4e-3 took 198 s against 6 s at the defaults without this: its
-        // cache error is its records' noise, light found through the door gap by few of a
-        // record's rays, and falls only as 1 / rays: 2.3e-2 at a = 0.1 and 1536 rays, 8.2e-3 at
-        // 6144 rays in 3.7x the time).
-        // Work counted in rays traced and cache lookups (the pilot's, the rounds' and their
-        // checks'), not timed: the stop must not move with the machine's load. Timed in wall
-        // seconds, beside two CPU-bound processes, veach-ajar at quarter size and E = 4e-3 ended
-        // at 3.9e-3 to 8.1e-3; in the process's CPU seconds it still varied (8.1e-3 in a CI
-        // run, 6.3e-3 idle, seed 5): a loaded machine's cores also run each instruction slower.
         uint64_t counted = pilot_work;
         for (const RenderCounters& c : counters) counted += c.Work();
-        const double work = double(counted);
-        // The first round's cost as if its cache had been built for half of E, as the model
-        // set it before kFirstCacheShare (records cost as rays / a^2): a first cache built
-        // coarser costs less, and would leave a scene that needs rounds fewer of them. The
-        // pilot's work is not scaled: it does not depend on the first cache. (living-room at
-        // E = 1e-3, which no rule here reaches, costs 3x the time it did from the old start:
-        // 868-909 CPU s for 3.3e-3, against 280 s for 4.5e-3; its last cache, a = 0.045 and
-        // 6144 rays, makes the final pass 750 s.)
-        if (iteration == 0) {
-          const double nominal_a = TargetAccuracy(settings, 0.5);
-          const double nominal_rays = pilot_rays > 0 ? pilot_rays : TargetRecordRays(settings, 0.5);
-          const double scale = rebuilds > 0 ? 1.0
-                                            : nominal_rays / std::max(1, ic.record_rays) *
-                                                  (double(ic.accuracy) / nominal_a) *
-                                                  (double(ic.accuracy) / nominal_a);
-          first_round = double(pilot_work) + (work - double(pilot_work)) * std::max(1.0, scale);
+        CacheRound round;
+        const CacheRefinement::Next next =
+            refinement.AfterRound(estimate, sampling, double(counted), elapsed, &round);
+        out.stats.cache_rounds.push_back(round);
+        ic.accuracy = refinement.accuracy();
+        ic.record_rays = refinement.record_rays();
+        ic.lookup_factor = refinement.lookup_factor();
+        cache_error = refinement.cache_error();
+        if (next == CacheRefinement::Next::kDone) break;
+        if (next == CacheRefinement::Next::kRebuild) {
+          RenderSettings coarse = settings;  // the cache's largest accuracy follows a
+          coarse.irrcache.accuracy = ic.accuracy;
+          own_cache = std::make_unique<IrradianceCache>(CacheSettingsFor(scene, coarse));
+          cache = own_cache.get();
         }
-        const bool too_costly = work + 4 * (work - round_start) > 10 * first_round;
-        round_start = work;
-        const bool out_of_time = settings.time_limit > 0 && elapsed >= 0.5 * settings.time_limit;
-        if (cache_error <= cache_budget || iteration >= 3 || stalled || too_costly || out_of_time) {
-          cache_budget_final = cache_budget;
-          if (cache_error > cache_budget)
-            cache_stop = stalled       ? "the last round removed less than a third of it"
-                         : too_costly  ? "another round would pass 10x the first round's time"
-                         : out_of_time ? "half of --time-limit is spent"
-                                       : "after 4 rounds";
-          break;
-        }
-        previous_error = cache_error;
-        previous_noise = estimate.noise;
-        // Aim at T = 0.8 of the cache's share (0.4 E when that is E/2) at the least cost. The
-        // error is the records' noise N, which falls as 1 / rays (k times the rays: N / k) and
-        // not with a, plus interpolation error I, which falls about as a^2 (Ward's bound is
-        // linear in a; a times f: I f^2). The cost grows as k / f^2 (rays per record times
-        // records). The least k / f^2 with N / k + I f^2 = T: f^2 = T / (2 I) where I > T / 2
-        // (interpolation and noise get half of T each: k = 2 N / T), else f = 1 and
-        // k = N / (T - I). Before, every round lowered a and raised the rays together
-        // (k = 1 / f^2), which multiplied records where the error was their noise.
-        const double target = 0.8 * cache_budget;
-        const double noise = estimate.noise, interp = std::max(0.0, cache_error - noise);
-        double f2 = 1, k = 1;
-        if (interp > 0.5 * target) {
-          f2 = target / (2 * interp);
-          k = 2 * noise / target;
-        } else {
-          k = noise / std::max(target - interp, 1e-12);
-        }
-        // At most 4x the rays and half the accuracy a round; at least 1.25x the cost, so that a
-        // round is not spent on a change too small to measure.
-        f2 = std::clamp(f2, 0.25, 1.0);
-        k = std::clamp(k, 0.5, 4.0);
-        if (k / f2 < 1.25) k = 1.25 * f2;
-        // (f2 >= 1 before: mesh-lamps, seed 5, E = 4e-3, from a first cache at a = 0.36 and 128
-        // rays with error 1.8e-2, nearly all noise: a round of 4x the rays and a 0.36 -> 0.31
-        // took the noise to 4.2e-3 and left 1.0e-2 of interpolation error, and stopped there as
-        // stalled, at 3.6x the error asked.)
-        last_rays_only = f2 > 2.0 / 3.0;
-        ic.accuracy *= float(std::sqrt(f2));
-        ic.record_rays =
-            std::clamp(int(std::lround(ic.record_rays * k)), kFewestRecordRays, most_rays);
       }
+      cache_stop = refinement.stop_reason();
+      cache_budget_final = refinement.cache_budget();
+      final_min_spp = refinement.FinalMinSpp();
+      final_target_error = refinement.FinalTargetError();
     } else if (settings.overture) {
       overture(IrrcacheIntegrator(scene, cache, ic), 0);
     }
@@ -1233,23 +1028,9 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   RenderSettings final_settings = settings;
   final_settings.irrcache = ic;
   if (settings.target_error > 0) {
-    final_settings.min_spp = TargetMinSpp(settings);
-    // Where the cache leaves the samples more than their first round's error, the pixels start
-    // at fewer samples (no fewer than kFewestTargetSpp): at TargetMinSpp they would end the render
-    // below E, at more cost than E needs (room-c at E = 1e-3: cache 2.1e-4, samples 3.0e-4 at 8
-    // spp, the render 0.455 E against the reference). The start is set for 0.8 of that room
-    // (sampling error ~ 1 / spp); adaptive rounds add samples where the pixels need them.
-    if (first_sampling > 0 && cache_error >= 0) {
-      const double room = 0.8 * (settings.target_error - cache_error);
-      if (room > 0)
-        final_settings.min_spp =
-            std::clamp(int(std::ceil(final_settings.min_spp * first_sampling / room)),
-                       kFewestTargetSpp, final_settings.min_spp);
-    }
+    final_settings.min_spp = final_min_spp;
+    final_settings.target_error = final_target_error;
   }
-  if (settings.target_error > 0)
-    final_settings.target_error =
-        std::max(settings.target_error - std::max(0.0, cache_error), 0.25 * settings.target_error);
 
   {
     PhaseTimer timer("render");

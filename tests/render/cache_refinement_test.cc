@@ -1,7 +1,13 @@
-// --target-error's stall rule (render/cache_refinement.h), on the figures its rounds measured.
+// --target-error's cache refinement (render/cache_refinement.h): its stall rule on the figures
+// its rounds measured, and CacheRefinement's rounds on given estimates: where it starts, when it
+// rebuilds coarser, stops or widens the lookups, and that each next round's plan meets its aim
+// under the model it states (noise ~ 1 / rays, interpolation ~ a^2).
 #include "render/cache_refinement.h"
 
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
 
 namespace irfarm {
 namespace {
@@ -30,6 +36,178 @@ TEST(CacheRefinementTest, ARaysOnlyRoundThatLeftInterpolationErrorDoesNotStall) 
   EXPECT_FALSE(RefinementStalled({6.80e-3, 6.80e-3}, {7.08e-3, 4.32e-3}, true, 2.55e-3));
   // Within twice the cache's share, stopping leaves the image within about 1.5 E: stalled.
   EXPECT_TRUE(RefinementStalled({7.18e-2, 7.02e-2}, {6.72e-2, 1.79e-2}, true, 4e-2));
+}
+
+RefinementStart OneLevelStart(double e) {
+  RefinementStart s;
+  s.target_error = e;
+  s.settings_rays = 1536;
+  s.settings_min_spp = 16;
+  s.wider_factor = 1.5f;
+  s.may_rebuild = true;
+  s.pilot_work = 1e6;
+  return s;
+}
+
+CacheErrorEstimate Estimate(double error, double noise) {
+  CacheErrorEstimate e;
+  e.error = error;
+  e.noise = noise;
+  e.other_error = error;  // the wider lookups no better: not taken
+  e.other_noise = noise;
+  return e;
+}
+
+TEST(CacheRefinementTest, StartsFromTheModelOrTheTwoLevelPilot) {
+  const CacheRefinement one(OneLevelStart(4e-3));
+  EXPECT_FLOAT_EQ(one.accuracy(), float(TargetAccuracy(4e-3, kFirstCacheShare)));
+  EXPECT_EQ(one.record_rays(), TargetRecordRays(4e-3, 1536, kFirstCacheShare));
+  EXPECT_FLOAT_EQ(one.lookup_factor(), 1.0f);  // Ward's lookups first; the wider ones are checked
+  EXPECT_FLOAT_EQ(one.other_factor(), 1.5f);
+  EXPECT_TRUE(one.measures_sampling());
+  EXPECT_EQ(one.checks(), 256);
+  // The model: a smaller E, a finer cache with more rays; both within their bounds.
+  const CacheRefinement fine(OneLevelStart(5e-5));
+  EXPECT_LT(fine.accuracy(), one.accuracy());
+  EXPECT_GE(fine.accuracy(), 0.03f);
+  EXPECT_EQ(fine.record_rays(), 4 * 1536);
+  RefinementStart two = OneLevelStart(4e-3);
+  two.pilot_rays = 700;
+  const CacheRefinement pilot(two);
+  EXPECT_EQ(pilot.record_rays(), 700);
+  EXPECT_FLOAT_EQ(pilot.accuracy(), float(TargetAccuracy(4e-3, 0.5)));  // the nominal half
+  // A cache it may not rebuild (shared or imported) does not measure the samples first.
+  RefinementStart shared = OneLevelStart(4e-3);
+  shared.may_rebuild = false;
+  EXPECT_FALSE(CacheRefinement(shared).measures_sampling());
+}
+
+TEST(CacheRefinementTest, ACacheWithinItsShareEndsTheRefinement) {
+  CacheRefinement r(OneLevelStart(4e-3));
+  CacheRound round;
+  // Samples at their minimum leave 4e-3 - 1.5e-3 = 2.5e-3 to the cache: that is its share.
+  EXPECT_EQ(r.AfterRound(Estimate(2.2e-3, 1.2e-3), 1.5e-3, 2e6, 1, &round),
+            CacheRefinement::Next::kDone);
+  EXPECT_DOUBLE_EQ(round.share, 2.5e-3);
+  EXPECT_DOUBLE_EQ(round.error, 2.2e-3);
+  EXPECT_FALSE(round.rebuilt);
+  EXPECT_EQ(r.stop_reason(), nullptr);
+  EXPECT_DOUBLE_EQ(r.FinalTargetError(), 4e-3 - 2.2e-3);
+  // The samples start at TargetMinSpp: at 4e-3 that is already the fewest.
+  EXPECT_EQ(r.FinalMinSpp(), TargetMinSpp(4e-3, 16));
+  // At E = 1e-3 (8 spp to start), where the cache (3e-4) leaves the samples 2.5x what their first
+  // round measured (2e-4), they start at fewer, but no fewer than kFewestTargetSpp.
+  CacheRefinement fine(OneLevelStart(1e-3));
+  fine.AfterRound(Estimate(3e-4, 2e-4), 2e-4, 2e6, 1, &round);
+  EXPECT_EQ(fine.stop_reason(), nullptr);
+  EXPECT_LT(fine.FinalMinSpp(), TargetMinSpp(1e-3, 16));
+  EXPECT_GE(fine.FinalMinSpp(), kFewestTargetSpp);
+  // Where the cache leaves no room for fewer, they start at TargetMinSpp.
+  CacheRefinement tight(OneLevelStart(1e-3));
+  tight.AfterRound(Estimate(5.5e-4, 3e-4), 4e-4, 2e6, 1, &round);
+  EXPECT_EQ(tight.FinalMinSpp(), TargetMinSpp(1e-3, 16));
+}
+
+TEST(CacheRefinementTest, ACacheFarBelowItsShareIsRebuiltCoarser) {
+  CacheRefinement r(OneLevelStart(4e-3));
+  const float a0 = r.accuracy();
+  const int rays0 = r.record_rays();
+  CacheRound round;
+  // An easy scene (room-b): 2e-4 of cache error where the samples leave 2e-3.
+  EXPECT_EQ(r.AfterRound(Estimate(2e-4, 1e-4), 2e-3, 2e6, 1, &round),
+            CacheRefinement::Next::kRebuild);
+  EXPECT_GT(r.accuracy(), a0);
+  EXPECT_LE(r.accuracy(), kCoarsestAccuracy);
+  EXPECT_LT(r.record_rays(), rays0);
+  EXPECT_GE(r.record_rays(), kFewestRecordRays);
+  EXPECT_EQ(r.streams(), 1);  // new random streams for the rebuilt cache
+  EXPECT_FALSE(r.measures_sampling());
+  // The rebuilt cache's first round is marked, and ends within its share.
+  EXPECT_EQ(r.AfterRound(Estimate(1.5e-3, 1e-3), 0, 3e6, 2, &round), CacheRefinement::Next::kDone);
+  EXPECT_TRUE(round.rebuilt);
+  EXPECT_DOUBLE_EQ(round.share, 2e-3);
+}
+
+// The next round's plan, by the model it states, reaches its aim of 0.8 of the share: the noise
+// part falls as the rays rise, the interpolation part as a^2; a noise-dominated error raises only
+// the rays, an interpolation error lowers a. Where the aim needs more than a round may change (at
+// most 4x the rays and half of a), the round takes that most.
+TEST(CacheRefinementTest, TheNextRoundIsPlannedToReachItsAim) {
+  struct Case {
+    double error, noise;
+    bool lowers_a, clamped;
+  };
+  for (const Case& c : {Case{3e-3, 2.5e-3, false, false}, Case{3e-3, 1e-3, true, false},
+                        Case{6e-3, 1e-3, true, true}, Case{2e-2, 1.95e-2, false, true}}) {
+    CacheRefinement r(OneLevelStart(4e-3));
+    const float a0 = r.accuracy();
+    const int rays0 = r.record_rays();
+    CacheRound round;
+    // The samples leave 2e-3 to the cache: the aim is 1.6e-3.
+    ASSERT_EQ(r.AfterRound(Estimate(c.error, c.noise), 2e-3, 2e6, 1, &round),
+              CacheRefinement::Next::kRefine)
+        << c.error << " " << c.noise;
+    const double f2 = std::pow(double(r.accuracy()) / a0, 2);
+    const double k = double(r.record_rays()) / rays0;
+    EXPECT_EQ(r.accuracy() < a0, c.lowers_a) << c.error << " " << c.noise;
+    const double planned = c.noise / k + (c.error - c.noise) * f2;
+    const double aim = 0.8 * round.share;
+    if (c.clamped) {
+      EXPECT_GT(planned, aim);
+      EXPECT_TRUE(std::abs(f2 - 0.25) < 1e-3 || std::abs(k - 4) < 1e-2) << f2 << " " << k;
+    } else {
+      // Rounding of the rays leaves it within 1%.
+      EXPECT_NEAR(planned, aim, 0.01 * aim) << c.error << " " << c.noise;
+    }
+  }
+}
+
+TEST(CacheRefinementTest, TakesTheWiderLookupsWhereTheyMeasureLowerWithinTheAim) {
+  CacheRefinement r(OneLevelStart(4e-3));
+  CacheErrorEstimate e = Estimate(5e-3, 4e-3);  // above the share, mostly noise
+  e.other_error = 2.6e-3;                       // lower, but not below 0.8 of the share
+  e.other_noise = 1.8e-3;
+  CacheRound round;
+  r.AfterRound(e, 1.5e-3, 2e6, 1, &round);
+  EXPECT_FLOAT_EQ(round.lookup_factor, 1.5f);
+  EXPECT_DOUBLE_EQ(round.error, 2.6e-3);
+  EXPECT_FLOAT_EQ(r.lookup_factor(), 1.5f);
+  EXPECT_FLOAT_EQ(r.other_factor(), 0.0f);  // nothing wider left to check
+  // Where they would overshoot the aim (below 0.8 of the share), they are not taken.
+  CacheRefinement s(OneLevelStart(4e-3));
+  e.other_error = 1e-3;
+  s.AfterRound(e, 1.5e-3, 2e6, 1, &round);
+  EXPECT_FLOAT_EQ(s.lookup_factor(), 1.0f);
+}
+
+TEST(CacheRefinementTest, StopsAfterFourRoundsOrAtItsCostOrTimeAndSaysWhy) {
+  // Four rounds, each taking a half off (never stalled), never within the share.
+  CacheRefinement r(OneLevelStart(4e-3));
+  CacheRound round;
+  double error = 8e-2, work = 2e6;
+  int rounds = 0;
+  CacheRefinement::Next next;
+  do {
+    work *= 1.2;
+    next = r.AfterRound(Estimate(error, 0.5 * error), 1e-3, work, 1, &round);
+    error *= 0.5;
+    ++rounds;
+  } while (next == CacheRefinement::Next::kRefine);
+  EXPECT_EQ(next, CacheRefinement::Next::kDone);
+  EXPECT_EQ(rounds, 4);
+  EXPECT_EQ(std::string(r.stop_reason()), "after 4 rounds");
+  // A round whose cost would take the refinement past 10x the first round's.
+  CacheRefinement c(OneLevelStart(4e-3));
+  c.AfterRound(Estimate(8e-2, 4e-2), 1e-3, 2e6, 1, &round);
+  EXPECT_EQ(c.AfterRound(Estimate(4e-2, 2e-2), 1e-3, 8e6, 2, &round), CacheRefinement::Next::kDone);
+  EXPECT_EQ(std::string(c.stop_reason()), "another round would pass 10x the first round's time");
+  // Half of --time-limit spent.
+  RefinementStart timed = OneLevelStart(4e-3);
+  timed.time_limit = 10;
+  CacheRefinement t(timed);
+  EXPECT_EQ(t.AfterRound(Estimate(8e-2, 4e-2), 1e-3, 2e6, 5, &round), CacheRefinement::Next::kDone);
+  EXPECT_EQ(std::string(t.stop_reason()), "half of --time-limit is spent");
+  EXPECT_DOUBLE_EQ(t.FinalTargetError(), 0.25 * 4e-3);  // the samples get a quarter at least
 }
 
 }  // namespace
