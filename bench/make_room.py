@@ -10,10 +10,13 @@ The camera stands near the z = 0 wall at eye height and looks into the room. Onl
 subset of ../shared/scenes/README.md, so Mitsuba 3 reads the same file.
 
   python3 bench/make_room.py SEED OUT_DIR [--window yes|no] [--lamps rect|mesh|bulb]
-      [--finish matte|glossy]
+      [--finish matte|glossy] [--sky constant|envmap]
       writes OUT_DIR/scene.xml (--lamps mesh: ceiling disks and fluorescent tubes, emissive
       triangle meshes, instead of rectangles; --lamps bulb: small spheres, spot and point
-      lights; --finish glossy: a rough plastic floor and a rough metal box)
+      lights; --finish glossy: a rough plastic floor and a rough metal box; --sky envmap: the
+      window lets in an environment map, a photographed sky turned about the vertical at random,
+      instead of a sun and a constant sky, as in a real interior such as living-room; it is
+      copied to OUT_DIR/sky.exr)
   python3 bench/make_room.py SEED OUT_DIR --reference 1024      and a Mitsuba 3 reference:
       reference.exr (mean of 256-spp chunks, seeds 1000...), reference.json (seconds, spp and the
       reference's own noise: relmse_half_vs_half of the even and odd chunks and
@@ -28,6 +31,7 @@ import json
 import math
 import os
 import random
+import shutil
 import time
 
 
@@ -47,7 +51,13 @@ def rgb(v):
     return ", ".join(f"{c:.4f}" for c in v)
 
 
-def make_room(seed, window=None, lamps_kind="rect", finish="matte"):
+# The environment map of --sky envmap: a real photographed sky (bench/data/README.md; mean
+# radiance 8.3), scaled to the brightness of the constant skies and suns above.
+SKY_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "sky-19-256x128.exr")
+SKY_SCALE = 0.06
+
+
+def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="constant"):
     rnd = random.Random(seed)
     W, H, D = rnd.uniform(3.5, 7.0), rnd.uniform(2.5, 3.3), rnd.uniform(3.0, 5.5)
     if window is None:
@@ -95,7 +105,15 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte"):
     </emitter>
 """)
         sky = rnd.uniform(0.15, 0.35)
-        emitters.append(f"""    <emitter type="constant">
+        if sky_kind == "envmap":
+            emitters = [f"""    <emitter type="envmap">
+        <transform name="to_world"><rotate y="1" angle="{rnd.uniform(0, 360):.2f}"/></transform>
+        <string name="filename" value="sky.exr"/>
+        <float name="scale" value="{SKY_SCALE * sky / 0.25:.4f}"/>
+    </emitter>
+"""]
+        else:
+            emitters.append(f"""    <emitter type="constant">
         <rgb name="radiance" value="{rgb([sky * 0.8, sky * 0.95, sky * 1.1])}"/>
     </emitter>
 """)
@@ -160,7 +178,7 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte"):
     eye = (rnd.uniform(0.3 * W, 0.7 * W), rnd.uniform(1.2, 1.6), rnd.uniform(0.25, 0.5))
     target = (rnd.uniform(0.2 * W, 0.8 * W), rnd.uniform(0.8, 1.4), D * 0.8)
     head = f"""<?xml version="1.0" encoding="utf-8"?>
-<!-- bench/make_room.py seed {seed}: {W:.3f} x {H:.3f} x {D:.3f} m, {'window, sun and sky' if window else 'no window'}, {len(lamps)} lamp(s), {len(boxes)} box(es) -->
+<!-- bench/make_room.py seed {seed}: {W:.3f} x {H:.3f} x {D:.3f} m, {('window, environment map' if sky_kind == 'envmap' else 'window, sun and sky') if window else 'no window'}, {len(lamps)} lamp(s), {len(boxes)} box(es) -->
 <scene version="3.0.0">
     <default name="spp" value="256"/>
     <default name="resx" value="320"/>
@@ -262,12 +280,20 @@ def main():
                     "(sphere, spot and point lights)")
     ap.add_argument("--finish", choices=["matte", "glossy"], default="matte",
                     help="glossy: a rough plastic floor and a rough metal box")
+    ap.add_argument("--sky", choices=["constant", "envmap"], default="constant",
+                    help="envmap: the window lets in a photographed sky (no sun, no constant sky)")
     ap.add_argument("--reference", type=int, default=0, help="spp of a Mitsuba 3 reference")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     window = None if a.window is None else a.window == "yes"
+    if a.sky == "envmap":
+        if window is False:
+            ap.error("--sky envmap lights the room through its window: not with --window no")
+        window = True
     with open(os.path.join(a.out, "scene.xml"), "w") as f:
-        f.write(make_room(a.seed, window, a.lamps, a.finish))
+        f.write(make_room(a.seed, window, a.lamps, a.finish, a.sky))
+    if a.sky == "envmap":
+        shutil.copyfile(SKY_FILE, os.path.join(a.out, "sky.exr"))
     if a.reference > 0:
         seconds, est = make_reference(a.out, a.reference)
         print(f"{a.out}: reference {a.reference} spp in {seconds:.0f} s, "
