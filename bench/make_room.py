@@ -9,11 +9,12 @@ opening in the far wall (z = D) with a directional sun shining in through it and
 The camera stands near the z = 0 wall at eye height and looks into the room. Only the scene
 subset of ../shared/scenes/README.md, so Mitsuba 3 reads the same file.
 
-  python3 bench/make_room.py SEED OUT_DIR [--window yes|no] [--lamps rect|mesh|bulb]
+  python3 bench/make_room.py SEED OUT_DIR [--window yes|no] [--lamps rect|mesh|bulb|none]
       [--finish matte|glossy] [--sky constant|envmap]
       writes OUT_DIR/scene.xml (--lamps mesh: ceiling disks and fluorescent tubes, emissive
       triangle meshes, instead of rectangles; --lamps bulb: small spheres, spot and point
-      lights; --finish glossy: a rough plastic floor and a rough metal box; --sky envmap: the
+      lights; --lamps none: the same room with no lamp, lit by day through its window;
+      --finish glossy: a rough plastic floor and a rough metal box; --sky envmap: the
       window lets in an environment map, a photographed sky turned about the vertical at random,
       instead of a sun and a constant sky, as in a real interior such as living-room; it is
       copied to OUT_DIR/sky.exr)
@@ -52,12 +53,16 @@ def rgb(v):
 
 
 # The environment map of --sky envmap: a real photographed sky (bench/data/README.md; mean
-# radiance 8.3), scaled to the brightness of the constant skies and suns above.
+# radiance 8.3), scaled to the brightness of the constant skies and suns above (4x that where the
+# room has no lamp: it is all the light there is).
 SKY_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "sky-19-256x128.exr")
 SKY_SCALE = 0.06
 
 
 def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="constant"):
+    daylight_only = lamps_kind == "none"
+    if daylight_only:
+        lamps_kind = "rect"
     rnd = random.Random(seed)
     W, H, D = rnd.uniform(3.5, 7.0), rnd.uniform(2.5, 3.3), rnd.uniform(3.0, 5.5)
     if window is None:
@@ -109,7 +114,7 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="co
             emitters = [f"""    <emitter type="envmap">
         <transform name="to_world"><rotate y="1" angle="{rnd.uniform(0, 360):.2f}"/></transform>
         <string name="filename" value="sky.exr"/>
-        <float name="scale" value="{SKY_SCALE * sky / 0.25:.4f}"/>
+        <float name="scale" value="{SKY_SCALE * sky / 0.25 * (4 if daylight_only else 1):.4f}"/>
     </emitter>
 """]
         else:
@@ -175,6 +180,8 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="co
         <ref id="mat-lamp"/>{em.format(rgb(tube))}
     </shape>
 """)
+    if daylight_only:  # the same room, its lamps drawn (so the rest stays the same) and left out
+        lamps = []
     eye = (rnd.uniform(0.3 * W, 0.7 * W), rnd.uniform(1.2, 1.6), rnd.uniform(0.25, 0.5))
     target = (rnd.uniform(0.2 * W, 0.8 * W), rnd.uniform(0.8, 1.4), D * 0.8)
     head = f"""<?xml version="1.0" encoding="utf-8"?>
@@ -275,9 +282,9 @@ def main():
     ap.add_argument("seed", type=int)
     ap.add_argument("out")
     ap.add_argument("--window", choices=["yes", "no"])
-    ap.add_argument("--lamps", choices=["rect", "mesh", "bulb"], default="rect",
-                    help="rectangle lamps, lamps of triangle meshes (disks and tubes), or bulbs "
-                    "(sphere, spot and point lights)")
+    ap.add_argument("--lamps", choices=["rect", "mesh", "bulb", "none"], default="rect",
+                    help="rectangle lamps, lamps of triangle meshes (disks and tubes), bulbs "
+                    "(sphere, spot and point lights), or none (lit by day through the window)")
     ap.add_argument("--finish", choices=["matte", "glossy"], default="matte",
                     help="glossy: a rough plastic floor and a rough metal box")
     ap.add_argument("--sky", choices=["constant", "envmap"], default="constant",
@@ -286,9 +293,10 @@ def main():
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     window = None if a.window is None else a.window == "yes"
-    if a.sky == "envmap":
+    if a.sky == "envmap" or a.lamps == "none":
         if window is False:
-            ap.error("--sky envmap lights the room through its window: not with --window no")
+            ap.error("--sky envmap and --lamps none light the room through its window: not with "
+                     "--window no")
         window = True
     with open(os.path.join(a.out, "scene.xml"), "w") as f:
         f.write(make_room(a.seed, window, a.lamps, a.finish, a.sky))
