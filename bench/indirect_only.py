@@ -5,9 +5,10 @@ built with a two-line bench patch: IRFARM_INDIRECT_ONLY=1 keeps only its cached 
 
 Per scene (all-diffuse scenes only: the cached term is then exactly what is not direct):
   - the indirect reference: the scene's Mitsuba reference minus Mitsuba's direct light, rendered
-    here (`mitsuba` package): path with max_depth 2 and the constant sky removed (emission seen
-    and light straight from area and directional lights), plus the sky seen by the camera
-    (max_depth 1, sky only). irfarm caches the sky's light at surfaces, so it is indirect here.
+    here (`mitsuba` package): path with max_depth 2 and the sky (constant or envmap) removed
+    (emission seen and light straight from area and directional lights), plus the sky seen by
+    the camera (max_depth 1, sky only). irfarm and the baseline cache the sky's light at
+    surfaces, so it is indirect here.
   - the baseline at its defaults, indirect only: its records and relMSE;
   - irfarm (build/irfarm) with --aovs, its `indirect` layer, over accuracies 0.05 .. 0.3 at its
     default rays and levels: relMSE against records, read at the baseline's record count by
@@ -89,10 +90,10 @@ def direct_reference(scene_dir, spp, out, seed_base=90000):
         return np.load(out)
     mi = mitsuba()
     xml = open(os.path.join(scene_dir, "scene.xml")).read()
-    sky = re.compile(r'<emitter type="constant".*?</emitter>', re.S)
+    sky = re.compile(r'<emitter type="(?:constant|envmap)".*?</emitter>', re.S)
     no_sky = sky.sub("", xml)
     # The sky alone: every other emitter removed.
-    emitters = re.compile(r'<emitter type="(?!constant)[a-z]+".*?</emitter>', re.S)
+    emitters = re.compile(r'<emitter type="(?!constant|envmap)[a-z]+".*?</emitter>', re.S)
     sky_only = emitters.sub("", xml)
 
     # The scene's relative paths (meshes, textures) resolve against its folder.

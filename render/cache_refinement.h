@@ -95,7 +95,7 @@ struct RefinementStart {
   double target_error = 0;   // E
   int settings_rays = 1536;  // R0: the settings' record rays
   int settings_min_spp = 0;
-  float wider_factor = 0;    // the settings' wider lookup factor (> 1), or 0
+  float wider_factor = 0;    // the settings' lookup factor: the wider lookups where > 1
   bool may_rebuild = false;  // the cache is this render's own and empty: it may be rebuilt coarser
   int pilot_rays = 0;        // two levels: the two-level pilot's starting rays (0: one level)
   double pilot_work = 0;     // the pilot's rays and lookups (RenderCounters::Work)
