@@ -128,6 +128,23 @@ TEST(CacheRefinementTest, ACacheFarBelowItsShareIsRebuiltCoarser) {
   EXPECT_DOUBLE_EQ(round.share, 2e-3);
 }
 
+// Only a cache's first round may send it back to be rebuilt coarser: a cache the rounds refined
+// whose check then reads far below its share ends the rounds (the daylight room 512 at E = 1e-3
+// was rebuilt at 2.5x the a and a sixth of the rays its refinement had reached, and ended at 1.3
+// E).
+TEST(CacheRefinementTest, ARefinedCacheIsNotRebuilt) {
+  CacheRefinement r(OneLevelStart(1e-3));
+  CacheRound round;
+  ASSERT_EQ(r.AfterRound(Estimate(1.1e-3, 3.1e-4), 2.6e-4, 2e6, 1, &round),
+            CacheRefinement::Next::kRefine);
+  const float a = r.accuracy();
+  const int rays = r.record_rays();
+  EXPECT_EQ(r.AfterRound(Estimate(8e-5, 8e-5), 0, 4e6, 2, &round), CacheRefinement::Next::kDone);
+  EXPECT_FLOAT_EQ(r.accuracy(), a);
+  EXPECT_EQ(r.record_rays(), rays);
+  EXPECT_EQ(r.stop_reason(), nullptr);
+}
+
 // The next round's plan, by the model it states, reaches its aim of 0.8 of the share: the noise
 // part falls as the rays rise, the interpolation part as a^2; a noise-dominated error raises only
 // the rays, an interpolation error lowers a. Where the aim needs more than a round may change (at
