@@ -111,6 +111,8 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="co
 """)
         sky = rnd.uniform(0.15, 0.35)
         if sky_kind == "envmap":
+            # In place of the sun and the sky (both drawn above, so the rest of the room is the
+            # same as with --sky constant).
             emitters = [f"""    <emitter type="envmap">
         <transform name="to_world"><rotate y="1" angle="{rnd.uniform(0, 360):.2f}"/></transform>
         <string name="filename" value="sky.exr"/>

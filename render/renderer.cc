@@ -977,10 +977,14 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
       start.pilot_work = double(pilot_work);
       start.time_limit = settings.time_limit;
       CacheRefinement refinement(start);
-      for (;;) {
+      // The cache the refinement asks for next (after the last round: the one it ended with).
+      const auto take_round_settings = [&] {
         ic.accuracy = refinement.accuracy();
         ic.record_rays = refinement.record_rays();
         ic.lookup_factor = refinement.lookup_factor();
+      };
+      take_round_settings();
+      for (;;) {
         const uint64_t streams = uint64_t(refinement.streams());
         const IrrcacheIntegrator trial(scene, cache, ic);
         if (settings.overture) overture(trial, streams);
@@ -1001,9 +1005,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
         const CacheRefinement::Next next =
             refinement.AfterRound(estimate, sampling, double(counted), elapsed, &round);
         out.stats.cache_rounds.push_back(round);
-        ic.accuracy = refinement.accuracy();
-        ic.record_rays = refinement.record_rays();
-        ic.lookup_factor = refinement.lookup_factor();
+        take_round_settings();
         cache_error = refinement.cache_error();
         if (next == CacheRefinement::Next::kDone) break;
         if (next == CacheRefinement::Next::kRebuild) {
