@@ -332,6 +332,10 @@ int main(int argc, char** argv) {
   irfarm::WorkerServiceImpl worker_service(manager->get(), &auth);
   grpc::ServerBuilder builder;
   int port = 0;
+  // No SO_REUSEPORT (gRPC sets it by default on Linux): a second coordinator started on a port
+  // one already listens on would bind it too, and the kernel would share the connections out
+  // between the two; it must fail to start instead.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.AddListeningPort(listen, credentials, &port);
   builder.SetMaxReceiveMessageSize(int(options.max_upload_bytes + (size_t(1) << 20)));
   builder.RegisterService(&job_service);

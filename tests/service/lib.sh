@@ -17,7 +17,34 @@ trap cleanup EXIT
 
 fail() { echo "FAIL: $*" >&2; for f in "$WORK"/*.log; do echo "--- $f"; tail -20 "$f"; done >&2; exit 1; }
 
-free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
+# free_port: a loopback port nothing listens on now, drawn at random below the kernel's ephemeral
+# range (/proc/sys/net/ipv4/ip_local_port_range, 32768 and up here): a port from bind(0) is one
+# that outgoing connections (gRPC clients, redis-cli) and other tests' bind(0) draw from too, and
+# one of them could take it before the server binds it.
+free_port() {
+  python3 -c '
+import random, socket
+low = int(open("/proc/sys/net/ipv4/ip_local_port_range").read().split()[0])
+for _ in range(200):
+    port = random.randrange(10000, max(10001, low))
+    s = socket.socket()
+    try:
+        s.bind(("127.0.0.1", port))
+    except OSError:
+        continue
+    finally:
+        s.close()
+    print(port)
+    break
+else:
+    raise SystemExit("no free port")'
+}
+
+# alive PID WHAT LOG: fails (with LOG's tail) when PID has exited: a server that could not bind
+# its port exits, and another test's server on that port would answer in its place.
+alive() {
+  kill -0 "$1" 2>/dev/null || fail "$2 exited: $(tail -5 "$3" 2>/dev/null)"
+}
 
 # start_redis: a real redis-server on a free loopback port, no persistence, in $WORK/redis; sets
 # RPORT and REDIS_PID and waits until it answers.
@@ -29,18 +56,31 @@ start_redis() {
     >"$WORK/redis.log" 2>&1 &
   REDIS_PID=$!
   PIDS+=("$REDIS_PID")
-  for _ in $(seq 50); do redis-cli -p "$RPORT" ping >/dev/null 2>&1 && return 0; sleep 0.1; done
+  # Ready when its own log says so (a redis-server of another test on the port would answer the
+  # ping too) and it answers.
+  for _ in $(seq 50); do
+    alive "$REDIS_PID" redis-server "$WORK/redis.log"
+    grep -q "Ready to accept connections" "$WORK/redis.log" 2>/dev/null &&
+      redis-cli -p "$RPORT" ping >/dev/null 2>&1 && return 0
+    sleep 0.1
+  done
   fail "redis-server did not answer on port $RPORT"
 }
 
 # start_coordinator ADDR [args...]: starts it and waits until it answers.
 start_coordinator() {
   local addr=$1; shift
-  "$BIN/irfarm-coordinator" --listen "$addr" "$@" >>"$WORK/coordinator.log" 2>&1 &
+  local log=$WORK/coordinator.log before
+  before=$(grep -c "listening on $addr " "$log" 2>/dev/null || true)
+  "$BIN/irfarm-coordinator" --listen "$addr" "$@" >>"$log" 2>&1 &
   COORD_PID=$!
   PIDS+=("$COORD_PID")
+  # Up when this one has logged that it listens (another test's coordinator on the port would
+  # answer `status` too) and it answers.
   for _ in $(seq 100); do
-    "$BIN/irfarm" status --coordinator "$addr" >/dev/null 2>&1 && return 0
+    alive "$COORD_PID" "coordinator on $addr" "$log"
+    (($(grep -c "listening on $addr " "$log" 2>/dev/null || true) > ${before:-0})) &&
+      "$BIN/irfarm" status --coordinator "$addr" >/dev/null 2>&1 && return 0
     sleep 0.1
   done
   fail "coordinator did not come up on $addr"

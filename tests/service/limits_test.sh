@@ -3,7 +3,9 @@
 # film and 300 -D defines are refused with INVALID_ARGUMENT, each in under 2 s, create no job,
 # and leave the coordinator's RSS within 10% of what it was after one warm-up round of the same
 # requests (the bug was +230 MiB kept after a cancelled 100000^2 job). Also: without tokens the
-# coordinator refuses to listen on 0.0.0.0.
+# coordinator refuses to listen on 0.0.0.0, and a second coordinator on the port of a running one
+# exits with an error (with gRPC's default SO_REUSEPORT it bound the port too, and the kernel
+# shared the connections out between the two).
 source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/cornell-box/scene.xml
 ADDR=127.0.0.1:$(free_port)
@@ -43,4 +45,11 @@ if timeout 10 "$BIN/irfarm-coordinator" --listen "0.0.0.0:$PORT" >"$WORK/open.lo
 fi
 grep -q "refusing to listen" "$WORK/open.log" || fail "no refusal message: $(cat "$WORK/open.log")"
 echo "ok: refuses 0.0.0.0 without tokens"
+
+if timeout 10 "$BIN/irfarm-coordinator" --listen "$ADDR" >"$WORK/second.log" 2>&1; then
+  fail "a second coordinator started on $ADDR"
+fi
+grep -q "cannot listen on $ADDR" "$WORK/second.log" || fail "no clear error: $(tail -3 "$WORK/second.log")"
+alive "$COORD_PID" "the first coordinator" "$WORK/coordinator.log"
+echo "ok: a second coordinator on $ADDR is refused"
 echo PASS
