@@ -22,6 +22,7 @@
 #include "render/caustic_map.h"
 #include "render/path_tracer.h"
 #include "render/pixel_sampler.h"
+#include "render/progress.h"
 #include "render/record_balance.h"
 #include "render/sample_film.h"
 
@@ -35,39 +36,6 @@ enum : uint64_t {
   kStreamCacheCheck = 3,
   kStreamPilot = 4,
   kStreamSamplingCheck = 5
-};
-
-class Progress {
- public:
-  Progress(bool enabled, int total, const char* what)
-      : enabled_(enabled), total_(total), what_(what), start_(Now()) {}
-  ~Progress() {
-    if (enabled_) std::fprintf(stderr, "\n");
-  }
-  void Tick() {
-    const int done = ++done_;
-    if (!enabled_) return;
-    const double now = Now();
-    double last = last_.load();
-    if (done < total_ && now - last < 0.2) return;
-    if (!last_.compare_exchange_strong(last, now)) return;
-    const double el = now - start_, rate = done / std::max(el, 1e-9);
-    std::fprintf(stderr, "\r%s: tiles %d/%d  %.1f tiles/s  ETA %.0fs   ", what_, done, total_, rate,
-                 (total_ - done) / std::max(rate, 1e-9));
-    std::fflush(stderr);
-  }
-
- private:
-  static double Now() {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-  }
-  bool enabled_;
-  int total_;
-  const char* what_;
-  double start_;
-  std::atomic<int> done_{0};
-  std::atomic<double> last_{0};
 };
 
 struct Tile {
