@@ -15,6 +15,7 @@
 #include "cache/irradiance_cache.h"
 #include "render/irrcache_integrator.h"
 #include "render/render_counters.h"
+#include "render/renderer.h"
 #include "render/sampling.h"
 #include "render/scene_loader.h"
 #include "tests/render/render_test_util.h"
@@ -49,25 +50,22 @@ struct Checked {
 // Fills a cache of `rays`-ray records at every pixel centre, then checks it at `n` random points:
 // CacheError's figure against ((w (E_interp - E_true))^2 / ((w E_interp)^2 + 0.01)), averaged over
 // channels as CacheError averages, with E_true from a record of kTruthRays rays at the same point.
-Checked CheckCache(const char* xml, int rays, int n) {
+Checked CheckPanelCache(int rays, int n) {
   constexpr int kTruthRays = 2048;
-  LoadedScene built = BuildLoaded(LoadSceneString(xml, ::testing::TempDir() + "/scene.xml", {}));
+  LoadedScene built =
+      BuildLoaded(LoadSceneString(kPanelXml, ::testing::TempDir() + "/panel.xml", {}));
   const Scene& scene = *built.scene;
-  IrrcacheSettings settings;
+  IrrcacheSettings settings;  // one cache level: the records' rays are path traced
   settings.accuracy = 0.05f;
   settings.record_rays = rays;
-  settings.cache_levels = 1;
-  settings.choose_cache_levels = false;
-  settings.balance_record_rays = false;
-  CacheSettings cs;
+  CacheSettings cs;  // no neighbour clamping: the records' radii as each record made them
   cs.bounds = scene.bounds();
   cs.max_accuracy = settings.accuracy * std::max(settings.lookup_factor, settings.relaxed_factor);
   IrradianceCache cache(cs);
   const IrrcacheIntegrator integrator(scene, &cache, settings);
   IrrcacheSettings truth_settings = settings;
   truth_settings.record_rays = kTruthRays;
-  IrradianceCache unused(cs);
-  const IrrcacheIntegrator truth(scene, &unused, truth_settings);
+  const IrrcacheIntegrator truth(scene, nullptr, truth_settings);  // ComputeRecord only
 
   const Camera& cam = scene.camera();
   RenderCounters counters;
@@ -118,7 +116,7 @@ Checked CheckCache(const char* xml, int rays, int n) {
 // rays, 2-4 standard errors: this checks the estimate's scale and weights, not that term.)
 TEST(CacheErrorTest, EstimatesTheCachesInterpolationErrorUnderAPanel) {
   for (const int rays : {32, 128}) {
-    const Checked c = CheckCache(kPanelXml, rays, 12000);
+    const Checked c = CheckPanelCache(rays, 12000);
     ASSERT_GT(c.checks, 8000) << rays;
     EXPECT_GT(c.truth, 8 * c.se) << rays << " rays: the truth is within the noise";
     EXPECT_NEAR(c.estimate, c.truth, 4 * c.se)
