@@ -1,6 +1,6 @@
 // The film's reconstruction filter (FilterDesc, Mitsuba 3's box, tent and gaussian): its weights
 // and where camera samples land.
-// The final pass splats (render/renderer.cc, SplatReach): a sample lands uniformly in its pixel
+// The final pass splats (render/final_pass.cc, SplatReach): a sample lands uniformly in its pixel
 // and is added to every pixel whose centre its filter reaches, with weight w(dx) w(dy); a pixel
 // is the weighted sum over the sum of weights, as Mitsuba's film divides by its weight channel.
 // Samples added to one pixel only (adaptive rounds, the pilot, filters too wide to splat) are
@@ -44,7 +44,7 @@ class PixelFilter {
   // inverse distribution function at u in [0, 1). [lo, hi] is clipped to the support.
   double SampleOffset(double u, double lo, double hi) const;
 
-  // The final pass splats (render/renderer.cc): each camera sample lands uniformly in its own
+  // The final pass splats (render/final_pass.cc): each camera sample lands uniformly in its own
   // pixel and is added, with weight Weight(dx) Weight(dy), to every pixel whose centre its filter
   // reaches, as Mitsuba's film does. That averages each pixel over about 1 / SplatVarianceFactor
   // times the samples (3.1x for the gaussian, 2.25x for the tent) where FilmPoint's one-pixel

@@ -59,7 +59,7 @@ struct RenderSettings {
   double budget_carry = 0;
   double sampling_error = 1e-4;
   // > 0: --target-error, the image's total relMSE to reach (cache + sampling); overrides
-  // sampling_error and the cache's accuracy (see TargetErrorPlan in renderer.cc).
+  // sampling_error and the cache's accuracy (render/cache_refinement.h plans it).
   double target_error = 0;
   double time_limit = 0;    // seconds (wall) from the start of the render; 0 = none
   bool sample_map = false;  // also produce an image of the samples each pixel got

@@ -1,4 +1,4 @@
-// Adaptive sampling of the final pass (FinalPass in render/renderer.cc): without a target error
+// Adaptive sampling of the final pass (FinalPass in render/final_pass.cc): without a target error
 // the samples have a budget, --spp per pixel on average in counted work (irrcache's default
 // kIrrcacheSpp), and go where they remove the most error per unit of work, up to max_spp in one
 // pixel.
