@@ -26,6 +26,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "render/bsdfs/registry.h"
@@ -1412,10 +1413,12 @@ absl::Status Parser::ParseEmitter(pugi::xml_node n) {
   return absl::OkStatus();
 }
 
-// Mitsuba 0.5 / 0.6 files (<scene version="0.x.y">) are upgraded as Mitsuba 3 does on load:
-// every parameter name (the `name` attribute of anything but <default>) goes from camelCase to
-// snake_case (toWorld -> to_world, intIOR -> int_ior, sampleCount -> sample_count) and
-// <lookAt> becomes <lookat>.
+// Mitsuba 0.5 / 0.6 files (<scene version="0.x.y">) are upgraded as Mitsuba 3 does on load
+// (its xml.cpp, upgrade_tree): every parameter name (the `name` attribute of anything but
+// <default>) goes from camelCase to snake_case (toWorld -> to_world, intIOR -> int_ior,
+// sampleCount -> sample_count); <lookAt> becomes <lookat>; a diffuse BSDF's diffuse_reflectance
+// becomes its reflectance; and a texture's uoffset, voffset, uscale and vscale become a to_uv
+// transform (translate by the offsets, then scale), as Mitsuba 3 builds it.
 std::string SnakeCase(absl::string_view s) {
   std::string out;
   for (size_t i = 0; i < s.size(); ++i) {
@@ -1451,10 +1454,39 @@ absl::Status Parser::UpgradeOldSyntax(pugi::xml_node root) {
       if (c.type() != pugi::node_element) continue;
       if (absl::string_view(c.name()) == "lookAt") c.set_name("lookat");
       pugi::xml_attribute name = c.attribute("name");
-      if (name && absl::string_view(c.name()) != "default")
+      if (name && absl::string_view(c.name()) != "default") {
         name.set_value(SnakeCase(name.value()).c_str());
+        if (absl::string_view(n.name()) == "bsdf" &&
+            absl::string_view(n.attribute("type").value()) == "diffuse" &&
+            absl::string_view(name.value()) == "diffuse_reflectance")
+          name.set_value("reflectance");
+      }
       stack.push_back(c);
     }
+    // uoffset, voffset, uscale, vscale (snake case already: single words) -> to_uv.
+    pugi::xml_node found[4];
+    static constexpr const char* kUv[4] = {"uoffset", "voffset", "uscale", "vscale"};
+    bool any = false;
+    for (pugi::xml_node c : n.children("float"))
+      for (int k = 0; k < 4; ++k)
+        if (absl::string_view(c.attribute("name").value()) == kUv[k]) found[k] = c, any = true;
+    if (!any) continue;
+    // The numbers are read here, where a bad one still has its file:line.
+    std::string values[4] = {"0", "0", "1", "1"};
+    for (int k = 0; k < 4; ++k) {
+      if (!found[k]) continue;
+      LOADER_ASSIGN_OR_RETURN(const double v, Number(found[k], "value"));
+      values[k] = absl::StrFormat("%.17g", v);
+      n.remove_child(found[k]);
+    }
+    pugi::xml_node to_uv = n.append_child("transform");
+    to_uv.append_attribute("name") = "to_uv";
+    pugi::xml_node translate = to_uv.append_child("translate");
+    translate.append_attribute("x") = values[0].c_str();
+    translate.append_attribute("y") = values[1].c_str();
+    pugi::xml_node scale = to_uv.append_child("scale");
+    scale.append_attribute("x") = values[2].c_str();
+    scale.append_attribute("y") = values[3].c_str();
   }
   return absl::OkStatus();
 }

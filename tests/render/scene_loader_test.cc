@@ -701,6 +701,49 @@ TEST(SceneLoaderTest, UpgradesMitsuba05Syntax) {
               "new.xml:3:", "unknown parameter 'intIOR'");
 }
 
+// Mitsuba 3's two other upgrades of a 0.5 file: a diffuse BSDF's diffuseReflectance is its
+// reflectance, and a texture's uoffset / voffset / uscale / vscale become to_uv (translate, then
+// scale: (u, v) -> (uscale (u + uoffset), vscale (v + voffset))), as in layered_kitchen of
+// github.com/VElysianP/mitsuba_scenes, which failed on "unexpected <texture> in bsdf 'diffuse'".
+TEST(SceneLoaderTest, UpgradesMitsuba05DiffuseAndUvScale) {
+  const auto scene = LoadSceneString(R"(<scene version="0.5.0">
+  <sensor type="perspective"/>
+  <bsdf type="diffuse" id="tiles">
+    <texture name="diffuseReflectance" type="checkerboard">
+      <float name="uscale" value="2"/>
+      <float name="vscale" value="3"/>
+      <float name="uoffset" value="0.5"/>
+      <float name="voffset" value="0.25"/>
+    </texture>
+  </bsdf>
+  <bsdf type="diffuse" id="wall">
+    <rgb name="diffuseReflectance" value="0.2, 0.3, 0.4"/>
+  </bsdf>
+  <bsdf type="plastic" id="varnish">
+    <rgb name="diffuseReflectance" value="0.6, 0.5, 0.4"/>
+  </bsdf>
+</scene>
+)",
+                                     "old.xml", {});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->bsdfs.size(), 3u);
+  ASSERT_EQ(scene->bsdfs[0].colors.count("reflectance"), 1u);
+  const int t = scene->bsdfs[0].colors.at("reflectance").texture;
+  ASSERT_GE(t, 0);
+  const std::array<float, 6> expected{2, 0, 1, 0, 3, 0.75f};
+  for (int k = 0; k < 6; ++k)
+    EXPECT_FLOAT_EQ(scene->textures[size_t(t)].to_uv[size_t(k)], expected[size_t(k)]) << k;
+  ExpectNear(scene->bsdfs[1].Color("reflectance", Vec3()).value, Vec3(0.2f, 0.3f, 0.4f));
+  // Only a diffuse BSDF's: plastic keeps its diffuse_reflectance.
+  ExpectNear(scene->bsdfs[2].Color("diffuse_reflectance", Vec3()).value, Vec3(0.6f, 0.5f, 0.4f));
+  // A bad number is reported where it is written, before it moves into the transform.
+  ExpectError(
+      LoadSceneString("<scene version=\"0.5.0\">\n  <texture type=\"checkerboard\" id=\"c\">\n"
+                      "    <float name=\"uscale\" value=\"two\"/>\n  </texture>\n</scene>\n",
+                      "bad.xml", {}),
+      "bad.xml:3:", "uscale");
+}
+
 // The BSDFs beyond the subset: parameters recorded by name, named conductor materials, and
 // Mitsuba's errors (file:line) for contradictory or unknown parameters.
 TEST(SceneLoaderTest, GlossyMaterials) {
