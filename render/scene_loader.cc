@@ -734,9 +734,18 @@ absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
         n, absl::StrCat("a second <integrator> (the first is at line ", Line(integrator_), ")"));
   }
   integrator_ = n;
+  // Mitsuba 0.6's other estimators of the same image (global illumination, unbiased or
+  // consistent), in upgraded 0.x files: irfarm renders with its own integrator whatever the file
+  // names, so these read as `path` (max_depth, rr_depth), with a warning naming the parameters
+  // left unread. Mitsuba 3 has none of them: in a 3.x file they are an error, as there.
+  const bool old_estimator = upgraded_ && IsOneOf(n.attribute("type").value(),
+                                                  {"bdpt", "pssmlt", "mlt", "erpt", "photonmapper",
+                                                   "ppm", "sppm", "ptracer", "volpath_simple"});
   LOADER_ASSIGN_OR_RETURN(
       const std::string type,
-      PluginType(n, "integrator", {"path", "irrcache", "volpath", "prbvolpath", "prb"}));
+      old_estimator
+          ? RequiredAttr(n, "type")
+          : PluginType(n, "integrator", {"path", "irrcache", "volpath", "prbvolpath", "prb"}));
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "integrator"));
   IntegratorDesc& d = scene_.integrator;
   // Mitsuba's volumetric and differentiable path tracers render a scene without media (irfarm
@@ -758,6 +767,14 @@ absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
   }
   if (type == "irrcache") {
     LOADER_ASSIGN_OR_RETURN(d.params, TakeRestAsText(p));
+  }
+  if (old_estimator) {
+    LOADER_ASSIGN_OR_RETURN(const auto unread, TakeRestAsText(p));
+    std::vector<std::string> names;
+    for (const auto& [name, value] : unread) names.push_back(name);
+    Warn(n, absl::StrCat("Mitsuba 0.6 integrator '", type,
+                         "' read as path (the same image; irfarm renders with its own integrator)",
+                         names.empty() ? "" : "; not read: ", absl::StrJoin(names, ", ")));
   }
   LOADER_RETURN_IF_ERROR(Finish(p));
   return RegisterId(n, "integrator", -1);

@@ -744,6 +744,34 @@ TEST(SceneLoaderTest, UpgradesMitsuba05DiffuseAndUvScale) {
       "bad.xml:3:", "uscale");
 }
 
+// Mitsuba 0.6's other global-illumination integrators in a 0.x file (flower_bedroom of
+// github.com/VElysianP/mitsuba_scenes names bdpt) read as path, with a warning naming what was not
+// read; in a 3.x file bdpt stays an error (SceneLoaderErrorTest.UnknownPluginType), as in Mitsuba 3.
+TEST(SceneLoaderTest, Mitsuba06EstimatorsReadAsPath) {
+  const auto scene = LoadSceneString(R"(<scene version="0.6.0">
+  <integrator type="bdpt">
+    <integer name="maxDepth" value="7"/>
+    <boolean name="lightImage" value="true"/>
+  </integrator>
+  <sensor type="perspective"/>
+</scene>
+)",
+                                     "old.xml", {});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->integrator.type, "path");
+  EXPECT_EQ(scene->integrator.max_depth, 7);
+  bool warned = false;
+  for (const std::string& w : scene->warnings)
+    warned |= w.rfind("old.xml:2:", 0) == 0 && w.find("'bdpt' read as path") != std::string::npos &&
+              w.find("not read: light_image") != std::string::npos;
+  EXPECT_TRUE(warned);
+  // An estimator of another image is still an error in a 0.x file.
+  ExpectError(LoadSceneString("<scene version=\"0.6.0\">\n  <integrator type=\"direct\"/>\n"
+                              "  <sensor type=\"perspective\"/>\n</scene>\n",
+                              "old.xml", {}),
+              "old.xml:2:", "unknown integrator type 'direct'");
+}
+
 // The BSDFs beyond the subset: parameters recorded by name, named conductor materials, and
 // Mitsuba's errors (file:line) for contradictory or unknown parameters.
 TEST(SceneLoaderTest, GlossyMaterials) {
