@@ -42,6 +42,8 @@ class LightSampler {
   const std::vector<Light>& lights() const { return lights_; }
   int num_local() const { return num_local_; }
   bool has_environment() const { return int(lights_.size()) > num_local_; }
+  // An environment map that SampleEnvironment(..., importance = true) samples by its radiance.
+  bool has_environment_map() const { return !env_map_.empty(); }
 
   // Selection weight of local light i at (p, n); 0 exactly when it cannot reach p.
   float Weight(int i, const Vec3& p, const Vec3& n) const;

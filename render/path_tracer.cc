@@ -4,12 +4,13 @@ namespace irfarm {
 
 Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emission,
                const PathSettings& settings, Rng& rng, RenderCounters& counters,
-               float* first_distance, SampleAov* aov) {
+               float* first_distance, SampleAov* aov, Vec3* first_environment) {
   Vec3 L, beta(1, 1, 1);
   float prev_pdf = 0;   // solid-angle pdf of the BSDF sample that made `ray`; 0 = delta/camera
   Vec3 prev_p, prev_n;  // the previous vertex and the normal it selected lights with
   float eta_scale = 1;
   bool first = true;
+  if (first_environment) *first_environment = Vec3();
   bool delta_chain = true;  // every bounce so far was a delta lobe (see skip_caustic_emission)
   const LightSampler& lights = scene.light_sampler();
   // AOVs: depth of the first non-specular vertex (-1: not reached yet), and the path length so
@@ -33,7 +34,9 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
                                  : PowerHeuristic(prev_pdf, lights.NeePdfEnvironment(
                                                                 settings.all_lights, prev_p, prev_n,
                                                                 ray.dir, settings.env_importance));
-        add(beta * scene.EvalEnvironment(ray.dir) * w, depth);
+        const Vec3 c = beta * scene.EvalEnvironment(ray.dir) * w;
+        add(c, depth);
+        if (first && first_environment) *first_environment = c;
       }
       break;
     }

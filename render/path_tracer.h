@@ -46,8 +46,11 @@ struct PathSettings {
 // vertex x: direct = emission seen before x, next-event estimation at x and the light the BSDF
 // ray from x hits (the other half of that MIS pair); indirect = the rest. The returned radiance
 // is their sum (accumulated in the same order, so equal within float rounding).
+// `first_environment` (optional) receives the part of the result that is environment light along
+// the first segment (through masks' pass-through included; 0 when the ray hits something).
 Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emission,
                const PathSettings& settings, Rng& rng, RenderCounters& counters,
-               float* first_distance = nullptr, SampleAov* aov = nullptr);
+               float* first_distance = nullptr, SampleAov* aov = nullptr,
+               Vec3* first_environment = nullptr);
 
 }  // namespace irfarm
