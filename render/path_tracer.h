@@ -30,6 +30,8 @@ struct PathSettings {
   // smooth the environment's light anyway: there the same change cost 18-36% more CPU on
   // living-room, materials and principled for equal error (the importance-sampled shadow rays
   // cross the room, through windows and masked leaves, where cosine ones hit the nearest wall).
+  // (irrcache's camera-path glossy vertices draw the environment by its radiance regardless:
+  // kGlossyEnvImportance in irrcache_integrator.cc.)
   bool env_importance = false;
   // Area-light emission reached from the path's start by delta bounces only (mirror, smooth
   // glass, smooth coatings; a mask's pass-through does not break the chain) is not counted: a

@@ -1,3 +1,5 @@
+// Sampling an environment map by its radiance in the irradiance-cache integrator.
+//
 // A record's environment-map samples (IrrcacheSettings::environment_samples): next-event samples
 // of the map by its radiance beside the record's strata, weighed by the balance heuristic. Under a
 // dim map with one small bright patch and a black panel that shades part of the floor, records
@@ -12,6 +14,7 @@
 
 #include "render/image.h"
 #include "render/irrcache_integrator.h"
+#include "render/path_tracer.h"
 #include "render/render_counters.h"
 #include "render/scene_loader.h"
 #include "tests/render/render_test_util.h"
@@ -109,6 +112,57 @@ TEST(RecordEnvironmentTest, MapSamplesAgreeWithStrataAndVaryLess) {
   }
   // The panel hides the patch from at least one of the points: visibility is part of the check.
   EXPECT_GE(shaded, 1);
+}
+
+// A glossy vertex of a camera path samples the map by its radiance too (GlossyDirect), and a
+// glossy sample that reaches the map is weighed against that (EnvironmentMisWeight): the two
+// pdfs must be the same, or the weights do not sum to 1. A rough silver plane reflecting the
+// patch, seen from above: irrcache's Li and the path tracer (its own, consistent MIS) agree in the
+// mean over many samples of one pixel, within 4 standard errors of the two means.
+TEST(RecordEnvironmentTest, GlossyVertexWeighsTheMapAsItSamplesIt) {
+  const std::string map = WritePatchMap();
+  const std::string xml = R"(<scene version="3.0.0">
+  <sensor type="perspective"/>
+  <emitter type="envmap"><string name="filename" value=")" +
+                          map + R"("/></emitter>
+  <shape type="rectangle">
+    <transform name="to_world"><rotate x="1" angle="-90"/><scale value="4"/></transform>
+    <bsdf type="roughconductor"><string name="material" value="Ag"/><float name="alpha" value="0.2"/></bsdf>
+  </shape>
+</scene>
+)";
+  LoadedScene built =
+      BuildLoaded(LoadSceneString(xml, ::testing::TempDir() + "/glossy-scene.xml", {}));
+  const Scene& scene = *built.scene;
+  IrrcacheSettings settings;
+  const IrrcacheIntegrator integrator(scene, nullptr, settings);  // no diffuse lobe: no cache
+  PathSettings path;
+  path.env_importance = true;  // as `path` renders
+  RenderCounters counters;
+  // Rays from above onto the plane, in a fan: some see the patch in their lobe, some do not.
+  constexpr int kSamples = 200000;
+  double sum[2] = {0, 0}, sum2[2] = {0, 0};
+  for (int i = 0; i < kSamples; ++i) {
+    Rng rng(uint64_t(i), 11);
+    const float a = 2 * kPi * float(i % 16) / 16;
+    const Ray ray{Vec3(0, 1, 0), Normalize(Vec3(0.8f * std::cos(a), -1, 0.8f * std::sin(a))),
+                  INFINITY};
+    const double l[2] = {Luminance(integrator.Li(ray, LightStrata{}, rng, counters, nullptr)),
+                         Luminance(TracePath(scene, ray, 1, false, path, rng, counters))};
+    for (int k = 0; k < 2; ++k) {
+      sum[k] += l[k];
+      sum2[k] += l[k] * l[k];
+    }
+  }
+  EXPECT_EQ(counters.nonfinite_samples, 0u);
+  double mean[2], var[2];
+  for (int k = 0; k < 2; ++k) {
+    mean[k] = sum[k] / kSamples;
+    var[k] = std::max(0.0, sum2[k] / kSamples - mean[k] * mean[k]);
+  }
+  const double se = std::sqrt((var[0] + var[1]) / kSamples);
+  std::printf("irrcache %.5f, path %.5f, se %.5f\n", mean[0], mean[1], se);
+  EXPECT_NEAR(mean[0], mean[1], 4 * se);
 }
 
 }  // namespace
