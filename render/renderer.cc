@@ -178,7 +178,17 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   // elsewhere) it landed 18 of 18 in [E/2, 2E] on the nine shared scenes at full size (seed 7,
   // 2026-12-03), but just outside the band on a quarter-size scene and on mesh-lamps (the
   // TargetError tests).
-  if (settings.target_error > 0) settings.irrcache.spacing = RecordSpacing::kSplitSphere;
+  //
+  // Likewise its records take no environment-map samples (IrrcacheSettings::environment_samples):
+  // its cross-validation and stop rules were calibrated on records of strata alone. With them,
+  // on the envmap rooms (bench/make_room.py 501-504, 511-513, 601, 602; both E, seeds 7-10) 69
+  // of 72 renders landed in [E/2, 2E] against 72 of 72 before them: room-511 at 4e-3 stopped as
+  // stalled at 2.3 E, room-602 at 4e-3 at its cost limit at 2.45 E, room-512 at 1e-3 just under
+  // E/2; without them here, 71 of 72 (docs/bench/envmap-record-samples-2026-12-04/).
+  if (settings.target_error > 0) {
+    settings.irrcache.spacing = RecordSpacing::kSplitSphere;
+    settings.irrcache.environment_samples = 0;
+  }
   std::unique_ptr<CausticMap> caustics;
   if (settings.irrcache.caustics == nullptr) {
     PhaseTimer timer("caustics");
