@@ -128,6 +128,27 @@ TEST(CacheRefinementTest, ACacheFarBelowItsShareIsRebuiltCoarser) {
   EXPECT_DOUBLE_EQ(round.share, 2e-3);
 }
 
+// A rebuilt cache whose check reads 0 (clamped: the records' variance swamped the rest) is not
+// rebuilt again: the figure measures nothing. Room-512 at E = 1e-3 (seed 10, one run in three):
+// the second rebuild went to a = 0.5 and 17 rays, and four rounds ended at 3.3 E.
+TEST(CacheRefinementTest, ARebuiltCacheIsNotRebuiltOnACheckOfZero) {
+  CacheRefinement r(OneLevelStart(1e-3));
+  CacheRound round;
+  ASSERT_EQ(r.AfterRound(Estimate(1.2e-4, 1e-4), 4e-4, 2e6, 1, &round),
+            CacheRefinement::Next::kRebuild);
+  const float a = r.accuracy();
+  const int rays = r.record_rays();
+  EXPECT_EQ(r.AfterRound(Estimate(0, 0), 0, 3e6, 2, &round), CacheRefinement::Next::kDone);
+  EXPECT_FLOAT_EQ(r.accuracy(), a);
+  EXPECT_EQ(r.record_rays(), rays);
+  // A rebuilt cache that measured far below its share is rebuilt once more, as before.
+  CacheRefinement r2(OneLevelStart(1e-3));
+  ASSERT_EQ(r2.AfterRound(Estimate(1.2e-4, 1e-4), 4e-4, 2e6, 1, &round),
+            CacheRefinement::Next::kRebuild);
+  EXPECT_EQ(r2.AfterRound(Estimate(2e-5, 1e-5), 0, 3e6, 2, &round),
+            CacheRefinement::Next::kRebuild);
+}
+
 // Only a cache's first round may send it back to be rebuilt coarser: a cache the rounds refined
 // whose check then reads far below its share ends the rounds (the daylight room 512 at E = 1e-3
 // was rebuilt at 2.5x the a and a sixth of the rays its refinement had reached, and ended at 1.3
