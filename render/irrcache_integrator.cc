@@ -287,6 +287,8 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
                                                rng, counters, &d, &env_first)
                            : TracePath(scene_, ray, depth + 1, true, record_path, rng, counters, &d,
                                        nullptr, &env_first);
+      // The stratum's own radiance, unweighted, for the record's derivatives (the grid below).
+      const float radiance = IsFinite(L) ? Luminance(L) : 0.0f;
       if (m_env > 0 && !IsBlack(env_first)) {
         const float p_cos = local.z * kInvPi;
         const float p_env = lights.PdfEnvironmentAlone(nf, dir, true);
@@ -316,7 +318,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       if (grid) {
         grid->dir[i * P + j] = dir;
         grid->dist[i * P + j] = d;
-        grid->lum[i * P + j] = IsFinite(L) ? Luminance(L) : 0.0f;
+        grid->lum[i * P + j] = radiance;
       }
     }
   // The environment map's samples, in the strata's units (E = sum pi / n): L cos / (n p_cos +
