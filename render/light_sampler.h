@@ -34,7 +34,11 @@ class LightSampler {
   // (SampleForNee with all = true); with more, one is picked.
   static constexpr int kAllLightsMax = 16;
   // Share of environment samples drawn cosine-weighted when an envmap is importance sampled.
-  static constexpr float kEnvCosineShare = 0.25f;
+  // 0.1 since 2026-12-04 (0.25 before): seeds 1-2 / 7-8, `path` 64 spp on living-room relMSE
+  // -2.5%; irrcache defaults: layered_kitchen (studio map) -9% / -20%, layered_shoes (a silver
+  // floor reflecting it) -4%, living-room, rooms 501 and 511 within their scatter; CPU alike
+  // (docs/bench/envmap-record-samples-2026-12-04/cosine-share.log).
+  static constexpr float kEnvCosineShare = 0.1f;
 
   // `lights`: local lights first, then environment lights.
   void Build(std::vector<Light> lights, int num_local);
