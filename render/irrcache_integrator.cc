@@ -256,15 +256,21 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   // seeds with a fixed share, against 30-45% lower on an open still life).
   const LightSampler& lights = scene_.light_sampler();
   const float n_strata = float(T * P);
+  // One sample of the map by its radiance from x, and whether it arrives: above both horizons
+  // and unblocked (a shadow ray).
+  const auto sample_map = [&](LightSample* ls) {
+    const float u2 = rng.Next(), u3 = rng.Next();
+    if (!lights.SampleEnvironment(nf, u2, u3, ls, true)) return false;
+    if (!(Dot(ls->wi, nf) > 0) || Dot(ls->wi, ng_side) <= 0) return false;
+    ++counters.shadow_rays;
+    return !scene_.Occluded(Scene::SpawnShadowRay(hit, *ls));
+  };
   int m_env = 0;
   if (lights.has_environment_map() && settings_.environment_samples > 0) {
     int seen = 0;
     for (int k = 0; k < IrrcacheSettings::kEnvironmentProbes; ++k) {
       LightSample ls;
-      const float u2 = rng.Next(), u3 = rng.Next();
-      if (!lights.SampleEnvironment(nf, u2, u3, &ls, true) || Dot(ls.wi, ng_side) <= 0) continue;
-      ++counters.shadow_rays;
-      seen += !scene_.Occluded(Scene::SpawnShadowRay(hit, ls));
+      seen += sample_map(&ls);
     }
     m_env = int(std::lround(settings_.environment_samples * n_strata * float(seen) /
                             float(IrrcacheSettings::kEnvironmentProbes)));
@@ -325,12 +331,8 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   // m p_env) n / pi each; alternately into the two halves.
   for (int k = 0; k < m_env; ++k) {
     LightSample ls;
-    const float u2 = rng.Next(), u3 = rng.Next();
-    if (!lights.SampleEnvironment(nf, u2, u3, &ls, true)) continue;
+    if (!sample_map(&ls)) continue;
     const float cos_i = Dot(ls.wi, nf);
-    if (!(cos_i > 0) || Dot(ls.wi, ng_side) <= 0) continue;
-    ++counters.shadow_rays;
-    if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) continue;
     const Vec3 v = scene_.EvalEnvironment(ls.wi) *
                    (n_strata * cos_i / (n_strata * cos_i + kPi * float(m_env) * ls.pdf));
     if (!IsFinite(v)) {

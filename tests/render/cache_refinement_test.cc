@@ -132,10 +132,14 @@ TEST(CacheRefinementTest, ACacheFarBelowItsShareIsRebuiltCoarser) {
 // rebuilt again: the figure measures nothing. Room-512 at E = 1e-3 (seed 10, one run in three):
 // the second rebuild went to a = 0.5 and 17 rays, and four rounds ended at 3.3 E.
 TEST(CacheRefinementTest, ARebuiltCacheIsNotRebuiltOnACheckOfZero) {
-  CacheRefinement r(OneLevelStart(1e-3));
   CacheRound round;
-  ASSERT_EQ(r.AfterRound(Estimate(1.2e-4, 1e-4), 4e-4, 2e6, 1, &round),
-            CacheRefinement::Next::kRebuild);
+  // A first cache far below its share, rebuilt coarser.
+  const auto rebuilt_once = [&](CacheRefinement& r) {
+    ASSERT_EQ(r.AfterRound(Estimate(1.2e-4, 1e-4), 4e-4, 2e6, 1, &round),
+              CacheRefinement::Next::kRebuild);
+  };
+  CacheRefinement r(OneLevelStart(1e-3));
+  rebuilt_once(r);
   const float a = r.accuracy();
   const int rays = r.record_rays();
   EXPECT_EQ(r.AfterRound(Estimate(0, 0), 0, 3e6, 2, &round), CacheRefinement::Next::kDone);
@@ -143,8 +147,7 @@ TEST(CacheRefinementTest, ARebuiltCacheIsNotRebuiltOnACheckOfZero) {
   EXPECT_EQ(r.record_rays(), rays);
   // A rebuilt cache that measured far below its share is rebuilt once more, as before.
   CacheRefinement r2(OneLevelStart(1e-3));
-  ASSERT_EQ(r2.AfterRound(Estimate(1.2e-4, 1e-4), 4e-4, 2e6, 1, &round),
-            CacheRefinement::Next::kRebuild);
+  rebuilt_once(r2);
   EXPECT_EQ(r2.AfterRound(Estimate(2e-5, 1e-5), 0, 3e6, 2, &round),
             CacheRefinement::Next::kRebuild);
 }
