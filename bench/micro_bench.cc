@@ -1,5 +1,6 @@
-// Micro-benchmarks (Google Benchmark) of the two hot paths: irradiance-cache lookups and Embree
-// ray casts (closest hit and occlusion) in the Cornell box. Run: build/bench/bench_micro.
+// Micro-benchmarks (Google Benchmark) of the hot paths: irradiance-cache lookups, Embree ray casts
+// (closest hit and occlusion) in the Cornell box, a record's derivatives and Beckmann sampling.
+// Run: build/bench/bench_micro.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -7,6 +8,7 @@
 #include <vector>
 
 #include "cache/irradiance_cache.h"
+#include "render/bsdfs/microfacet.h"
 #include "render/irradiance_hessian.h"
 #include "render/sampling.h"
 #include "render/scene.h"
@@ -139,6 +141,18 @@ void BM_RecordDerivatives(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_RecordDerivatives)->Unit(benchmark::kMicrosecond);
+
+// A visible normal of the Beckmann distribution (Mitsuba's default for rough conductors and
+// plastics), alpha 0.2, for directions uniform in cos(theta), per sample.
+void BM_BeckmannSample(benchmark::State& state) {
+  const Microfacet mf(MicrofacetType::kBeckmann, 0.2f, 0.2f);
+  Rng rng(7, 9);
+  for (auto _ : state) {
+    const float c = std::max(1e-3f, rng.Next()), s = std::sqrt(1 - c * c);
+    benchmark::DoNotOptimize(mf.Sample(Vec3(s, 0, c), rng.Next(), rng.Next()));
+  }
+}
+BENCHMARK(BM_BeckmannSample);
 
 }  // namespace
 }  // namespace irfarm

@@ -10,6 +10,7 @@ namespace irfarm {
 
 constexpr float kPi = 3.14159265358979323846f;
 constexpr float kInvPi = 0.31830988618379067154f;
+constexpr float kSqrtPi = 1.77245385090551602730f;
 
 struct Vec3 {
   float x = 0, y = 0, z = 0;

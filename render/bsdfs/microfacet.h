@@ -8,7 +8,8 @@
 //        plane is normal (y = erfinv(2u - 1)) and the slope along it has the density
 //        (1 - x tan theta) exp(-x^2) on x < cot theta, whose CDF
 //        C(x) = sqrt(pi)/2 (1 + erf(x)) + tan(theta)/2 exp(-x^2) is inverted by safeguarded
-//        Newton iterations (in double).
+//        Newton iterations in b = erf(x), as Jakob 2014 ("An Improved Visible Normal Sampling
+//        Routine for the Beckmann Distribution") does, in single precision (cache/erf.h).
 // G1 is Smith's: exact for GGX; for Beckmann Walter et al.'s rational fit in Eval (as Mitsuba),
 // while Pdf uses the exact erf form, so that it is the sampler's density (the fit is off by up
 // to ~0.4%, which a chi-square test with 10^5 samples sees).
@@ -18,6 +19,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "cache/erf.h"
 #include "cache/math.h"
 
 namespace irfarm {
@@ -90,59 +92,59 @@ class Microfacet {
 
  private:
   // Smith's Beckmann masking, exact: 1 / (1 + Lambda(a)), a = 1 / (alpha tan theta),
-  // Lambda(a) = (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)).
+  // Lambda(a) = (exp(-a^2) / (a sqrt(pi)) - erfc(a)) / 2, within 1e-7 with cache/erf.h.
   float BeckmannG1Exact(const Vec3& w, const Vec3& m) const {
     if (Dot(w, m) * w.z <= 0) return 0;
     const float xy2 = w.x * w.x * au_ * au_ + w.y * w.y * av_ * av_;
     if (xy2 <= 0) return 1;
-    const double a = double(std::abs(w.z)) / std::sqrt(double(xy2));
-    const double lambda = 0.5 * (std::erf(a) - 1) + std::exp(-a * a) / (2 * a * std::sqrt(kPi));
-    return float(1 / (1 + lambda));
-  }
-
-  // erf^-1 by Winitzki's approximation (error ~2e-3) polished with two Newton steps.
-  static double ErfInv(double z) {
-    z = std::clamp(z, -1 + 1e-12, 1 - 1e-12);
-    const double a = 0.147, l = std::log(1 - z * z), b = 2 / (kPi * a) + 0.5 * l;
-    double y = std::copysign(std::sqrt(std::sqrt(b * b - l / a) - b), z);
-    for (int i = 0; i < 2; ++i)
-      y -= (std::erf(y) - z) / (2 / std::sqrt(double(kPi)) * std::exp(-y * y));
-    return y;
+    const float a = std::abs(w.z) / std::sqrt(xy2);
+    if (a > 9) return 1;  // Lambda < 1e-36
+    const float lambda = 0.5f * (std::exp(-a * a) / (a * kSqrtPi) - Erfc(a));
+    return 1 / (1 + std::max(0.0f, lambda));
   }
 
   // Visible slopes of the unit-roughness Beckmann surface for incidence (cos_t, sin_t), the
-  // view plane being x (see the file comment).
+  // view plane being x (see the file comment): C(x) = target by safeguarded Newton steps on
+  // (-4, cot theta], each one exp (C and C' share exp(-x^2), and so does erf), from a start
+  // b = erf(x0) = hi - (1 + hi) (1 - u)^p(theta), p a cubic in theta fitted by least squares to
+  // the exact inverse over 60 angles (the form is Jakob's; bench/fit_beckmann_start.py).
   static void BeckmannVisibleSlopes(float cos_t, float sin_t, float u1, float u2, float* x,
                                     float* y) {
-    const double ua = std::clamp(double(u1), 1e-7, 1 - 1e-7);
-    const double ub = std::clamp(double(u2), 1e-7, 1 - 1e-7);
-    *y = float(ErfInv(2 * ub - 1));
-    const double sqrt_pi = std::sqrt(double(kPi));
-    if (!(sin_t > 1e-5f)) {  // normal incidence: both slopes normal
-      *x = float(ErfInv(2 * ua - 1));
+    const float ua = std::clamp(u1, 1e-6f, 1 - 1e-6f);
+    const float ub = std::clamp(u2, 1e-6f, 1 - 1e-6f);
+    *y = ErfInv(2 * ub - 1);
+    if (!(sin_t > 1e-4f)) {  // normal incidence: both slopes normal
+      *x = ErfInv(2 * ua - 1);
       return;
     }
-    const double tan_t = double(sin_t) / cos_t;
-    const auto cdf = [&](double t) {
-      return 0.5 * sqrt_pi * (1 + std::erf(t)) + 0.5 * tan_t * std::exp(-t * t);
+    const float tan_t = sin_t / cos_t, cot_t = cos_t / sin_t;
+    // C(x) / (sqrt(pi) / 2) = 1 + erf(x) + tan(theta) / sqrt(pi) exp(-x^2), with its e = exp(-x^2).
+    const float k = tan_t / kSqrtPi;
+    const auto cdf = [k](float v, float e) {
+      const float erfc_abs = ScaledErfc(std::abs(v)) * e;
+      return (v >= 0 ? 2 - erfc_abs : erfc_abs) + k * e;
     };
-    double hi = std::min(1 / tan_t, 8.0), lo = -8.0;
-    const double target = ua * cdf(hi);
-    double t = std::clamp(ErfInv(2 * ua - 1), lo, hi);
-    for (int i = 0; i < 40; ++i) {
-      const double f = cdf(t) - target;
-      if (std::abs(f) < 1e-9) break;
-      (f > 0 ? hi : lo) = t;
-      const double d = (1 - t * tan_t) * std::exp(-t * t);
-      double next = d > 0 ? t - f / d : 0.5 * (lo + hi);
-      if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-      if (std::abs(next - t) < 1e-9) {
-        t = next;
-        break;
-      }
-      t = next;
+    float lo = -4, hi = std::min(cot_t, 4.0f);
+    const float e_hi = std::exp(-hi * hi), erf_hi = 1 - ScaledErfc(hi) * e_hi;
+    const float total = cdf(hi, e_hi), target = ua * total;
+    const float theta = std::atan2(sin_t, cos_t);
+    const float p =
+        1.01692885f + theta * (-0.9451713f + theta * (0.49495843f - 0.08252777f * theta));
+    float v = std::clamp(ErfInv(std::clamp(erf_hi - (1 + erf_hi) * std::exp(p * std::log(1 - ua)),
+                                           -1 + 1e-7f, 1 - 1e-7f)),
+                         lo, hi);
+    for (int i = 0; i < 24; ++i) {
+      const float e = std::exp(-v * v);
+      const float f = cdf(v, e) - target;
+      if (std::abs(f) < 1e-5f * total) break;
+      (f > 0 ? hi : lo) = v;
+      // dC/dx / (sqrt(pi) / 2) = 2 / sqrt(pi) (1 - x tan(theta)) exp(-x^2).
+      const float d = 2 / kSqrtPi * (1 - v * tan_t) * e;
+      float next = d > 0 ? v - f / d : 0.5f * (lo + hi);
+      if (!(next > lo && next < hi)) next = 0.5f * (lo + hi);
+      v = next;
     }
-    *x = float(t);
+    *x = v;
   }
 
   MicrofacetType type_;
