@@ -116,9 +116,10 @@ struct IrrcacheSettings {
   // at the first diffuse surface they reach, by one direct-light sample plus that surface's own
   // cached irradiance (secondary records: secondary_ray_fraction of the rays, spaced for the
   // ray's cone, used only by other records' rays). At default settings the pilot chooses
-  // (choose_cache_levels; PrefersTwoLevels in render/record_balance.h): two where the records'
-  // noise dominates the image's error (veach-ajar 4.5x lower relMSE, sunlit-room 1.8x), one where
-  // the camera samples' does (living-room). Off when the levels are given (scene,
+  // (choose_cache_levels; TwoLevelsPay in render/record_balance.h): two where the two pilots'
+  // figures predict a lower error x time (veach-ajar 4.5x lower relMSE, sunlit-room 1.8x), one
+  // where the camera samples' error dominates (living-room) or the secondary records cost more
+  // than they save (a cluttered still life). Off when the levels are given (scene,
   // --cache-levels, the job's settings) and with --target-error.
   int cache_levels = 1;
   bool choose_cache_levels = true;

@@ -160,11 +160,13 @@ BalanceResult PilotSettings(const Scene& scene, const RenderSettings& settings,
   b.cache_levels = 1;
   b.one_level_record_noise = b.record_noise;
   b.one_level_sampling_error = b.sampling_error;
-  if (!PrefersTwoLevels(b) || (two_levels_above > 0 && b.record_noise <= two_levels_above))
+  const bool target = two_levels_above > 0;
+  if (target ? !PrefersTwoLevels(b) || b.record_noise <= two_levels_above : !MayPreferTwoLevels(b))
     return b;
   RenderSettings two = settings;
   two.irrcache.cache_levels = 2;
   BalanceResult b2 = BalanceRecordRays(scene, two, rect, arena, counters);
+  if (!target && !TwoLevelsPay(b, b2, settings.irrcache.record_rays)) return b;
   b2.cache_levels = 2;
   b2.one_level_record_noise = b.record_noise;
   b2.one_level_sampling_error = b.sampling_error;

@@ -18,10 +18,12 @@
 namespace irfarm {
 
 // The pilot at the settings' cache levels and, where the settings leave the levels to it
-// (IrrcacheSettings::choose_cache_levels) and the records' noise dominates (PrefersTwoLevels;
-// with `two_levels_above` > 0, also one-level record noise above that), a second pilot at two
-// levels, whose rays are then the ones used. *ic receives the rays and the levels. Its records go
-// into a scratch cache that is then dropped.
+// (IrrcacheSettings::choose_cache_levels) and the records' noise is large enough
+// (MayPreferTwoLevels), a second pilot at two levels; two levels, at that pilot's rays, where the
+// two pilots' figures predict them cheaper (TwoLevelsPay, render/record_balance.h). With
+// `two_levels_above` > 0 (--target-error) instead: two levels where the records' noise dominates
+// (PrefersTwoLevels) and the one-level record noise is above that. *ic receives the rays and the
+// levels. Its records go into a scratch cache that is then dropped.
 BalanceResult PilotSettings(const Scene& scene, const RenderSettings& settings,
                             const PixelRect& rect, tbb::task_arena& arena,
                             tbb::enumerable_thread_specific<RenderCounters>& counters,

@@ -232,7 +232,8 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   // rays. Measured (N1 at defaults): veach-ajar 2.2e-2 (one level ends at 0.2 against E = 4e-3:
   // its light comes through a door gap that few of a record's rays find); the other eight scenes
   // 4e-5 (room-b) to 6e-4 (specular), all one level even at E = 1e-3. And only where the records'
-  // noise is what the image's error is made of (PrefersTwoLevels, as at the defaults):
+  // noise is what the image's error is made of (PrefersTwoLevels, the defaults' gate until
+  // 2026-12-05):
   // living-room's N1 is above 2 x share, but its error is its glossy samples' (N1 / S1 0.97), and
   // two levels took it from 20 s to 300 s at E = 4e-3 for no lower error (2.4e-2 against 3.2e-2
   // at one level).

@@ -1,0 +1,18 @@
+#!/bin/bash
+# run.sh BIN OUT: forced one and two cache levels per scene and seed, with the pilot's figures
+BIN=$1; OUT=$2
+S=/work/shared/scenes
+for d in $S/cornell-box $S/sunlit-room $S/specular $S/thin-panels $S/veach-ajar $S/room-a $S/room-b $S/room-c $S/room-d $S/living-room /tmp/bulb/room-40{1,2,3,4} /tmp/env/room-50{1,2,3,4} /tmp/day/room-51{1,2,3} /tmp/r6/room-60{1,2,3} /tmp/vs/layered_kitchen /tmp/vs/layered_shoes; do
+  x=$d/scene.xml; ref=$d/reference.exr; name=$(basename $d)
+  [ -f $d/kinf.xml ] && { x=$d/kinf.xml; ref=$d/refinf.exr; }
+  [ -f $d/s240.xml ] && { x=$d/s240.xml; ref=$d/ref4096.exr; }
+  for seed in 7 8; do for lv in 1 2 0; do
+    a=""; [ $lv != 0 ] && a="--cache-levels $lv"
+    $BIN render $x --seed $seed $a -o /tmp/lv/img.exr -q --stats /tmp/lv/img.json 2>/dev/null
+    e=$(python3 /tmp/relmse.py $ref /tmp/lv/img.exr | awk '{print $3}')
+    python3 -c "
+import json; j=json.load(open('/tmp/lv/img.json')); b=j['record_balance']
+print(json.dumps({'scene':'$name','seed':$seed,'asked':$lv,'relmse':float('$e'),'wall':j['seconds']['total'],'cpu':j['cpu_seconds']['total'],'levels':j['settings']['cache_levels'],'rays':j['settings']['record_rays'],'balance':b,'records':j['records']['computed'],'secondary':j['records'].get('computed_secondary',0)}))" >> $OUT
+  done; done
+done
+echo DONE >> $OUT
