@@ -8,8 +8,9 @@
 //        plane is normal (y = erfinv(2u - 1)) and the slope along it has the density
 //        (1 - x tan theta) exp(-x^2) on x < cot theta, whose CDF
 //        C(x) = sqrt(pi)/2 (1 + erf(x)) + tan(theta)/2 exp(-x^2) is inverted by safeguarded
-//        Newton iterations in b = erf(x), as Jakob 2014 ("An Improved Visible Normal Sampling
-//        Routine for the Beckmann Distribution") does, in single precision (cache/erf.h).
+//        Newton iterations in x on [-4, min(cot theta, 4)] (the mass outside is ~1e-7), in
+//        single precision (cache/erf.h), from a start fitted in b = erf(x) in the form of Jakob
+//        2014 ("An Improved Visible Normal Sampling Routine for the Beckmann Distribution").
 // G1 is Smith's: exact for GGX; for Beckmann Walter et al.'s rational fit in Eval (as Mitsuba),
 // while Pdf uses the exact erf form, so that it is the sampler's density (the fit is off by up
 // to ~0.4%, which a chi-square test with 10^5 samples sees).
