@@ -307,8 +307,8 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   render
       ->add_option("--cache-levels", ra.cache_levels,
-                   "irrcache: 1 (default) = records' rays are path traced; 2 = they use a "
-                   "second-level cache at the surfaces they reach")
+                   "irrcache: 1 = records' rays are path traced; 2 = they use a second-level "
+                   "cache at the surfaces they reach (default: chosen per scene by the pilots)")
       ->check(CLI::Range(1, 2));
   render
       ->add_option("--light-sampling", ra.light_sampling,
