@@ -71,6 +71,47 @@ inline int WithinReach4(const float* xs, const float* ys, const float* zs, const
 #endif
 }
 
+// Bit i set when child i of a node (cell edge `half` grid units, low corner lo, midpoint mid;
+// bit k of i: the upper half on axis k) should be entered by a walk from gx: radius[i] > 0 (the
+// largest R in the child's subtree; 0 = empty) and, on each axis, lo_i - grow_i <= gx <=
+// lo_i + half + grow_i with grow_i = radius[i] * reach_scale + margin. Four children per SSE step,
+// in the scalar test's float operations (SSE does not fuse multiply-adds), so both enter the same.
+inline unsigned EnterChildren(const float radius[8], const float gx[3], const float lo[3],
+                              const float mid[3], float half, float reach_scale, float margin) {
+#if defined(__SSE2__)
+  unsigned enter = 0;
+  for (int g = 0; g < 2; ++g) {  // children 4g .. 4g + 3
+    const __m128 r = _mm_loadu_ps(radius + 4 * g);
+    const __m128 grow = _mm_add_ps(_mm_mul_ps(r, _mm_set1_ps(reach_scale)), _mm_set1_ps(margin));
+    __m128 ok = _mm_cmpgt_ps(r, _mm_setzero_ps());
+    // The children's low corners: x alternates (bit 0), y in pairs (bit 1), z by group (bit 2).
+    const __m128 lo_k[3] = {_mm_setr_ps(lo[0], mid[0], lo[0], mid[0]),
+                            _mm_setr_ps(lo[1], lo[1], mid[1], mid[1]),
+                            _mm_set1_ps(g == 0 ? lo[2] : mid[2])};
+    const __m128 h = _mm_set1_ps(half);
+    for (int k = 0; k < 3; ++k) {
+      const __m128 x = _mm_set1_ps(gx[k]);
+      ok = _mm_and_ps(ok, _mm_cmpge_ps(x, _mm_sub_ps(lo_k[k], grow)));
+      ok = _mm_and_ps(ok, _mm_cmple_ps(x, _mm_add_ps(_mm_add_ps(lo_k[k], h), grow)));
+    }
+    enter |= unsigned(_mm_movemask_ps(ok)) << (4 * g);
+  }
+  return enter;
+#else
+  unsigned enter = 0;
+  for (int i = 0; i < 8; ++i) {
+    const float grow = radius[i] * reach_scale + margin;
+    bool in = radius[i] > 0;
+    for (int k = 0; k < 3; ++k) {
+      const float l = ((i >> k) & 1) ? mid[k] : lo[k];
+      in &= (gx[k] >= l - grow) & (gx[k] <= l + half + grow);
+    }
+    enter |= unsigned(in) << i;
+  }
+  return enter;
+#endif
+}
+
 }  // namespace
 
 template <typename F>
@@ -517,14 +558,13 @@ void IrradianceCache::WalkNodes(const Vec3& x, unsigned classes, int max_level, 
   struct Item {
     const Node* node;
     float lo[3];  // cell's low corner, grid units (exact: integers < 2^24)
-    float grow;   // reach_scale * (largest R_i in the subtree) + margin, grid units
     int depth;
   };
   Item stack[kLookupStack];
   int top = 0;
   for (int t = TreeOf(std::max(0, max_level)); t >= 0; --t)
     for (unsigned c = classes; c != 0; c &= c - 1)
-      stack[top++] = Item{roots_[t][__builtin_ctz(c)], {0, 0, 0}, INFINITY, 0};
+      stack[top++] = Item{roots_[t][__builtin_ctz(c)], {0, 0, 0}, 0};
   while (top > 0) {
     // Copied field by field, with the widths they were stored with: a whole-struct copy right
     // after the field stores below fails store-to-load forwarding and stalls.
@@ -532,40 +572,30 @@ void IrradianceCache::WalkNodes(const Vec3& x, unsigned classes, int max_level, 
     Item item;
     item.node = stack[top].node;
     for (int k = 0; k < 3; ++k) item.lo[k] = stack[top].lo[k];
-    item.grow = stack[top].grow;
     item.depth = stack[top].depth;
     if (const Block* head = item.node->head.load(std::memory_order_acquire)) visit(head);
     if (item.depth == kMaxDepth) continue;
     const Node* children = item.node->children.load(std::memory_order_acquire);
     if (children == nullptr) continue;
     const float half = float(1u << (kMaxDepth - 1 - item.depth));  // child cell edge, grid units
-    // Children no record of this subtree can reach from x (their radii are <= the subtree's):
-    // per axis, the lower half is out when x is beyond mid + grow, the upper when below
-    // mid - grow. Bit i of `maybe` is child i.
-    static constexpr unsigned kLowerHalf[3] = {0x55, 0x33, 0x0F};
-    unsigned maybe = 0xFF;
     float mid[3];
-    // Branch-free: which children a lookup enters is data dependent, and mispredicted branches
-    // were most of the walk's cost.
-    for (int k = 0; k < 3; ++k) {
-      mid[k] = item.lo[k] + half;
-      maybe &= ~(kLowerHalf[k] & (0u - unsigned(gx[k] > mid[k] + item.grow)));
-      maybe &= kLowerHalf[k] | (0u - unsigned(!(gx[k] < mid[k] - item.grow)));
-    }
-    for (; maybe != 0; maybe &= maybe - 1) {
-      const int i = __builtin_ctz(maybe);
-      const float radius = item.node->child_radius[i].load(std::memory_order_acquire);
-      const float grow = radius * reach_scale + margin;
-      Item& next = stack[top];
+    for (int k = 0; k < 3; ++k) mid[k] = item.lo[k] + half;
+    // Child i (bit k of i: the upper half on axis k) is entered when it holds records (largest R
+    // above 0) and x lies in its cell grown by grow_i = R_i * reach_scale + margin on every axis.
+    // Branch-free (which children a lookup enters is data dependent, and mispredicted branches
+    // were most of the walk's cost), all eight children at once with SSE in the same float
+    // operations as the scalar test, so the same children are entered either way.
+    float radius[8];
+    for (int i = 0; i < 8; ++i)
+      radius[i] = item.node->child_radius[i].load(std::memory_order_acquire);
+    const unsigned enter = EnterChildren(radius, gx, item.lo, mid, half, reach_scale, margin);
+    // Pushed in ascending child order, as before: the order the records are summed in.
+    for (unsigned m = enter; m != 0; m &= m - 1) {
+      const int i = __builtin_ctz(m);
+      Item& next = stack[top++];
       next.node = &children[i];
-      next.grow = grow;
       next.depth = item.depth + 1;
-      bool enter = radius > 0;  // else an empty child
-      for (int k = 0; k < 3; ++k) {
-        next.lo[k] = ((i >> k) & 1) ? mid[k] : item.lo[k];
-        enter &= (gx[k] >= next.lo[k] - grow) & (gx[k] <= next.lo[k] + half + grow);
-      }
-      top += enter;
+      for (int k = 0; k < 3; ++k) next.lo[k] = ((i >> k) & 1) ? mid[k] : item.lo[k];
     }
   }
 }
