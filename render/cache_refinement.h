@@ -92,8 +92,9 @@ struct CacheErrorEstimate {
 
 // What the refinement starts from.
 struct RefinementStart {
-  double target_error = 0;   // E
-  int settings_rays = 1536;  // R0: the settings' record rays
+  double target_error = 0;         // E
+  int settings_rays = 1536;        // R0: the settings' record rays
+  float settings_accuracy = 0.1f;  // a0: the settings' accuracy
   int settings_min_spp = 0;
   float wider_factor = 0;    // the settings' lookup factor: the wider lookups where > 1
   bool may_rebuild = false;  // the cache is this render's own and empty: it may be rebuilt coarser

@@ -280,6 +280,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
       RefinementStart start;
       start.target_error = settings.target_error;
       start.settings_rays = settings.irrcache.record_rays;
+      start.settings_accuracy = settings.irrcache.accuracy;
       start.settings_min_spp = settings.min_spp;
       start.wider_factor = settings.irrcache.lookup_factor;
       // Only a cache this render made itself may be dropped and rebuilt coarser.

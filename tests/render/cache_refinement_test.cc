@@ -237,11 +237,29 @@ TEST(CacheRefinementTest, StopsAfterFourRoundsOrAtItsCostOrTimeAndSaysWhy) {
   EXPECT_EQ(next, CacheRefinement::Next::kDone);
   EXPECT_EQ(rounds, 4);
   EXPECT_EQ(std::string(r.stop_reason()), "after 4 rounds");
-  // A round whose cost would take the refinement past 10x the first round's.
-  CacheRefinement c(OneLevelStart(4e-3));
+  // A round whose cost would take the refinement past 10x the first round's, on a cache that
+  // costs more than the settings' own (here settings of 16 rays at a = 0.1).
+  RefinementStart cheap_settings = OneLevelStart(4e-3);
+  cheap_settings.settings_rays = 16;
+  CacheRefinement c(cheap_settings);
   c.AfterRound(Estimate(8e-2, 4e-2), 1e-3, 2e6, 1, &round);
+  ASSERT_GT(double(c.record_rays()) / 16 * (0.1 / c.accuracy()) * (0.1 / c.accuracy()), 1.0);
   EXPECT_EQ(c.AfterRound(Estimate(4e-2, 2e-2), 1e-3, 8e6, 2, &round), CacheRefinement::Next::kDone);
   EXPECT_EQ(std::string(c.stop_reason()), "another round would pass 10x the first round's time");
+  // The same rounds where the cache is still cheaper than the settings' (1536 rays at a = 0.1:
+  // what a render at the settings builds anyway) go on (layered_kitchen at E = 1e-2 stopped here
+  // at a = 0.2 and 512 rays, 2.56 E; going on, 0.99 E).
+  CacheRefinement d(OneLevelStart(4e-3));
+  d.AfterRound(Estimate(8e-2, 4e-2), 1e-3, 2e6, 1, &round);
+  ASSERT_LT(double(d.record_rays()) / 1536 * (0.1 / d.accuracy()) * (0.1 / d.accuracy()), 1.0);
+  EXPECT_EQ(d.AfterRound(Estimate(4e-2, 2e-2), 1e-3, 8e6, 2, &round),
+            CacheRefinement::Next::kRefine);
+  // ... but a cheap cache within twice its share (3e-3: E less the samples' 1e-3) stops there.
+  CacheRefinement e(OneLevelStart(4e-3));
+  e.AfterRound(Estimate(8e-2, 4e-2), 1e-3, 2e6, 1, &round);
+  EXPECT_EQ(e.AfterRound(Estimate(5e-3, 2.5e-3), 1e-3, 8e6, 2, &round),
+            CacheRefinement::Next::kDone);
+  EXPECT_EQ(std::string(e.stop_reason()), "another round would pass 10x the first round's time");
   // Half of --time-limit spent.
   RefinementStart timed = OneLevelStart(4e-3);
   timed.time_limit = 10;
