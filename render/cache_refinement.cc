@@ -120,7 +120,14 @@ CacheRefinement::Next CacheRefinement::AfterRound(CacheErrorEstimate estimate, d
       (rebuilds_ == 0 ? cache_error_ < std::max(0.25 * left_by_samples_,
                                                 kLowestPlannedEnd * e - sampling_at_fewest)
                       : cache_error_ > 0 && cache_error_ < 0.5 * cache_budget_);
-  if (start_.may_rebuild && rebuilds_ < 2 && far_below) {
+  // Not a two-level cache: its checks share the second level with the records they check, so
+  // they do not see that level's error (kTwoLevelCheckBias scales them for it at the settings'
+  // rays), and a coarser rebuild with fewer rays makes that error larger, unseen. The daylight
+  // room 512 (bench/make_room.py, two levels) at E = 1e-3: runs whose first cache read low
+  // rebuilt it at a = 0.26-0.5 with 24-385 rays, checks then read 2.5e-5 to 4.5e-4, and the
+  // renders ended at 2.3-3.9 E (bin 4: most of it low-frequency, the cache's); the runs that kept
+  // their first cache ended at 1.1-1.5 E (5.9e-4 of it the reference's own).
+  if (start_.may_rebuild && start_.cache_levels == 1 && rebuilds_ < 2 && far_below) {
     if (rebuilds_ == 0) cache_budget_ = left_by_samples_;
     const double r = std::min(16.0, cache_budget_ / std::max(cache_error_, 1e-12));
     const float a = std::min(kCoarsestAccuracy, float(accuracy_ * std::sqrt(r)));

@@ -99,6 +99,7 @@ struct RefinementStart {
   float wider_factor = 0;    // the settings' lookup factor: the wider lookups where > 1
   bool may_rebuild = false;  // the cache is this render's own and empty: it may be rebuilt coarser
   int pilot_rays = 0;        // two levels: the two-level pilot's starting rays (0: one level)
+  int cache_levels = 1;      // the cache's levels (two: its checks do not see the second level)
   double pilot_work = 0;     // the pilot's rays and lookups (RenderCounters::Work)
   double time_limit = 0;     // --time-limit in seconds (0: none)
 };

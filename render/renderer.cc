@@ -286,6 +286,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
       // Only a cache this render made itself may be dropped and rebuilt coarser.
       start.may_rebuild = own_cache != nullptr && cache->size() == 0;
       start.pilot_rays = pilot_rays;
+      start.cache_levels = ic.cache_levels;
       start.pilot_work = double(pilot_work);
       start.time_limit = settings.time_limit;
       CacheRefinement refinement(start);

@@ -128,6 +128,23 @@ TEST(CacheRefinementTest, ACacheFarBelowItsShareIsRebuiltCoarser) {
   EXPECT_DOUBLE_EQ(round.share, 2e-3);
 }
 
+// A two-level cache far below its share is kept, not rebuilt coarser: its checks do not see its
+// second level's error, which a coarser rebuild with fewer rays makes larger (room-512 at E =
+// 1e-3: such rebuilds ended at 2.3-3.9 E, the kept first caches at 1.1-1.5 E).
+TEST(CacheRefinementTest, ATwoLevelCacheIsNotRebuiltCoarser) {
+  RefinementStart two = OneLevelStart(4e-3);
+  two.cache_levels = 2;
+  two.pilot_rays = 1200;
+  CacheRefinement r(two);
+  const float a0 = r.accuracy();
+  const int rays0 = r.record_rays();
+  CacheRound round;
+  // The figures that rebuild a one-level cache (the test above).
+  EXPECT_EQ(r.AfterRound(Estimate(2e-4, 1e-4), 2e-3, 2e6, 1, &round), CacheRefinement::Next::kDone);
+  EXPECT_EQ(r.accuracy(), a0);
+  EXPECT_EQ(r.record_rays(), rays0);
+}
+
 // A rebuilt cache whose check reads 0 (clamped: the records' variance swamped the rest) is not
 // rebuilt again: the figure measures nothing. Room-512 at E = 1e-3 (seed 10, one run in three):
 // the second rebuild went to a = 0.5 and 17 rays, and four rounds ended at 3.3 E.
