@@ -277,6 +277,16 @@ TEST(CacheRefinementTest, StopsAfterFourRoundsOrAtItsCostOrTimeAndSaysWhy) {
   EXPECT_EQ(e.AfterRound(Estimate(5e-3, 2.5e-3), 1e-3, 8e6, 2, &round),
             CacheRefinement::Next::kDone);
   EXPECT_EQ(std::string(e.stop_reason()), "another round would pass 10x the first round's time");
+  // A two-level cache goes on from 1.25x its share: its check misses part of its second level's
+  // error (veach-ajar at 4e-3 stopped at 1.35-1.7x and ended at 1.55 E, estimated at 0.6x).
+  RefinementStart two = OneLevelStart(4e-3);
+  two.cache_levels = 2;
+  two.pilot_rays = 200;
+  CacheRefinement f(two);
+  f.AfterRound(Estimate(8e-2, 4e-2), 1e-3, 2e6, 1, &round);
+  ASSERT_LT(double(f.record_rays()) / 1536 * (0.1 / f.accuracy()) * (0.1 / f.accuracy()), 1.0);
+  EXPECT_EQ(f.AfterRound(Estimate(5e-3, 2.5e-3), 1e-3, 8e6, 2, &round),
+            CacheRefinement::Next::kRefine);
   // Half of --time-limit spent.
   RefinementStart timed = OneLevelStart(4e-3);
   timed.time_limit = 10;
