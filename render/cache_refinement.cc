@@ -125,7 +125,7 @@ CacheRefinement::Next CacheRefinement::AfterRound(CacheErrorEstimate estimate, d
   // rays), and a coarser rebuild with fewer rays makes that error larger, unseen. The daylight
   // room 512 (bench/make_room.py, two levels) at E = 1e-3: runs whose first cache read low
   // rebuilt it at a = 0.26-0.5 with 24-385 rays, checks then read 2.5e-5 to 4.5e-4, and the
-  // renders ended at 2.3-3.9 E (bin 4: most of it low-frequency, the cache's); the runs that kept
+  // renders ended at 1.7-3.9 E (bin 4: most of it low-frequency, the cache's); the runs that kept
   // their first cache ended at 1.1-1.5 E (5.9e-4 of it the reference's own).
   if (start_.may_rebuild && start_.cache_levels == 1 && rebuilds_ < 2 && far_below) {
     if (rebuilds_ == 0) cache_budget_ = left_by_samples_;
@@ -180,7 +180,7 @@ CacheRefinement::Next CacheRefinement::AfterRound(CacheErrorEstimate estimate, d
   // rays / a^2: a render at the settings builds that much cache anyway) and its error is above
   // twice its share (the render would end far above E; within that, the samples make up most of
   // the rest). layered_kitchen at E = 1e-2 stopped here at a = 0.2 and 512 rays (0.08 of the
-  // settings' cache, error 4.5x its share): 2.56 E; going on, 0.99 E in 25 s. Without the
+  // settings' cache, error 4.5x its share): 2.56 E; going on, 0.98 E in 12 s. Without the
   // second condition daylight rooms 511-513 at 4e-3 took a fourth round (1.15-1.4x their share
   // after the third) for 1.8x the time and no gain in band.
   const double cost_vs_settings = double(record_rays_) / std::max(1, start_.settings_rays) *

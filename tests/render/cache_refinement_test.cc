@@ -130,7 +130,7 @@ TEST(CacheRefinementTest, ACacheFarBelowItsShareIsRebuiltCoarser) {
 
 // A two-level cache far below its share is kept, not rebuilt coarser: its checks do not see its
 // second level's error, which a coarser rebuild with fewer rays makes larger (room-512 at E =
-// 1e-3: such rebuilds ended at 2.3-3.9 E, the kept first caches at 1.1-1.5 E).
+// 1e-3: such rebuilds ended at 1.7-3.9 E, the kept first caches at 1.1-1.5 E).
 TEST(CacheRefinementTest, ATwoLevelCacheIsNotRebuiltCoarser) {
   RefinementStart two = OneLevelStart(4e-3);
   two.cache_levels = 2;
@@ -265,7 +265,7 @@ TEST(CacheRefinementTest, StopsAfterFourRoundsOrAtItsCostOrTimeAndSaysWhy) {
   EXPECT_EQ(std::string(c.stop_reason()), "another round would pass 10x the first round's time");
   // The same rounds where the cache is still cheaper than the settings' (1536 rays at a = 0.1:
   // what a render at the settings builds anyway) go on (layered_kitchen at E = 1e-2 stopped here
-  // at a = 0.2 and 512 rays, 2.56 E; going on, 0.99 E).
+  // at a = 0.2 and 512 rays, 2.56 E; going on, 0.98 E).
   CacheRefinement d(OneLevelStart(4e-3));
   d.AfterRound(Estimate(8e-2, 4e-2), 1e-3, 2e6, 1, &round);
   ASSERT_LT(double(d.record_rays()) / 1536 * (0.1 / d.accuracy()) * (0.1 / d.accuracy()), 1.0);
