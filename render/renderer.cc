@@ -283,8 +283,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
       start.settings_accuracy = settings.irrcache.accuracy;
       start.settings_min_spp = settings.min_spp;
       start.wider_factor = settings.irrcache.lookup_factor;
-      // Only a cache this render made itself may be dropped (rebuilt coarser, or renewed for
-      // more rays).
+      // Only a cache this render made itself may be dropped and rebuilt coarser.
       start.may_rebuild = own_cache != nullptr && cache->size() == 0;
       start.pilot_rays = pilot_rays;
       start.cache_levels = ic.cache_levels;
@@ -324,7 +323,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
         take_round_settings();
         cache_error = refinement.cache_error();
         if (next == CacheRefinement::Next::kDone) break;
-        if (next == CacheRefinement::Next::kRebuild || next == CacheRefinement::Next::kRenew) {
+        if (next == CacheRefinement::Next::kRebuild) {
           RenderSettings coarse = settings;  // the cache's largest accuracy follows a
           coarse.irrcache.accuracy = ic.accuracy;
           own_cache = std::make_unique<IrradianceCache>(CacheSettingsFor(scene, coarse));
