@@ -335,7 +335,7 @@ int main(int argc, char** argv) {
   render->add_flag("--no-overture", ra.no_overture, "irrcache: skip the cache-filling prepass");
   render->add_flag(
       "--caustics,!--no-caustics", ra.caustics,
-      "irrcache: caustics (light through mirrors and smooth glass) from a photon map "
+      "irrcache: caustics (light through mirrors, smooth glass and sharp metals) from a photon map "
       "instead of the records (the default; --no-caustics leaves them to the records)");
   render->add_option("--threads", ra.threads, "threads (default: all cores)");
   render->add_option("--seed", ra.seed, "random seed");

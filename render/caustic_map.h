@@ -1,23 +1,28 @@
 // Caustic photon map (Jensen 1996; the companion of the irradiance cache in Mitsuba 0.5's
-// photon mapper and in Jensen's book): light that reaches a diffuse surface from an area light
-// through one or more delta (mirror, smooth glass, smooth coating) bounces.
+// photon mapper and in Jensen's book): light that reaches a diffuse surface from a light through
+// one or more of the map's lobes (Lobes): delta lobes (mirror, smooth glass, smooth coatings),
+// and in a scene with a sharp glossy material (a metal or coat of low roughness) every
+// non-diffuse lobe.
 //
 // Such light is found by a record's hemisphere rays only where a ray happens to leave through the
-// mirror or the glass towards the lamp: a small, bright solid angle, so records near a caustic
-// are noisy and the cache interpolates their noise into blotches. With a map, the cache leaves
-// that light out (every record's rays skip area-light emission reached from the record point by
-// delta bounces only: PathSettings::skip_caustic_emission) and every cached irradiance lookup
-// adds the map's estimate at its point instead (IrrcacheIntegrator::Irradiance), at every cache
-// level, so the two never overlap and nothing is counted twice.
+// mirror or the glass towards the lamp, or meets a metal where it reflects a lamp's highlight: a
+// small, bright solid angle, so records near a caustic are noisy and the cache interpolates their
+// noise into blotches. With a map, the records leave that light out wherever it lands on their
+// paths (PathSettings::caustics: at the record point and at every vertex on the way, where the
+// path adds the map's estimate instead) and every cached irradiance lookup adds the map's estimate
+// at its point (IrrcacheIntegrator::Irradiance), at every cache level, so the two never overlap
+// and nothing is counted twice.
 //
-// Photons are emitted from area lights (rectangles, spheres, meshes; not from delta lights, whose
-// caustics no path tracer renders, Mitsuba's included; environment light through glass stays with
-// the records) in proportion to their power, followed through delta lobes only, and stored at each
-// surface with a diffuse lobe after at least one delta bounce; a photon whose first hit is not a
-// delta surface is direct light (the integrators' next-event estimation) and is dropped. A glossy
-// (rough) lobe ends the photon, and such light stays with the records. Photon i draws its numbers
-// from its own stream, and batches are appended in order, so the map does not depend on the thread
-// count.
+// Photons are emitted from area lights (rectangles, spheres, meshes) in proportion to their
+// power and, where the map has glossy lobes, from point and spot lights; environment and
+// directional light stays with the records. They are followed through the map's lobes only and
+// stored at each surface with a diffuse lobe after at least one such bounce; a photon whose first
+// hit is not such a lobe is direct light (the integrators' next-event estimation) and is dropped.
+// A delta light's photon whose first bounce is a delta lobe is dropped too: a path traced from
+// the other end reaches a delta light only by next-event estimation, which a delta lobe cannot
+// make, so neither our path tracer nor Mitsuba's renders that light. Photon i draws its numbers
+// from its own stream, and batches are appended in order, so the map does not depend on the
+// thread count.
 //
 // Irradiance is precomputed at every 8th stored photon (Christensen 1999, who used a subset too):
 // the k nearest photons on the same side (normals within kNormalCos) over the disc that holds
@@ -25,8 +30,8 @@
 // contains it and whose normal agrees; none: no caustic there. The k-d trees are nanoflann's.
 //
 // On by default where the integrator is irrcache and paths are unbounded
-// (RenderSettings::caustics; `irfarm render --no-caustics` turns it off); a scene with no delta
-// BSDF or no area light builds nothing.
+// (RenderSettings::caustics; `irfarm render --no-caustics` turns it off); a scene with none of
+// the map's lobes or no light it covers builds nothing.
 #pragma once
 
 #include <tbb/task_arena.h>
@@ -40,6 +45,7 @@
 namespace irfarm {
 
 class Scene;
+struct Light;
 
 struct CausticMapSettings {
   long target_photons = 100000;  // stop emitting once this many are stored
@@ -68,6 +74,16 @@ class CausticMap {
                                            tbb::task_arena& arena, CausticMapStats* stats);
   // Whether a scene has what a caustic map needs (cheap; Build checks it too).
   static bool SceneHasCaustics(const Scene& scene);
+  // The lobes the photons follow, which make a caustic (PathSettings::caustics): the delta lobes
+  // where the scene has a delta material, and the glossy ones (and diffuse transmission) where it
+  // has a sharp glossy material (a metal or a coat of low roughness, caustic_map.cc
+  // kSharpGlossyPeak); a mask's pass-through with either; 0: none, no map.
+  static uint32_t Lobes(const Scene& scene);
+  uint32_t lobes() const { return lobes_; }
+  // Whether the map holds this light's caustics (area, point and spot lights); the records then
+  // leave them out (PathSettings::leave_out_caustics). Directional and environment light stays
+  // with the records.
+  static bool Covers(const Light& light);
 
   ~CausticMap();
   CausticMap(const CausticMap&) = delete;
@@ -91,6 +107,7 @@ class CausticMap {
  private:
   CausticMap();
   struct Index;
+  uint32_t lobes_ = 0;
   std::vector<Photon> photons_;
   std::vector<Estimate> estimates_;
   std::unique_ptr<Index> index_;

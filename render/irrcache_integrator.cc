@@ -230,7 +230,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   // cornell-box and sunlit-room: 1536 rays with early roulette beat 1024 without it.
   PathSettings record_path = settings_.path;
   record_path.rr_depth = std::min(record_path.rr_depth, depth + 1);
-  record_path.skip_caustic_emission = settings_.caustics != nullptr;
+  record_path.caustics = settings_.caustics;
   // Hessian spacing keeps each stratum's ray; split-sphere records do not fill (or zero) it.
   std::optional<StrataRays> grid;
   if (settings_.spacing == RecordSpacing::kHessian && T * P <= kMaxHessianStrata) grid.emplace();
@@ -475,8 +475,11 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
   Vec3 prev_p, prev_n;
   *first_distance = INFINITY;
   *first_environment = Vec3();
-  bool delta_chain = true;  // every bounce so far a delta lobe: emission then is a caustic
-  bool first = true;        // still on the first segment (masks passed through)
+  // The part of beta that scattered through the caustic map's lobes only (PathSettings::caustics):
+  // the light of the map's lights it finds is a caustic at the record point, the map's.
+  const uint32_t caustic_lobes = settings_.caustics != nullptr ? settings_.caustics->lobes() : 0u;
+  Vec3 beta_caustic = caustic_lobes != 0 ? Vec3(1, 1, 1) : Vec3();
+  bool first = true;  // still on the first segment (masks passed through)
   for (int i = 0; i < kMaxSpecularChain; ++i, ++depth) {
     SurfaceHit hit;
     if (!scene_.Intersect(ray, &hit)) {
@@ -491,13 +494,17 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     if (i == 0) *first_distance = hit.t;
     footprint += hit.t * cone;
     const Vec3 wo = -ray.dir;
-    // At the first hit: the record point's direct light; past delta bounces only: a caustic,
-    // the photon map's when there is one.
-    if (hit.light >= 0 && i > 0 && !(settings_.caustics != nullptr && delta_chain)) {
+    // At the first hit: the record point's direct light; past non-diffuse bounces only: a
+    // caustic, the photon map's when there is one.
+    if (hit.light >= 0 && i > 0) {
       const Vec3 le = scene_.Emitted(hit, wo);
+      const Vec3 throughput =
+          caustic_lobes != 0 && CausticMap::Covers(scene_.lights()[size_t(hit.light)])
+              ? beta - beta_caustic
+              : beta;
       if (!IsBlack(le)) {
         const float w = AreaLightMisWeight(prev_pdf, prev_p, prev_n, hit, ray.dir);
-        L += beta * le * w;
+        L += throughput * le * w;
       }
     }
     if (max_depth >= 0 && depth >= max_depth) break;
@@ -524,22 +531,26 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     if (!bsdf.HasNonDiffuse()) break;
     if (max_depth >= 0 && depth + 1 > max_depth) break;
     if ((bsdf.Flags() & kSmoothNonDiffuseLobes) != 0)
-      L += beta * GlossyDirect(bsdf, ctx, frame, hit, wo, wo_l, rng, counters);
+      L += GlossyDirect(bsdf, ctx, frame, hit, wo, wo_l, beta, beta_caustic, caustic_lobes, rng,
+                        counters);
     const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
     const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3, kNonDiffuseLobes);
     if (IsBlack(bs.weight)) break;
     const Vec3 wi = frame.ToWorld(bs.wi);
     if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) break;
+    if (!IsBlack(beta_caustic))
+      beta_caustic *=
+          bs.IsDelta() ? bs.weight : bsdf.Eval(ctx, wo_l, bs.wi, caustic_lobes) / bs.pdf;
     beta *= bs.weight;
     if (IsBlack(beta)) break;
     ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
     ++counters.bounce_rays;
     if (bs.lobe == kNullTransmission) continue;  // through a mask: MIS state unchanged
     first = false;
-    delta_chain = delta_chain && bs.IsDelta();
     const float q = std::min(MaxComponent(beta), 0.95f);
     if (rng.Next() >= q) break;
     beta /= q;
+    beta_caustic /= q;
     if (!bs.IsDelta() && bs.pdf > 0)  // a glossy lobe widens the cone by about its width
       cone = std::min(kPi / 2, cone + 1.0f / std::sqrt(kPi * bs.pdf));
     prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
@@ -641,7 +652,8 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     if (glossy) {
       prev_glossy = true;
       ++counters.glossy_bounces;
-      add(beta * GlossyDirect(bsdf, ctx, frame, hit, wo, wo_l, rng, counters), depth, false);
+      add(GlossyDirect(bsdf, ctx, frame, hit, wo, wo_l, beta, Vec3(), 0, rng, counters), depth,
+          false);
     }
     const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
     const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3, kNonDiffuseLobes);
@@ -676,7 +688,8 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
 // glossy sample that continues the path.
 Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
                                       const ShadingFrame& frame, const SurfaceHit& hit,
-                                      const Vec3& wo, const Vec3& wo_l, Rng& rng,
+                                      const Vec3& wo, const Vec3& wo_l, const Vec3& beta,
+                                      const Vec3& beta_caustic, uint32_t caustic_lobes, Rng& rng,
                                       RenderCounters& counters) const {
   const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;  // as prev_n in Li (light selection)
   Vec3 L;
@@ -687,12 +700,18 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
         if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return;
         const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l, kNonDiffuseLobes);
         if (IsBlack(f)) return;
+        Vec3 c = beta * f;
+        if (!IsBlack(beta_caustic) && !ls.environment && ls.light >= 0 &&
+            CausticMap::Covers(scene_.lights()[size_t(ls.light)])) {
+          c -= beta_caustic * bsdf.Eval(ctx, wo_l, wi_l, caustic_lobes);
+          if (IsBlack(c)) return;
+        }
         ++counters.shadow_rays;
         if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) return;
         const float w = ls.pdf == 0
                             ? 1.0f
                             : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l, kNonDiffuseLobes));
-        L += f * scene_.LightValue(ls) * w;
+        L += c * scene_.LightValue(ls) * w;
       });
   return L;
 }

@@ -328,8 +328,12 @@ class IrrcacheIntegrator {
                     float ray_fraction, const LightStrata& strata, Rng& rng,
                     RenderCounters& counters, IrrcacheShade* shade, DirectTerms* terms,
                     Vec3* cached, const DiffuseLobe* lobe = nullptr) const;
+  // Light through the non-diffuse lobes at a path vertex, weighted by beta; on a record ray's
+  // walk, less beta_caustic's share through the caustic map's lobes of the map's lights (see
+  // PathSettings::caustics; beta_caustic 0 elsewhere).
   Vec3 GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx, const ShadingFrame& frame,
-                    const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_l, Rng& rng,
+                    const SurfaceHit& hit, const Vec3& wo, const Vec3& wo_l, const Vec3& beta,
+                    const Vec3& beta_caustic, uint32_t caustic_lobes, Rng& rng,
                     RenderCounters& counters) const;
   Vec3 Irradiance(const SurfaceHit& hit, const Vec3& nf, int depth, float distance, bool relax,
                   Rng& rng, RenderCounters& counters, bool* made, int level = 0,

@@ -61,6 +61,15 @@ struct Light {
   bool IsEnvironment() const { return type == LightType::kConstant || type == LightType::kEnvmap; }
 };
 
+// A spot light's falloff (Mitsuba's spot: 1 inside beam_width, linear in angle to 0 at
+// cutoff_angle) towards a point that sees it in direction wi (from the point to the light).
+inline float SpotFalloff(const Light& l, const Vec3& wi) {
+  const float c = Dot(l.direction, -wi);
+  if (c <= l.cos_cutoff) return 0;
+  if (c >= l.cos_beam) return 1;
+  return (l.cutoff - std::acos(std::min(c, 1.0f))) * l.inv_transition;
+}
+
 // An envmap's parameterisation (Mitsuba's latitude-longitude map): unit direction e in the map's
 // frame -> (u, v) in [0, 1)^2 with u = phi / 2 pi (phi = atan2(e.x, -e.z)) and v = theta / pi
 // (theta from +y). LightSampler::EvalEnvironment reads the map with it; EnvironmentMapSampler

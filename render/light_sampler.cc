@@ -25,13 +25,6 @@ void RectCorners(const Light& l, Vec3 c[4]) {
   c[3] = l.corner + l.edge_v;
 }
 
-float SpotFalloff(const Light& l, const Vec3& wi) {
-  const float c = Dot(l.direction, -wi);
-  if (c <= l.cos_cutoff) return 0;
-  if (c >= l.cos_beam) return 1;
-  return (l.cutoff - std::acos(std::min(c, 1.0f))) * l.inv_transition;
-}
-
 // Area pdf converted to solid angle: d^2 / (|cos_l| A).
 float AreaToSolidAngle(float dist2, float cos_l, float area) {
   return cos_l > 0 && area > 0 ? dist2 / (cos_l * area) : 0;

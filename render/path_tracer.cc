@@ -11,7 +11,16 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
   float eta_scale = 1;
   bool first = true;
   if (first_environment) *first_environment = Vec3();
-  bool delta_chain = true;  // every bounce so far was a delta lobe (see skip_caustic_emission)
+  // With a caustic map (settings.caustics, whose photons follow its lobes M): the part of beta
+  // whose scatterings since the last diffuse one (or the start) all went through M, and the same
+  // through the sampled direction (what emission found there is then a caustic at that diffuse
+  // vertex, the map's). And whether a light is the map's.
+  const CausticMap* map = settings.caustics;
+  const uint32_t caustic_lobes = map != nullptr ? map->lobes() : 0u;
+  Vec3 beta_caustic = map != nullptr ? Vec3(1, 1, 1) : Vec3(), beta_caustic_next;
+  const auto mapped = [&](int light) {
+    return map != nullptr && light >= 0 && CausticMap::Covers(scene.lights()[size_t(light)]);
+  };
   const LightSampler& lights = scene.light_sampler();
   // AOVs: depth of the first non-specular vertex (-1: not reached yet), and the path length so
   // far. A contribution made at vertex `d` is direct up to one vertex past that one.
@@ -43,16 +52,16 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     if (first && first_distance) *first_distance = hit.t;
     path_length += hit.t;
     const Vec3 wo = -ray.dir;
-    if (hit.light >= 0 && !(first && skip_first_local_emission) &&
-        !(settings.skip_caustic_emission && delta_chain && !first)) {
+    if (hit.light >= 0 && !(first && skip_first_local_emission)) {
       const Vec3 le = scene.Emitted(hit, wo);
-      if (!IsBlack(le)) {
+      const Vec3 throughput = mapped(hit.light) ? beta - beta_caustic_next : beta;
+      if (!IsBlack(le) && !IsBlack(throughput)) {
         const float w =
             prev_pdf == 0 ? 1.0f
                           : PowerHeuristic(prev_pdf, lights.NeePdfArea(settings.all_lights, prev_p,
                                                                        prev_n, hit.light, hit.p,
                                                                        hit.ns, hit.prim, ray.dir));
-        add(beta * le * w, depth);
+        add(throughput * le * w, depth);
       }
     }
     const bool was_first = first;
@@ -76,16 +85,26 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       aov->normal = nf;
       aov->depth = path_length;
     }
+    // The caustic arriving here (the map's), through the diffuse lobe.
+    if (map != nullptr) {
+      const Vec3 albedo = bsdf.DiffuseAlbedo(ctx, wo_l);
+      if (!IsBlack(albedo)) add(beta * albedo * kInvPi * map->Irradiance(hit.p, nf), depth + 1);
+    }
     // One light sample, MIS-weighted against BSDF sampling (a delta light's sample: weight 1).
     const auto shade_light = [&](const LightSample& ls) {
       const Vec3 wi_l = frame.ToLocal(ls.wi);
       if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return;
       const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l);
       if (IsBlack(f)) return;
+      Vec3 c = beta * f;
+      if (!IsBlack(beta_caustic) && !ls.environment && mapped(ls.light)) {
+        c -= beta_caustic * bsdf.Eval(ctx, wo_l, wi_l, caustic_lobes);
+        if (IsBlack(c)) return;
+      }
       ++counters.shadow_rays;
       if (scene.Occluded(Scene::SpawnShadowRay(hit, ls))) return;
       const float w = ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l));
-      add(beta * f * scene.LightValue(ls) * w, depth);
+      add(c * scene.LightValue(ls) * w, depth);
     };
     if (bsdf.HasSmooth())  // next-event estimation, MIS against BSDF sampling
       lights.SampleForNee(settings.all_lights, settings.env_importance, hit.p, n_select, rng,
@@ -97,6 +116,18 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     // A direction on the other side of the geometric surface than the shading frame promised
     // would pass through the surface (or be blocked by it): stop.
     if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) break;
+    if (map != nullptr) {
+      if (bs.IsDelta()) {  // delta lobes are the map's; a mask's pass-through is no scattering
+        beta_caustic *= bs.weight;
+        beta_caustic_next =
+            bs.lobe == kNullTransmission ? beta_caustic_next * bs.weight : beta_caustic;
+      } else {
+        const float inv_pdf = 1.0f / bs.pdf;
+        beta_caustic_next = beta_caustic * bsdf.Eval(ctx, wo_l, bs.wi, caustic_lobes) * inv_pdf;
+        beta_caustic =
+            beta_caustic_next + beta * bsdf.Eval(ctx, wo_l, bs.wi, kDiffuseLobe) * inv_pdf;
+      }
+    }
     beta *= bs.weight;
     if (bs.lobe == kNullTransmission) {  // passed through a mask: not a scattering vertex
       first = was_first;
@@ -104,13 +135,14 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       continue;
     }
     eta_scale *= bs.eta * bs.eta;
-    delta_chain = delta_chain && bs.IsDelta();
     prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
     if (IsBlack(beta)) break;
     if (depth >= settings.rr_depth) {
       const float q = std::min(MaxComponent(beta) * eta_scale, 0.95f);
       if (rng.Next() >= q) break;
       beta /= q;
+      beta_caustic /= q;
+      beta_caustic_next /= q;
     }
     prev_p = hit.p;
     prev_n = n_select;

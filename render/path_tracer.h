@@ -5,6 +5,7 @@
 #pragma once
 
 #include "render/aov.h"
+#include "render/caustic_map.h"
 #include "render/render_counters.h"
 #include "render/sampling.h"
 #include "render/scene.h"
@@ -33,10 +34,19 @@ struct PathSettings {
   // (irrcache's camera-path glossy vertices draw the environment by its radiance regardless:
   // kGlossyEnvImportance in irrcache_integrator.cc.)
   bool env_importance = false;
-  // Area-light emission reached from the path's start by delta bounces only (mirror, smooth
-  // glass, smooth coatings; a mask's pass-through does not break the chain) is not counted: a
-  // caustic at the start point, which a CausticMap supplies instead (irradiance records).
-  bool skip_caustic_emission = false;
+  // Irradiance records' paths with a caustic map (CausticMap: light of area, point and spot
+  // lights that reached a diffuse surface through one or more of the map's lobes M: delta lobes,
+  // and in scenes with a sharp glossy material every non-diffuse lobe). Such light is the map's
+  // wherever it lands: at the path's start (the record point, whose lookups add the map) and at
+  // every vertex on the way, where the path adds the map's irradiance through the vertex's
+  // diffuse lobe. The path keeps beside its throughput the part whose scatterings since the last
+  // diffuse one (or the start) all went through M (each vertex's f over the sampled pdf, split
+  // by lobe), and takes that part off the map's lights' next-event estimates through M and off
+  // their emission found by BSDF sampling: what is left reaches the path with a scattering
+  // outside M last before its light. So a lamp's highlight on a metal box, reflected onto the
+  // ceiling a record sees (strata that find it rarely and very bright: blotches), is the
+  // photons'.
+  const CausticMap* caustics = nullptr;
 };
 
 // Radiance arriving at the ray's origin along `ray`, whose first hit is path vertex `depth`.
