@@ -40,6 +40,17 @@ constexpr int kGrid = 64;  // occupancy grid cells per axis
 // 9.2e-4 to 9.8e-4 in 4.8-6.2 s).
 constexpr size_t kSiteStride = 8;
 
+// A map is kept only where at least this share of the emitted photons (of equal power: each
+// carries the lights' total flux, and Russian roulette keeps it) lands after a caustic bounce,
+// judged on the first batch (65,536 photons). Where fewer do, the caustics carry little of the
+// light, and the map's build and the record paths' lookups cost more than the error they save
+// (make_room rooms at defaults, seeds 7-9, docs/bench/glossy-caustics-2026-12-05/): rooms 422
+// (a point light over an aluminium box) and 430 (a point light, two spots and the sun over one)
+// stored 1.0% and 1.7% and rendered the same error for 10-12% more CPU; rooms 401, 423 and 425
+// (spot lights over metal boxes) 8%, 14% and 16%, where the error in 8 x 8 bins halved; specular
+// (a mirror sphere and glass) 8%; materials 1.6% (the same error with and without its map).
+constexpr double kLeastCausticShare = 0.04;
+
 struct Emitter {
   int light = 0;
   Vec3 flux;  // W
@@ -258,6 +269,10 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
       });
       st.emitted += kBatch;
       for (const std::vector<Photon>& c : chunks) photons.insert(photons.end(), c.begin(), c.end());
+      if (double(photons.size()) < kLeastCausticShare * double(st.emitted)) {
+        photons.clear();  // the caustics carry too little of the light: no map
+        break;
+      }
     }
     if (!photons.empty()) {
       const float inv = 1.0f / float(st.emitted);

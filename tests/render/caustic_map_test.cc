@@ -156,6 +156,25 @@ TEST(CausticMapTest, DeltaLightsMakeNoCaustics) {
   EXPECT_EQ(stats.emitted, 0);
 }
 
+// Where few photons find a caustic bounce (here a mirror of 0.2 x 0.2 under the lamp instead of
+// the whole plane: about 1% of the lamp's cosine-distributed photons, below kLeastCausticShare),
+// the caustics carry little of the light and no map is kept, judged on the first batch.
+TEST(CausticMapTest, NoMapWhereCausticsCarryLittleLight) {
+  std::string xml = kScene;
+  const std::string mirror = R"(<scale x="10" y="10"/></transform>
+    <ref id="mirror"/>)";
+  ASSERT_NE(xml.find(mirror), std::string::npos);
+  xml.replace(xml.find(mirror), mirror.size(), R"(<scale x="0.1" y="0.1"/></transform>
+    <ref id="mirror"/>)");
+  const std::unique_ptr<Scene> scene = Build(xml);
+  ASSERT_NE(scene, nullptr);
+  ASSERT_TRUE(CausticMap::SceneHasCaustics(*scene));
+  CausticMapStats stats;
+  EXPECT_EQ(BuildMap(*scene, &stats), nullptr);
+  EXPECT_EQ(stats.emitted, 65536);
+  EXPECT_EQ(stats.stored, 0);
+}
+
 // The records' side of the split, at ceiling points x (facing down): a record path with the map
 // (PathSettings::caustics) leaves out the light that reached x through non-diffuse lobes only,
 // and adds the map's caustic wherever it lands further on the way, so that records plus the map
