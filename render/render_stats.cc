@@ -149,8 +149,7 @@ std::string RenderStats::ToJson() const {
                         {"cache_relmse", r.error},
                         {"noise_relmse", r.noise},
                         {"share", r.share},
-                        {"rebuilt", r.rebuilt},
-                        {"renewed", r.renewed}});
+                        {"rebuilt", r.rebuilt}});
     j["error_estimate"]["cache_rounds"] = rounds;
   }
   if (balanced)

@@ -26,8 +26,7 @@ struct CacheRound {
   float accuracy = 0, lookup_factor = 0;
   int record_rays = 0;
   double error = 0, noise = 0, share = 0;  // estimated relMSE, its records' noise part, the goal
-  bool rebuilt = false;                    // the cache was rebuilt coarser for this round
-  bool renewed = false;  // the cache was started anew for this round's rays (kRenewRaysFactor)
+  bool rebuilt = false;
 };
 
 struct RenderStats {
