@@ -26,8 +26,9 @@
 //
 // Irradiance is precomputed at every 8th stored photon (Christensen 1999, who used a subset too):
 // the k nearest photons on the same side (normals within kNormalCos) over the disc that holds
-// them. A lookup takes, of the two sites nearest the point (approximately), the first whose disc
-// contains it and whose normal agrees; none: no caustic there. The k-d trees are nanoflann's.
+// them (nanoflann's k-d tree). A lookup takes, of the sites whose disc contains the point and
+// whose normal agrees, the nearest; none: no caustic there. It finds them in a uniform grid whose
+// cells list the sites whose disc reaches them.
 //
 // On by default where the integrator is irrcache and paths are unbounded
 // (RenderSettings::caustics; `irfarm render --no-caustics` turns it off); a scene with none of
@@ -106,16 +107,20 @@ class CausticMap {
 
  private:
   CausticMap();
-  struct Index;
+  struct Index;  // the build's k-d tree over all stored photons
+  struct Site {
+    float x, y, z, radius2;  // a site's position and its disc's squared radius, packed
+  };
   uint32_t lobes_ = 0;
-  std::vector<Photon> photons_;
-  std::vector<Estimate> estimates_;
-  std::unique_ptr<Index> index_;
-  // A coarse occupancy grid over the photons' bounds: most lookups are far from any caustic and
-  // end here, without a tree search.
+  std::vector<Photon> photons_;      // the sites: every kSiteStride-th stored photon
+  std::vector<Estimate> estimates_;  // their irradiance estimates
+  std::vector<Site> sites_;
+  // A grid over the sites' bounds: cell c lists the sites whose disc's box reaches it,
+  // cell_sites_[cell_start_[c] .. cell_start_[c + 1]). Most lookups far from any caustic find an
+  // empty cell; the others scan one cell's list.
   Vec3 grid_lo_, grid_scale_;
   int grid_n_ = 0;
-  std::vector<uint8_t> grid_;
+  std::vector<uint32_t> cell_start_, cell_sites_;
 };
 
 }  // namespace irfarm
