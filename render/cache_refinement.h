@@ -58,6 +58,24 @@ constexpr double kFirstCacheShare = 0.7;
 // 1.25 E/2 is inside it unless the estimate is more than 1.25x high. It was E/2 before: room-c at E
 // = 1e-3 was estimated at 0.51 E, not rebuilt, and ended at 0.455 E in two runs (2aa34a0, 156f673).
 constexpr double kLowestPlannedEnd = 0.625;
+// A refinement round whose records take more than this many times the rays of the cache's oldest
+// records starts its cache anew (CacheRefinement::Next::kRenew; a cache of one level that the
+// render made itself). A record counts wherever a is
+// met, whatever its rays: a round that kept a and raised the rays made no record at all (its
+// points all had one), and after a round that halved a, a quarter of the lookups' weight was
+// still the old, noisier records'. The checks then measured the old records' noise, which more
+// rays could not remove, and the split into noise (from a fresh record's variance) and
+// interpolation error put it in the interpolation part. layered_kitchen (one level, E = 4e-3,
+// seed 7): rounds at 128, 512 and 2048 rays checked 9.0e-2, 3.0e-2, 1.3e-2 and the render ended
+// at 2.0 E (estimated at 1.77x the measured); the same a and 2048 rays built from empty measure
+// 2.4e-3 at 256 spp; with renewal, 1.1e-2 and 2.8e-3 at the same rounds, 0.91 E, estimate 1.05x.
+constexpr double kRenewRaysFactor = 1.5;
+// ... and only a cache whose records took at least this many rays. A coarse rebuild's records of
+// a few dozen rays are far noisier than the 1/rays model the rounds plan with says (their strata
+// are few and wide), so a fresh cache at twice their rays lands far below the plan: room-b at
+// 1/4 size and E = 4e-3 (rounds at 16 and 30 rays after a rebuild) checked 1.5e-3 against the
+// 2.2e-3 planned and ended at 0.41 E, below the band (GoldenImageTest.TargetError...).
+constexpr int kFewestRenewedRays = 64;
 
 // The samples every pixel gets before adaptive rounds at E = `target_error`, at least
 // kFewestTargetSpp and at most max(kFewestTargetSpp, `settings_min_spp`).
@@ -97,7 +115,7 @@ struct RefinementStart {
   float settings_accuracy = 0.1f;  // a0: the settings' accuracy
   int settings_min_spp = 0;
   float wider_factor = 0;    // the settings' lookup factor: the wider lookups where > 1
-  bool may_rebuild = false;  // the cache is this render's own and empty: it may be rebuilt coarser
+  bool may_rebuild = false;  // the cache is this render's own and empty: it may be started anew
   int pilot_rays = 0;        // two levels: the two-level pilot's starting rays (0: one level)
   int cache_levels = 1;      // the cache's levels (two: its checks do not see the second level)
   double pilot_work = 0;     // the pilot's rays and lookups (RenderCounters::Work)
@@ -105,7 +123,8 @@ struct RefinementStart {
 };
 
 // The rounds of one --target-error render. Each round builds the cache at accuracy(),
-// record_rays() and lookup_factor() (a fresh cache when AfterRound says kRebuild), checks it with
+// record_rays() and lookup_factor() (a fresh cache when AfterRound says kRebuild or kRenew),
+// checks it with
 // checks() pixels per batch (with other_factor() for the wider lookups' figures) and, where
 // measures_sampling(), estimates the camera samples' error at TargetMinSpp; AfterRound then says
 // what comes next.
@@ -128,7 +147,10 @@ class CacheRefinement {
   // this render may rebuild).
   bool measures_sampling() const;
 
-  enum class Next { kRefine, kRebuild, kDone };
+  // kRefine: the next round adds records to the cache; kRebuild: a coarser cache, from empty;
+  // kRenew: the next round's records take so many more rays than the cache's that it starts
+  // from empty too (kRenewRaysFactor); kDone: the cache is the one the render uses.
+  enum class Next { kRefine, kRebuild, kRenew, kDone };
   // The round's checks (`estimate`), the samples' error at TargetMinSpp when measures_sampling()
   // (else ignored), the work counted so far (the pilot's included) and the seconds since the
   // render began. `round` receives the round's figures for the stats.
@@ -148,6 +170,10 @@ class CacheRefinement {
   RefinementStart start_;
   float accuracy_ = 0, lookup_factor_ = 1, wider_factor_ = 0;
   int record_rays_ = 0, most_rays_ = 0;
+  // The fewest rays the records in the cache were made with (those of its first round), and
+  // whether the round being built started its cache anew for its rays.
+  int cache_rays_ = 0;
+  bool renewed_ = false;
   int iteration_ = 0, streams_ = 0, rebuilds_ = 0;
   // The cache's share of the error: half, until the first round has measured the samples'.
   double cache_budget_ = 0;

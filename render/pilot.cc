@@ -166,7 +166,7 @@ BalanceResult PilotSettings(const Scene& scene, const RenderSettings& settings,
   RenderSettings two = settings;
   two.irrcache.cache_levels = 2;
   BalanceResult b2 = BalanceRecordRays(scene, two, rect, arena, counters);
-  if (!target && !TwoLevelsPay(b, b2, settings.irrcache.record_rays)) return b;
+  if (!TwoLevelsPay(b, b2, settings.irrcache.record_rays)) return b;
   b2.cache_levels = 2;
   b2.one_level_record_noise = b.record_noise;
   b2.one_level_sampling_error = b.sampling_error;

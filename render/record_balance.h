@@ -116,8 +116,12 @@ BalanceResult ChooseRecordRays(const PilotFigures& pilot, const BalanceInputs& i
 // rooms 301 and 302 (N/S 1.3-2.3, two levels 0.85 and 0.75 in error x time) never did. At 1.5,
 // defaults against 3, seeds 7-9 (lvcmp.txt): error x time room-221 0.94, room-301 0.90, room-302
 // 0.81, room-d 0.94, room-c 1.02, living-room 1.00 (one level on every seed).
-// --target-error still chooses by this ratio alone (its rounds were calibrated on that choice,
-// see renderer.cc); the defaults use it only as the gate to a second pilot, below.
+// --target-error gates the second pilot by this ratio (and by the records' noise against the
+// cache's share, renderer.cc), then, since 2026-12-05, takes two levels only where TwoLevelsPay
+// agrees, as the defaults do (docs/bench/target-renew-2026-12-05/: layered_kitchen at E = 4e-3
+// 0.92 E in 16 s with one level, against 0.94-0.98 E in 110-250 s with the two the ratio chose;
+// one level needed the cache's renewal, CacheRefinement::Next::kRenew, to get there). The
+// defaults use it only as the gate to a second pilot, below.
 constexpr double kTwoLevelsNoiseRatio = 1.5;
 inline bool PrefersTwoLevels(const BalanceResult& one_level) {
   return one_level.record_noise > kTwoLevelsNoiseRatio * one_level.sampling_error;

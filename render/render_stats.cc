@@ -149,7 +149,8 @@ std::string RenderStats::ToJson() const {
                         {"cache_relmse", r.error},
                         {"noise_relmse", r.noise},
                         {"share", r.share},
-                        {"rebuilt", r.rebuilt}});
+                        {"rebuilt", r.rebuilt},
+                        {"renewed", r.renewed}});
     j["error_estimate"]["cache_rounds"] = rounds;
   }
   if (balanced)

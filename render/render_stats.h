@@ -26,7 +26,8 @@ struct CacheRound {
   float accuracy = 0, lookup_factor = 0;
   int record_rays = 0;
   double error = 0, noise = 0, share = 0;  // estimated relMSE, its records' noise part, the goal
-  bool rebuilt = false;
+  bool rebuilt = false;                    // the cache was rebuilt coarser for this round
+  bool renewed = false;  // the cache was started anew for this round's rays (kRenewRaysFactor)
 };
 
 struct RenderStats {

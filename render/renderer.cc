@@ -245,7 +245,10 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   // 2026-12-05):
   // living-room's N1 is above 2 x share, but its error is its glossy samples' (N1 / S1 0.97), and
   // two levels took it from 20 s to 300 s at E = 4e-3 for no lower error (2.4e-2 against 3.2e-2
-  // at one level).
+  // at one level). And only where the two pilots' model predicts them cheaper (TwoLevelsPay, as
+  // at defaults; since 2026-12-05): a still life's records are noisy but its second level costs
+  // more than it saves (layered_kitchen at E = 4e-3: one level 16 s, two 110-250 s, the same
+  // error).
   const bool target_mode = settings.target_error > 0;
   int pilot_rays = 0;       // target: the two-level pilot's starting rays, when it chose two levels
   uint64_t pilot_work = 0;  // its rays and lookups (RenderCounters::Work)
@@ -292,7 +295,8 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
       start.settings_accuracy = settings.irrcache.accuracy;
       start.settings_min_spp = settings.min_spp;
       start.wider_factor = settings.irrcache.lookup_factor;
-      // Only a cache this render made itself may be dropped and rebuilt coarser.
+      // Only a cache this render made itself may be dropped (rebuilt coarser, or renewed for
+      // more rays).
       start.may_rebuild = own_cache != nullptr && cache->size() == 0;
       start.pilot_rays = pilot_rays;
       start.cache_levels = ic.cache_levels;
@@ -332,7 +336,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
         take_round_settings();
         cache_error = refinement.cache_error();
         if (next == CacheRefinement::Next::kDone) break;
-        if (next == CacheRefinement::Next::kRebuild) {
+        if (next == CacheRefinement::Next::kRebuild || next == CacheRefinement::Next::kRenew) {
           RenderSettings coarse = settings;  // the cache's largest accuracy follows a
           coarse.irrcache.accuracy = ic.accuracy;
           own_cache = std::make_unique<IrradianceCache>(CacheSettingsFor(scene, coarse));
