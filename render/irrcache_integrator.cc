@@ -539,8 +539,9 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     const Vec3 wi = frame.ToWorld(bs.wi);
     if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) break;
     if (!IsBlack(beta_caustic))
-      beta_caustic *=
-          bs.IsDelta() ? bs.weight : bsdf.Eval(ctx, wo_l, bs.wi, caustic_lobes) / bs.pdf;
+      beta_caustic *= bs.IsDelta() ? bs.weight
+                      : bs.pdf > 0 ? bsdf.Eval(ctx, wo_l, bs.wi, caustic_lobes) / bs.pdf
+                                   : Vec3();
     beta *= bs.weight;
     if (IsBlack(beta)) break;
     ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);

@@ -122,7 +122,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
         beta_caustic_next =
             bs.lobe == kNullTransmission ? beta_caustic_next * bs.weight : beta_caustic;
       } else {
-        const float inv_pdf = 1.0f / bs.pdf;
+        const float inv_pdf = bs.pdf > 0 ? 1.0f / bs.pdf : 0.0f;
         beta_caustic_next = beta_caustic * bsdf.Eval(ctx, wo_l, bs.wi, caustic_lobes) * inv_pdf;
         beta_caustic =
             beta_caustic_next + beta * bsdf.Eval(ctx, wo_l, bs.wi, kDiffuseLobe) * inv_pdf;
