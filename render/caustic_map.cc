@@ -28,7 +28,11 @@ constexpr int kMaxChain = 16;
 constexpr uint64_t kPhotonStream = 0xca05714c;
 // Photons emitted per batch: the stop is checked between batches.
 constexpr long kBatch = 1 << 16;
-constexpr int kGrid = 64;  // occupancy grid cells per axis
+constexpr int kGrid = 64;  // lookup grid cells per axis (at most)
+// The lookup grid's cell lists hold at most this many entries (4 bytes each): where the sites'
+// discs are wide against the grid's cells (a small caustic whose sparse photons gather out to the
+// 2% radius cap), the grid is made coarser until they fit. The answers do not depend on it.
+constexpr size_t kMostCellEntries = size_t(1) << 23;
 // Irradiance is estimated (from all photons) at every 8th photon only, and lookups search those
 // sites: on specular at its defaults, alternated with renders without the map (seeds 3-6, loaded
 // machine), relMSE 8.5e-4 in 9.4 CPU s against 1.12e-3 in 9.8 s without; at every photon (stride
@@ -216,6 +220,10 @@ bool CausticMap::Covers(const Light& l) {
   return l.type == LightType::kArea && !(l.shape == AreaShape::kMesh && l.cdf.empty());
 }
 
+bool CausticMap::Covers(const Scene& scene, int light) {
+  return light >= 0 && Covers(scene.lights()[size_t(light)]);
+}
+
 uint32_t CausticMap::Lobes(const Scene& scene) {
   uint32_t lobes = 0;
   for (int i = 0; i < scene.num_materials(); ++i) {
@@ -315,22 +323,40 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
       }
       lo = lo - Vec3(max_r);
       hi = hi + Vec3(max_r);
-      map->grid_n_ = kGrid;
-      map->grid_lo_ = lo;
       const Vec3 size = Max(hi - lo, Vec3(1e-6f));
-      map->grid_scale_ = Vec3(kGrid / size.x, kGrid / size.y, kGrid / size.z);
-      const size_t cells = size_t(kGrid) * kGrid * kGrid;
-      map->cell_start_.assign(cells + 1, 0);
+      map->grid_lo_ = lo;
       map->sites_.resize(map->photons_.size());
-      const auto for_cells = [&](size_t i, const auto& fn) {
+      // The cells a site's disc box spans at n cells per axis, as [a, b] per axis.
+      const auto span = [&](size_t i, int n, int a[3], int b[3]) {
         const float r = std::sqrt(map->estimates_[i].radius2);
-        const Vec3 a = (map->photons_[i].p - Vec3(r) - lo) * map->grid_scale_;
-        const Vec3 b = (map->photons_[i].p + Vec3(r) - lo) * map->grid_scale_;
-        const auto cell = [](float v) { return std::clamp(int(v), 0, kGrid - 1); };
-        for (int z = cell(a.z); z <= cell(b.z); ++z)
-          for (int y = cell(a.y); y <= cell(b.y); ++y)
-            for (int x = cell(a.x); x <= cell(b.x); ++x)
-              fn((size_t(z) * kGrid + size_t(y)) * kGrid + size_t(x));
+        const Vec3 scale(float(n) / size.x, float(n) / size.y, float(n) / size.z);
+        const Vec3 lo_f = (map->photons_[i].p - Vec3(r) - lo) * scale;
+        const Vec3 hi_f = (map->photons_[i].p + Vec3(r) - lo) * scale;
+        const auto cell = [n](float v) { return std::clamp(int(v), 0, n - 1); };
+        a[0] = cell(lo_f.x), a[1] = cell(lo_f.y), a[2] = cell(lo_f.z);
+        b[0] = cell(hi_f.x), b[1] = cell(hi_f.y), b[2] = cell(hi_f.z);
+      };
+      int n = kGrid;
+      for (; n > 1; n /= 2) {
+        size_t entries = 0;
+        for (size_t i = 0; i < map->photons_.size(); ++i) {
+          int a[3], b[3];
+          span(i, n, a, b);
+          entries += size_t(b[0] - a[0] + 1) * size_t(b[1] - a[1] + 1) * size_t(b[2] - a[2] + 1);
+        }
+        if (entries <= kMostCellEntries) break;
+      }
+      map->grid_n_ = n;
+      map->grid_scale_ = Vec3(float(n) / size.x, float(n) / size.y, float(n) / size.z);
+      const size_t cells = size_t(n) * size_t(n) * size_t(n);
+      map->cell_start_.assign(cells + 1, 0);
+      const auto for_cells = [&](size_t i, const auto& fn) {
+        int a[3], b[3];
+        span(i, n, a, b);
+        for (int z = a[2]; z <= b[2]; ++z)
+          for (int y = a[1]; y <= b[1]; ++y)
+            for (int x = a[0]; x <= b[0]; ++x)
+              fn((size_t(z) * size_t(n) + size_t(y)) * size_t(n) + size_t(x));
       };
       for (size_t i = 0; i < map->photons_.size(); ++i) {
         const Vec3& q = map->photons_[i].p;

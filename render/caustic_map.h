@@ -82,9 +82,10 @@ class CausticMap {
   static uint32_t Lobes(const Scene& scene);
   uint32_t lobes() const { return lobes_; }
   // Whether the map holds this light's caustics (area, point and spot lights); the records then
-  // leave them out (PathSettings::leave_out_caustics). Directional and environment light stays
-  // with the records.
+  // leave them out (PathSettings::caustics). Directional and environment light stays with the
+  // records. The second form takes a scene's light index (-1: none).
   static bool Covers(const Light& light);
+  static bool Covers(const Scene& scene, int light);
 
   ~CausticMap();
   CausticMap(const CausticMap&) = delete;

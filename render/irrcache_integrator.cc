@@ -499,9 +499,7 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     if (hit.light >= 0 && i > 0) {
       const Vec3 le = scene_.Emitted(hit, wo);
       const Vec3 throughput =
-          caustic_lobes != 0 && CausticMap::Covers(scene_.lights()[size_t(hit.light)])
-              ? beta - beta_caustic
-              : beta;
+          caustic_lobes != 0 && CausticMap::Covers(scene_, hit.light) ? beta - beta_caustic : beta;
       if (!IsBlack(le)) {
         const float w = AreaLightMisWeight(prev_pdf, prev_p, prev_n, hit, ray.dir);
         L += throughput * le * w;
@@ -702,8 +700,7 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
         const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l, kNonDiffuseLobes);
         if (IsBlack(f)) return;
         Vec3 c = beta * f;
-        if (!IsBlack(beta_caustic) && !ls.environment && ls.light >= 0 &&
-            CausticMap::Covers(scene_.lights()[size_t(ls.light)])) {
+        if (!IsBlack(beta_caustic) && !ls.environment && CausticMap::Covers(scene_, ls.light)) {
           c -= beta_caustic * bsdf.Eval(ctx, wo_l, wi_l, caustic_lobes);
           if (IsBlack(c)) return;
         }

@@ -18,9 +18,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
   const CausticMap* map = settings.caustics;
   const uint32_t caustic_lobes = map != nullptr ? map->lobes() : 0u;
   Vec3 beta_caustic = map != nullptr ? Vec3(1, 1, 1) : Vec3(), beta_caustic_next;
-  const auto mapped = [&](int light) {
-    return map != nullptr && light >= 0 && CausticMap::Covers(scene.lights()[size_t(light)]);
-  };
+  const auto mapped = [&](int light) { return map != nullptr && CausticMap::Covers(scene, light); };
   const LightSampler& lights = scene.light_sampler();
   // AOVs: depth of the first non-specular vertex (-1: not reached yet), and the path length so
   // far. A contribution made at vertex `d` is direct up to one vertex past that one.
