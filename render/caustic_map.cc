@@ -42,7 +42,9 @@ constexpr size_t kSiteStride = 8;
 
 // A map is kept only where at least this share of the emitted photons (of equal power: each
 // carries the lights' total flux, and Russian roulette keeps it) lands after a caustic bounce,
-// judged on the first batch (65,536 photons). Where fewer do, the caustics carry little of the
+// judged on the first batch (65,536 photons) and counting only photons that land somewhere (not
+// those Trace reports lost at once: they left the scene or met a back that reflects nothing,
+// light the image does not hold). Where fewer do, the caustics carry little of the
 // light, and the map's build and the record paths' lookups cost more than the error they save
 // (make_room rooms at defaults, seeds 7-9, docs/bench/glossy-caustics-2026-12-05/): rooms 422
 // (a point light over an aluminium box) and 430 (a point light, two spots and the sun over one)
@@ -51,10 +53,27 @@ constexpr size_t kSiteStride = 8;
 // (a mirror sphere and glass) 8%; materials 1.6% (the same error with and without its map).
 constexpr double kLeastCausticShare = 0.04;
 
+// A directional light's photons leave a square across its direction that covers the bounding
+// sphere of the shapes with the map's lobes (light that reaches none of them makes no caustic),
+// from beyond the scene. Most of it meets a room's walls from outside, so a projection map
+// (Jensen 1996) learnt from the first batch (the pilot, uniform over the square, whose photons
+// are then dropped) aims the later batches: a kProjection^2 grid over the square marks the cells
+// whose pilot photons landed inside (Trace: not lost at once), grown by one cell, and a photon
+// comes from a marked cell with probability 1 - kDefensive, else from anywhere on the square.
+// Its power divides by that mixture's density, so light through cells the pilot missed is still
+// counted, only with fewer, brighter photons.
+constexpr int kProjection = 64;
+constexpr float kDefensive = 0.1f;
+
 struct Emitter {
   int light = 0;
   Vec3 flux;  // W
   float pick = 0;
+  // Directional lights (see kProjection).
+  Vec3 square_center, square_s, square_t;  // centre and half-edges (across the light)
+  float square_back = 0;                   // how far upstream of the centre the square lies
+  std::vector<uint32_t> cells;             // the marked cells; empty: uniform
+  std::vector<uint8_t> marked;             // kProjection^2 flags
 };
 
 // A glossy lobe counts as sharp (its caustics then go to the map: CausticMap::Lobes) where its
@@ -81,12 +100,26 @@ std::vector<Emitter> Emitters(const Scene& scene) {
   std::vector<Emitter> out;
   const std::vector<Light>& lights = scene.lights();
   // A delta light's caustics need a glossy lobe next to it (see Trace).
-  const bool glossy = (CausticMap::Lobes(scene) & kSmoothNonDiffuseLobes) != 0;
+  const uint32_t lobes = CausticMap::Lobes(scene);
+  const bool glossy = (lobes & kSmoothNonDiffuseLobes) != 0;
   for (int i = 0; i < int(lights.size()); ++i) {
     const Light& l = lights[size_t(i)];
     if (!CausticMap::Covers(l) || (l.IsDelta() && !glossy)) continue;
     Vec3 flux;
-    if (l.type == LightType::kArea) {
+    Emitter e{i, Vec3(), 0};
+    if (l.type == LightType::kDirectional) {
+      const Bounds3 target = scene.BoundsOfLobes(lobes);
+      if (target.Empty()) continue;
+      const float r = 0.5f * Length(target.Diagonal()) * 1.001f + 1e-6f;
+      Vec3 s, t;
+      MakeFrame(l.direction, &s, &t);
+      e.square_center = target.Center();
+      e.square_s = s * r;
+      e.square_t = t * r;
+      // Upstream of every point of the scene: the centre is inside the scene's bounds.
+      e.square_back = Length(scene.bounds().Diagonal()) * 1.01f + r;
+      flux = l.intensity * (4 * r * r);
+    } else if (l.type == LightType::kArea) {
       const float area =
           l.shape == AreaShape::kSphere ? 4 * kPi * l.radius * l.radius : std::max(0.0f, l.area);
       flux = l.radiance * (kPi * area);
@@ -96,7 +129,8 @@ std::vector<Emitter> Emitters(const Scene& scene) {
       flux = l.intensity * SpotSolidAngle(l);
     }
     if (!(Luminance(flux) > 0) || !IsFinite(flux)) continue;
-    out.push_back(Emitter{i, flux, 0});
+    e.flux = flux;
+    out.push_back(e);
   }
   double total = 0;
   for (const Emitter& e : out) total += Luminance(e.flux);
@@ -106,9 +140,38 @@ std::vector<Emitter> Emitters(const Scene& scene) {
 
 // A photon leaving emitter e: its ray and power (flux over the emitter's pick probability; the
 // count emitted divides it at the end).
-void Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power) {
+// *cell (optional) receives a directional light's projection cell (else -1).
+void Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power, int* cell) {
+  if (cell != nullptr) *cell = -1;
   const Light& l = scene.lights()[size_t(e.light)];
   const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next(), u4 = rng.Next();
+  if (l.type == LightType::kDirectional) {  // see kProjection
+    float x = u1, y = u2;                   // in [0, 1)^2 over the square
+    const float n = float(e.cells.size());
+    if (!e.cells.empty() && u3 >= kDefensive) {
+      const float pick = u4 * n;
+      const uint32_t c = e.cells[std::min(size_t(pick), e.cells.size() - 1)];
+      x = (float(c % kProjection) + u1) * (1.0f / kProjection);
+      y = (float(c / kProjection) + u2) * (1.0f / kProjection);
+    }
+    // The mixture's density over the square, relative to uniform.
+    float density = 1;
+    if (!e.cells.empty()) {
+      const int cx = std::min(int(x * kProjection), kProjection - 1);
+      const int cy = std::min(int(y * kProjection), kProjection - 1);
+      const bool in = e.marked[size_t(cy * kProjection + cx)] != 0;
+      density = kDefensive + (in ? (1 - kDefensive) * float(kProjection * kProjection) / n : 0.0f);
+    }
+    const Vec3 p = e.square_center + e.square_s * (2 * x - 1) + e.square_t * (2 * y - 1) -
+                   l.direction * e.square_back;
+    *ray = Ray{p, l.direction, INFINITY};
+    *power = e.flux / (e.pick * density);
+    if (cell != nullptr) {
+      *cell = std::min(int(y * kProjection), kProjection - 1) * kProjection +
+              std::min(int(x * kProjection), kProjection - 1);
+    }
+    return;
+  }
   if (l.type == LightType::kPoint || l.type == LightType::kSpot) {
     Vec3 dir;
     Vec3 flux = e.flux;
@@ -155,38 +218,45 @@ void Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power)
 // a delta lobe: a path traced from the other end reaches such a light only by next-event
 // estimation, which a delta lobe cannot make, so neither our path tracer nor Mitsuba's has that
 // light (a spot's caustic through a mirror).
-void Trace(const Scene& scene, uint32_t lobes, Ray ray, Vec3 power, bool delta_light, Rng& rng,
+// Returns whether the photon was lost at once: it hit nothing, or its first hit was the back of
+// a surface that reflects nothing there (a room's one-sided wall seen from outside, where most
+// of a sun's photons land). That is light the image does not hold, left out of the map's share
+// (Build).
+bool Trace(const Scene& scene, uint32_t lobes, Ray ray, Vec3 power, bool delta_light, Rng& rng,
            std::vector<CausticMap::Photon>* out) {
   int bounces = 0;  // non-diffuse scattering events so far (a mask's pass-through is not one)
   for (int i = 0; i < kMaxChain; ++i) {
     SurfaceHit hit;
-    if (!scene.Intersect(ray, &hit)) return;
+    if (!scene.Intersect(ray, &hit)) return i == 0;
     const Bsdf& bsdf = scene.material(hit.material);
     const BsdfContext ctx = hit.Context();
     const ShadingFrame frame = hit.Frame();
     const Vec3 wo = -ray.dir;
     const Vec3 wo_l = frame.ToLocal(wo);
-    if (bounces > 0 && !IsBlack(bsdf.DiffuseAlbedo(ctx, wo_l)))
+    const bool diffuse = !IsBlack(bsdf.DiffuseAlbedo(ctx, wo_l));
+    const bool back_of_dark = i == 0 && !diffuse && Dot(wo, hit.ng) <= 0;
+    if (bounces > 0 && diffuse)
       out->push_back(CausticMap::Photon{hit.p, wo_l.z >= 0 ? hit.ns : -hit.ns, power});
-    if ((bsdf.Flags() & lobes) == 0) return;
+    if ((bsdf.Flags() & lobes) == 0) return back_of_dark;
     const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
     const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3, lobes);
-    if (IsBlack(bs.weight)) return;
-    if (delta_light && bounces == 0 && bs.IsDelta() && bs.lobe != kNullTransmission) return;
+    if (IsBlack(bs.weight)) return back_of_dark;
+    if (delta_light && bounces == 0 && bs.IsDelta() && bs.lobe != kNullTransmission) return false;
     const Vec3 wi = frame.ToWorld(bs.wi);
-    if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) return;
+    if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) return false;
     // The weight is radiance's: a refraction scales radiance by 1 / eta^2, flux not at all.
     Vec3 w = bs.weight * (bs.eta * bs.eta);
     if (bs.lobe != kNullTransmission) ++bounces;
     const float q = std::min(1.0f, MaxComponent(w));
-    if (!(q > 0)) return;
+    if (!(q > 0)) return false;
     if (q < 1) {
-      if (rng.Next() >= q) return;
+      if (rng.Next() >= q) return false;
       w = w / q;
     }
     power *= w;
     ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
   }
+  return false;
 }
 
 }  // namespace
@@ -216,7 +286,7 @@ CausticMap::CausticMap() = default;
 CausticMap::~CausticMap() = default;
 
 bool CausticMap::Covers(const Light& l) {
-  if (l.type == LightType::kPoint || l.type == LightType::kSpot) return true;
+  if (l.IsDelta()) return true;
   return l.type == LightType::kArea && !(l.shape == AreaShape::kMesh && l.cdf.empty());
 }
 
@@ -243,20 +313,32 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
                                               tbb::task_arena& arena, CausticMapStats* stats) {
   CausticMapStats st;
   std::unique_ptr<CausticMap> map;
-  const std::vector<Emitter> emitters = Emitters(scene);
+  std::vector<Emitter> emitters = Emitters(scene);
   const uint32_t lobes = Lobes(scene);
   if (lobes != 0 && !emitters.empty()) {
     std::vector<float> cdf;
     float acc = 0;
     for (const Emitter& e : emitters) cdf.push_back(acc += e.pick);
+    bool pilot = false;  // the first batch only aims the directional lights' photons
+    for (const Emitter& e : emitters)
+      pilot |= scene.lights()[size_t(e.light)].type == LightType::kDirectional;
     std::vector<Photon> photons;
     constexpr long kChunk = 1024;
     std::vector<std::vector<Photon>> chunks(kBatch / kChunk);
+    std::vector<long> chunk_lost(chunks.size());
+    // Pilot: (emitter, projection cell) of each directional photon that landed.
+    std::vector<std::vector<std::pair<uint32_t, uint32_t>>> chunk_landed(chunks.size());
+    long lost =
+        0;  // photons lost at once (Trace): they hit nothing or a back that reflects nothing
+    long counted = 0;  // photons emitted after the pilot: the stored photons' power divides by it
     while (long(photons.size()) < settings.target_photons && st.emitted < settings.max_emitted) {
       const long first = st.emitted;
+      const bool in_pilot = pilot && first == 0;
       arena.execute([&] {
         tbb::parallel_for(size_t(0), chunks.size(), [&](size_t c) {
           chunks[c].clear();
+          chunk_lost[c] = 0;
+          chunk_landed[c].clear();
           for (long k = 0; k < kChunk; ++k) {
             const long index = first + long(c) * kChunk + k;
             Rng rng(HashCombine(settings.seed, kPhotonStream), uint64_t(index));
@@ -265,21 +347,45 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
             ei = std::min(ei, emitters.size() - 1);
             Ray ray;
             Vec3 power;
-            Emit(scene, emitters[ei], rng, &ray, &power);
-            Trace(scene, lobes, ray, power, scene.lights()[size_t(emitters[ei].light)].IsDelta(),
-                  rng, &chunks[c]);
+            int cell = -1;
+            Emit(scene, emitters[ei], rng, &ray, &power, &cell);
+            const bool gone =
+                Trace(scene, lobes, ray, power,
+                      scene.lights()[size_t(emitters[ei].light)].IsDelta(), rng, &chunks[c]);
+            chunk_lost[c] += gone;
+            if (in_pilot && !gone && cell >= 0) chunk_landed[c].emplace_back(ei, cell);
           }
         });
       });
       st.emitted += kBatch;
       for (const std::vector<Photon>& c : chunks) photons.insert(photons.end(), c.begin(), c.end());
-      if (double(photons.size()) < kLeastCausticShare * double(st.emitted)) {
+      for (const long a : chunk_lost) lost += a;
+      if (first == 0 && double(photons.size()) < kLeastCausticShare * double(kBatch - lost)) {
         photons.clear();  // the caustics carry too little of the light: no map
         break;
       }
+      if (!in_pilot) {
+        counted += kBatch;
+        continue;
+      }
+      // Mark the cells the pilot's photons landed through, and their neighbours.
+      for (Emitter& e : emitters)
+        if (scene.lights()[size_t(e.light)].type == LightType::kDirectional)
+          e.marked.assign(size_t(kProjection * kProjection), 0);
+      for (const auto& c : chunk_landed)
+        for (const auto& [ei, cell] : c) {
+          const int cx = int(cell) % kProjection, cy = int(cell) / kProjection;
+          for (int y = std::max(cy - 1, 0); y <= std::min(cy + 1, kProjection - 1); ++y)
+            for (int x = std::max(cx - 1, 0); x <= std::min(cx + 1, kProjection - 1); ++x)
+              emitters[ei].marked[size_t(y * kProjection + x)] = 1;
+        }
+      for (Emitter& e : emitters)
+        for (uint32_t c = 0; c < e.marked.size(); ++c)
+          if (e.marked[c]) e.cells.push_back(c);
+      photons.clear();
     }
     if (!photons.empty()) {
-      const float inv = 1.0f / float(st.emitted);
+      const float inv = 1.0f / float(counted);
       for (Photon& p : photons) p.power *= inv;
       map.reset(new CausticMap());
       map->lobes_ = lobes;

@@ -14,8 +14,9 @@
 // and nothing is counted twice.
 //
 // Photons are emitted from area lights (rectangles, spheres, meshes) in proportion to their
-// power and, where the map has glossy lobes, from point and spot lights; environment and
-// directional light stays with the records. They are followed through the map's lobes only and
+// power and, where the map has glossy lobes, from point, spot and directional lights (the sun:
+// from a disc that covers the shapes with the map's lobes); environment light stays with the
+// records. They are followed through the map's lobes only and
 // stored at each surface with a diffuse lobe after at least one such bounce; a photon whose first
 // hit is not such a lobe is direct light (the integrators' next-event estimation) and is dropped.
 // A delta light's photon whose first bounce is a delta lobe is dropped too: a path traced from
@@ -81,8 +82,8 @@ class CausticMap {
   // kSharpGlossyPeak); a mask's pass-through with either; 0: none, no map.
   static uint32_t Lobes(const Scene& scene);
   uint32_t lobes() const { return lobes_; }
-  // Whether the map holds this light's caustics (area, point and spot lights); the records then
-  // leave them out (PathSettings::caustics). Directional and environment light stays with the
+  // Whether the map holds this light's caustics (area, point, spot and directional lights); the
+  // records then leave them out (PathSettings::caustics). Environment light stays with the
   // records. The second form takes a scene's light index (-1: none).
   static bool Covers(const Light& light);
   static bool Covers(const Scene& scene, int light);

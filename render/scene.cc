@@ -572,6 +572,20 @@ Ray Scene::SpawnShadowRay(const SurfaceHit& hit, const LightSample& ls) {
   return r;
 }
 
+Bounds3 Scene::BoundsOfLobes(uint32_t lobes) const {
+  Bounds3 b;
+  for (const Mesh& m : meshes_) {
+    if ((material(m.material).Flags() & lobes) == 0) continue;
+    if (m.sphere) {
+      b.Extend(m.center - Vec3(m.radius));
+      b.Extend(m.center + Vec3(m.radius));
+    } else {
+      for (const uint32_t i : m.indices) b.Extend(m.positions[i]);
+    }
+  }
+  return b;
+}
+
 Vec3 Scene::Emitted(const SurfaceHit& hit, const Vec3& wo) const {
   if (hit.light < 0) return Vec3();
   return Dot(wo, hit.ns) > 0 ? lights()[hit.light].radiance : Vec3();

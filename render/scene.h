@@ -106,6 +106,8 @@ class Scene {
   const LightSampler& light_sampler() const { return lights_; }
   bool has_environment() const { return lights_.has_environment(); }
   const Bounds3& bounds() const { return bounds_; }
+  // The bounds of the shapes whose material has any of `lobes` (BSDF lobe bits); empty: none.
+  Bounds3 BoundsOfLobes(uint32_t lobes) const;
   const SceneStatsCounts& counts() const { return counts_; }
   // The committed Embree scene, for benchmarks that compare with bare Embree calls.
   RTCScene embree_scene() const { return rtc_scene_; }

@@ -156,9 +156,10 @@ TEST(CausticMapTest, DeltaLightsMakeNoCaustics) {
   EXPECT_EQ(stats.emitted, 0);
 }
 
-// Where few photons find a caustic bounce (here a mirror of 0.2 x 0.2 under the lamp instead of
-// the whole plane: about 1% of the lamp's cosine-distributed photons, below kLeastCausticShare),
-// the caustics carry little of the light and no map is kept, judged on the first batch.
+// Where few photons find a caustic bounce (here a mirror of 0.2 x 0.2 on a diffuse floor under
+// the lamp instead of the whole plane: about 1% of the lamp's cosine-distributed photons, below
+// kLeastCausticShare), the caustics carry little of the light and no map is kept, judged on the
+// first batch. Without the floor most photons would leave the scene, which does not count.
 TEST(CausticMapTest, NoMapWhereCausticsCarryLittleLight) {
   std::string xml = kScene;
   const std::string mirror = R"(<scale x="10" y="10"/></transform>
@@ -166,6 +167,11 @@ TEST(CausticMapTest, NoMapWhereCausticsCarryLittleLight) {
   ASSERT_NE(xml.find(mirror), std::string::npos);
   xml.replace(xml.find(mirror), mirror.size(), R"(<scale x="0.1" y="0.1"/></transform>
     <ref id="mirror"/>)");
+  const std::string without_floor = xml;
+  xml.replace(xml.rfind("</scene>"), 8, R"(<shape type="rectangle">
+    <transform name="to_world"><scale x="10" y="10"/><translate z="-0.001"/></transform>
+    <ref id="white"/>
+  </shape></scene>)");
   const std::unique_ptr<Scene> scene = Build(xml);
   ASSERT_NE(scene, nullptr);
   ASSERT_TRUE(CausticMap::SceneHasCaustics(*scene));
@@ -173,6 +179,12 @@ TEST(CausticMapTest, NoMapWhereCausticsCarryLittleLight) {
   EXPECT_EQ(BuildMap(*scene, &stats), nullptr);
   EXPECT_EQ(stats.emitted, 65536);
   EXPECT_EQ(stats.stored, 0);
+  // Without the floor the photons that miss the mirror leave the scene: the mirror's caustic is
+  // then most of the light that lands, and the map is kept.
+  const std::unique_ptr<Scene> open_scene = Build(without_floor);
+  ASSERT_NE(open_scene, nullptr);
+  EXPECT_NE(BuildMap(*open_scene, &stats), nullptr);
+  EXPECT_GT(stats.stored, 0);
 }
 
 // The records' side of the split, at ceiling points x (facing down): a record path with the map
@@ -227,6 +239,25 @@ void ExpectCountedOnce(const Split& s) {
       << "with " << s.with_map << " map " << s.map_at_x << " without " << s.without;
 }
 
+// A one-light scene whose light reaches the ceiling (z = 3) only through a glossy highlight:
+// the map holds that light, the record paths at ceiling points in [lo, hi]^2 leave it out, count
+// each light once with the map, and their variance per ray falls below a tenth.
+void ExpectHighlightIsTheMaps(const std::string& xml, float lo, float hi) {
+  const std::unique_ptr<Scene> scene = Build(xml);
+  ASSERT_NE(scene, nullptr);
+  ASSERT_EQ(scene->lights().size(), 1u);
+  ASSERT_TRUE(CausticMap::SceneHasCaustics(*scene));
+  CausticMapStats stats;
+  const std::unique_ptr<CausticMap> map = BuildMap(*scene, &stats);
+  ASSERT_NE(map, nullptr);
+  EXPECT_GE(stats.stored, 200000);
+  const Split s = RecordSplit(*scene, *map, lo, hi, 3.0f, 16, 60000);
+  ExpectCountedOnce(s);
+  EXPECT_GT(s.map_at_x, 0.5 * s.without);
+  EXPECT_LT(s.var_with, 0.1 * s.var_without)
+      << "variance per ray with the map " << s.var_with << ", without " << s.var_without;
+}
+
 // The mirror: from the ceiling, rays towards the mirror reach the lamp by one delta bounce. With
 // the map they count none of it (the lamp's image is the map's at x; the ceiling's own caustic,
 // seen in the mirror, is added from the map where the path lands on it), without the map the
@@ -266,19 +297,43 @@ TEST(CausticMapTest, SpotHighlightOnGlossyFloorIsTheMaps) {
       a, b - a,
       R"(<emitter type="spot"><transform name="to_world"><lookat origin="0, 0, 1" target="0, 0, 0" up="0, 1, 0"/></transform>)"
       R"(<rgb name="intensity" value="10"/><float name="cutoff_angle" value="30"/><float name="beam_width" value="25"/></emitter>)");
-  const std::unique_ptr<Scene> scene = Build(xml);
-  ASSERT_NE(scene, nullptr);
-  ASSERT_EQ(scene->lights().size(), 1u);
-  ASSERT_TRUE(CausticMap::SceneHasCaustics(*scene));
-  CausticMapStats stats;
-  const std::unique_ptr<CausticMap> map = BuildMap(*scene, &stats);
-  ASSERT_NE(map, nullptr);
-  EXPECT_GE(stats.stored, 200000);
-  const Split s = RecordSplit(*scene, *map, 0.2f, 1.0f, 3.0f, 16, 60000);
-  ExpectCountedOnce(s);
-  EXPECT_GT(s.map_at_x, 0.5 * s.without);
-  EXPECT_LT(s.var_with, 0.1 * s.var_without)
-      << "variance per ray with the map " << s.var_with << ", without " << s.var_without;
+  ExpectHighlightIsTheMaps(xml, 0.2f, 1.0f);
+}
+
+// The sun's glossy caustic: a directional light travelling at 45 degrees (-x, down) over the
+// rough mirror (alpha 0.1) filling z = 0, with a 10 x 10 diffuse ceiling at z = 3 facing down
+// and no lamp. The sun reaches the floor past the ceiling's edge (x > 2 on the floor), whose
+// highlight lights the ceiling around x = x_floor - 3; the ceiling's points see no sun directly.
+// As for the spot: the map holds that light (photons from a disc across the sun that covers the
+// floor), the record paths leave it out, each light is counted once and the variance per ray
+// falls. With a perfect mirror instead there is no map: the sun through a delta lobe is light
+// no path tracer renders.
+TEST(CausticMapTest, SunHighlightOnGlossyFloorIsTheMaps) {
+  std::string xml = kScene;
+  const std::string mirror =
+      R"(<bsdf type="conductor" id="mirror"><string name="material" value="none"/></bsdf>)";
+  xml.replace(
+      xml.find(mirror), mirror.size(),
+      R"(<bsdf type="roughconductor" id="mirror"><string name="material" value="none"/><float name="alpha" value="0.1"/></bsdf>)");
+  const size_t a =
+      xml.find("<shape type=\"rectangle\">\n    <transform name=\"to_world\"><scale x=\"0.25\"");
+  const size_t b = xml.find("</shape>", a) + 8;
+  xml.replace(a, b - a,
+              R"(<emitter type="directional"><vector name="direction" value="-1, 0, -1"/>)"
+              R"(<rgb name="irradiance" value="10"/></emitter>)");
+  const std::string ceiling = R"(<scale x="10" y="10"/><rotate x="1" angle="180"/>)";
+  ASSERT_NE(xml.find(ceiling), std::string::npos);
+  xml.replace(xml.find(ceiling), ceiling.size(),
+              R"(<scale x="5" y="5"/><rotate x="1" angle="180"/>)");
+  ExpectHighlightIsTheMaps(xml, 0.5f, 2.5f);
+
+  std::string smooth = xml;
+  const std::string rough =
+      R"(<bsdf type="roughconductor" id="mirror"><string name="material" value="none"/><float name="alpha" value="0.1"/></bsdf>)";
+  smooth.replace(smooth.find(rough), rough.size(), mirror);
+  const std::unique_ptr<Scene> smooth_scene = Build(smooth);
+  ASSERT_NE(smooth_scene, nullptr);
+  EXPECT_FALSE(CausticMap::SceneHasCaustics(*smooth_scene));
 }
 
 }  // namespace
