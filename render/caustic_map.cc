@@ -9,6 +9,7 @@
 #include <nanoflann.hpp>
 
 #include "render/bsdfs/bsdf.h"
+#include "render/environment_sun.h"
 #include "render/sampling.h"
 #include "render/scene.h"
 
@@ -66,11 +67,12 @@ constexpr int kProjection = 64;
 constexpr float kDefensive = 0.1f;
 
 struct Emitter {
-  int light = 0;
-  Vec3 flux;  // W
+  int light = 0;  // -1: the environment's sun (EnvironmentSun)
+  Vec3 flux;      // W
   float pick = 0;
-  // Directional lights (see kProjection).
+  // Directional lights and the environment's sun (see kProjection).
   Vec3 square_center, square_s, square_t;  // centre and half-edges (across the light)
+  Vec3 square_axis;                        // the light's (mean) travel direction
   float square_back = 0;                   // how far upstream of the centre the square lies
   std::vector<uint32_t> cells;             // the marked cells; empty: uniform
   std::vector<uint8_t> marked;             // kProjection^2 flags
@@ -96,12 +98,37 @@ bool HasSharpGlossy(const Bsdf& bsdf) {
 // Solid angle a spot light emits into (its cutoff cone).
 float SpotSolidAngle(const Light& l) { return 2 * kPi * (1 - l.cos_cutoff); }
 
-std::vector<Emitter> Emitters(const Scene& scene) {
+// A square across travel direction `dir` whose photons reach every point of `target` along
+// directions within `spread` radians of dir, lying upstream of the whole scene (Emitter).
+void PlaceSquare(const Scene& scene, const Bounds3& target, const Vec3& dir, float spread,
+                 Emitter* e) {
+  const float r = 0.5f * Length(target.Diagonal()) * 1.001f + 1e-6f;
+  // Upstream of every point of the scene: the centre is inside the scene's bounds.
+  e->square_back = Length(scene.bounds().Diagonal()) * 1.01f + r;
+  const float half = r / std::cos(spread) + e->square_back * std::tan(spread);
+  Vec3 s, t;
+  MakeFrame(dir, &s, &t);
+  e->square_center = target.Center();
+  e->square_axis = dir;
+  e->square_s = s * half;
+  e->square_t = t * half;
+}
+
+std::vector<Emitter> Emitters(const Scene& scene, const EnvironmentSun& sun) {
   std::vector<Emitter> out;
   const std::vector<Light>& lights = scene.lights();
   // A delta light's caustics need a glossy lobe next to it (see Trace).
   const uint32_t lobes = CausticMap::Lobes(scene);
   const bool glossy = (lobes & kSmoothNonDiffuseLobes) != 0;
+  if (!sun.empty() && lobes != 0) {
+    const Bounds3 target = scene.BoundsOfLobes(lobes);
+    if (!target.Empty()) {
+      Emitter e{-1, Vec3(), 0};
+      PlaceSquare(scene, target, -sun.axis(), sun.radius(), &e);
+      e.flux = Vec3(sun.irradiance() * 4 * LengthSquared(e.square_s));
+      if (Luminance(e.flux) > 0 && IsFinite(e.flux)) out.push_back(e);
+    }
+  }
   for (int i = 0; i < int(lights.size()); ++i) {
     const Light& l = lights[size_t(i)];
     if (!CausticMap::Covers(l) || (l.IsDelta() && !glossy)) continue;
@@ -110,15 +137,8 @@ std::vector<Emitter> Emitters(const Scene& scene) {
     if (l.type == LightType::kDirectional) {
       const Bounds3 target = scene.BoundsOfLobes(lobes);
       if (target.Empty()) continue;
-      const float r = 0.5f * Length(target.Diagonal()) * 1.001f + 1e-6f;
-      Vec3 s, t;
-      MakeFrame(l.direction, &s, &t);
-      e.square_center = target.Center();
-      e.square_s = s * r;
-      e.square_t = t * r;
-      // Upstream of every point of the scene: the centre is inside the scene's bounds.
-      e.square_back = Length(scene.bounds().Diagonal()) * 1.01f + r;
-      flux = l.intensity * (4 * r * r);
+      PlaceSquare(scene, target, l.direction, 0, &e);
+      flux = l.intensity * (4 * LengthSquared(e.square_s));
     } else if (l.type == LightType::kArea) {
       const float area =
           l.shape == AreaShape::kSphere ? 4 * kPi * l.radius * l.radius : std::max(0.0f, l.area);
@@ -140,13 +160,30 @@ std::vector<Emitter> Emitters(const Scene& scene) {
 
 // A photon leaving emitter e: its ray and power (flux over the emitter's pick probability; the
 // count emitted divides it at the end).
-// *cell (optional) receives a directional light's projection cell (else -1).
-void Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power, int* cell) {
+// *cell (optional) receives a square's projection cell (else -1).
+void Emit(const Scene& scene, const EnvironmentSun& sun, const Emitter& e, Rng& rng, Ray* ray,
+          Vec3* power, int* cell) {
   if (cell != nullptr) *cell = -1;
-  const Light& l = scene.lights()[size_t(e.light)];
   const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next(), u4 = rng.Next();
-  if (l.type == LightType::kDirectional) {  // see kProjection
-    float x = u1, y = u2;                   // in [0, 1)^2 over the square
+  // The light's travel direction and what it carries per unit area of the square: a
+  // directional light's irradiance, or the sun's radiance along a sampled direction over its
+  // density, projected on the square.
+  Vec3 travel, per_area;
+  const bool square =
+      e.light < 0 || scene.lights()[size_t(e.light)].type == LightType::kDirectional;
+  if (e.light < 0) {
+    Vec3 d;
+    float pdf;
+    sun.Sample(rng.Next(), rng.Next(), rng.Next(), &d, &pdf);
+    travel = -d;
+    const float cos = Dot(d, sun.axis());
+    per_area = pdf > 0 && cos > 0 ? scene.EvalEnvironment(d) * (cos / pdf) : Vec3();
+  } else if (square) {
+    travel = scene.lights()[size_t(e.light)].direction;
+    per_area = scene.lights()[size_t(e.light)].intensity;
+  }
+  if (square) {            // see kProjection
+    float x = u1, y = u2;  // in [0, 1)^2 over the square
     const float n = float(e.cells.size());
     if (!e.cells.empty() && u3 >= kDefensive) {
       const float pick = u4 * n;
@@ -163,15 +200,16 @@ void Emit(const Scene& scene, const Emitter& e, Rng& rng, Ray* ray, Vec3* power,
       density = kDefensive + (in ? (1 - kDefensive) * float(kProjection * kProjection) / n : 0.0f);
     }
     const Vec3 p = e.square_center + e.square_s * (2 * x - 1) + e.square_t * (2 * y - 1) -
-                   l.direction * e.square_back;
-    *ray = Ray{p, l.direction, INFINITY};
-    *power = e.flux / (e.pick * density);
+                   e.square_axis * e.square_back;
+    *ray = Ray{p, travel, INFINITY};
+    *power = per_area * (4 * LengthSquared(e.square_s) / (e.pick * density));
     if (cell != nullptr) {
       *cell = std::min(int(y * kProjection), kProjection - 1) * kProjection +
               std::min(int(x * kProjection), kProjection - 1);
     }
     return;
   }
+  const Light& l = scene.lights()[size_t(e.light)];
   if (l.type == LightType::kPoint || l.type == LightType::kSpot) {
     Vec3 dir;
     Vec3 flux = e.flux;
@@ -305,7 +343,9 @@ uint32_t CausticMap::Lobes(const Scene& scene) {
 }
 
 bool CausticMap::SceneHasCaustics(const Scene& scene) {
-  return Lobes(scene) != 0 && !Emitters(scene).empty();
+  if (Lobes(scene) == 0) return false;
+  return !Emitters(scene, EnvironmentSun()).empty() ||
+         !Emitters(scene, EnvironmentSun::Find(scene)).empty();
 }
 
 std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
@@ -313,15 +353,19 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
                                               tbb::task_arena& arena, CausticMapStats* stats) {
   CausticMapStats st;
   std::unique_ptr<CausticMap> map;
-  std::vector<Emitter> emitters = Emitters(scene);
   const uint32_t lobes = Lobes(scene);
+  EnvironmentSun sun = lobes != 0 ? EnvironmentSun::Find(scene) : EnvironmentSun();
+  std::vector<Emitter> emitters = Emitters(scene, sun);
   if (lobes != 0 && !emitters.empty()) {
     std::vector<float> cdf;
     float acc = 0;
     for (const Emitter& e : emitters) cdf.push_back(acc += e.pick);
-    bool pilot = false;  // the first batch only aims the directional lights' photons
-    for (const Emitter& e : emitters)
-      pilot |= scene.lights()[size_t(e.light)].type == LightType::kDirectional;
+    bool pilot = false;     // the first batch only aims the directional lights' photons
+    bool from_sun = false;  // the environment's sun is one of the emitters
+    for (const Emitter& e : emitters) {
+      from_sun |= e.light < 0;
+      pilot |= e.light < 0 || scene.lights()[size_t(e.light)].type == LightType::kDirectional;
+    }
     std::vector<Photon> photons;
     constexpr long kChunk = 1024;
     std::vector<std::vector<Photon>> chunks(kBatch / kChunk);
@@ -348,10 +392,11 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
             Ray ray;
             Vec3 power;
             int cell = -1;
-            Emit(scene, emitters[ei], rng, &ray, &power, &cell);
+            Emit(scene, sun, emitters[ei], rng, &ray, &power, &cell);
+            const int light = emitters[ei].light;
             const bool gone =
                 Trace(scene, lobes, ray, power,
-                      scene.lights()[size_t(emitters[ei].light)].IsDelta(), rng, &chunks[c]);
+                      light >= 0 && scene.lights()[size_t(light)].IsDelta(), rng, &chunks[c]);
             chunk_lost[c] += gone;
             if (in_pilot && !gone && cell >= 0) chunk_landed[c].emplace_back(ei, cell);
           }
@@ -370,7 +415,7 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
       }
       // Mark the cells the pilot's photons landed through, and their neighbours.
       for (Emitter& e : emitters)
-        if (scene.lights()[size_t(e.light)].type == LightType::kDirectional)
+        if (e.light < 0 || scene.lights()[size_t(e.light)].type == LightType::kDirectional)
           e.marked.assign(size_t(kProjection * kProjection), 0);
       for (const auto& c : chunk_landed)
         for (const auto& [ei, cell] : c) {
@@ -389,6 +434,7 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
       for (Photon& p : photons) p.power *= inv;
       map.reset(new CausticMap());
       map->lobes_ = lobes;
+      if (from_sun) map->sun_ = std::move(sun);
       st.stored = long(photons.size());
       const Index all(&photons);
       // Estimates at every kSiteStride-th photon only: the lookups' sites.

@@ -43,6 +43,7 @@
 #include <vector>
 
 #include "cache/math.h"
+#include "render/environment_sun.h"
 
 namespace irfarm {
 
@@ -87,6 +88,9 @@ class CausticMap {
   // records. The second form takes a scene's light index (-1: none).
   static bool Covers(const Light& light);
   static bool Covers(const Scene& scene, int light);
+  // Whether the map holds the caustics of the environment's light along world direction d
+  // (unit, towards the sky): the directions of its sun (EnvironmentSun), where it has one.
+  bool CoversEnvironment(const Vec3& d) const { return sun_.Contains(d); }
 
   ~CausticMap();
   CausticMap(const CausticMap&) = delete;
@@ -114,6 +118,7 @@ class CausticMap {
     float x, y, z, radius2;  // a site's position and its disc's squared radius, packed
   };
   uint32_t lobes_ = 0;
+  EnvironmentSun sun_;               // empty unless the map holds the environment's sun
   std::vector<Photon> photons_;      // the sites: every kSiteStride-th stored photon
   std::vector<Estimate> estimates_;  // their irradiance estimates
   std::vector<Site> sites_;

@@ -485,7 +485,12 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
     if (!scene_.Intersect(ray, &hit)) {
       if (scene_.has_environment()) {
         const float w = EnvironmentMisWeight(prev_pdf, prev_p, prev_n, ray.dir);
-        const Vec3 c = beta * scene_.EvalEnvironment(ray.dir) * w;
+        // Past non-diffuse bounces, the environment's sun is a caustic: the map's, if it has it.
+        const Vec3 throughput =
+            !first && caustic_lobes != 0 && settings_.caustics->CoversEnvironment(ray.dir)
+                ? beta - beta_caustic
+                : beta;
+        const Vec3 c = throughput * scene_.EvalEnvironment(ray.dir) * w;
         L += c;
         if (first) *first_environment = c;
       }
@@ -700,7 +705,8 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
         const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l, kNonDiffuseLobes);
         if (IsBlack(f)) return;
         Vec3 c = beta * f;
-        if (!IsBlack(beta_caustic) && !ls.environment && CausticMap::Covers(scene_, ls.light)) {
+        if (!IsBlack(beta_caustic) && (ls.environment ? settings_.caustics->CoversEnvironment(ls.wi)
+                                                      : CausticMap::Covers(scene_, ls.light))) {
           c -= beta_caustic * bsdf.Eval(ctx, wo_l, wi_l, caustic_lobes);
           if (IsBlack(c)) return;
         }

@@ -41,7 +41,12 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
                                  : PowerHeuristic(prev_pdf, lights.NeePdfEnvironment(
                                                                 settings.all_lights, prev_p, prev_n,
                                                                 ray.dir, settings.env_importance));
-        const Vec3 c = beta * scene.EvalEnvironment(ray.dir) * w;
+        // The environment's sun reached through the map's lobes only is the map's caustic.
+        const Vec3 throughput =
+            map != nullptr && !IsBlack(beta_caustic_next) && map->CoversEnvironment(ray.dir)
+                ? beta - beta_caustic_next
+                : beta;
+        const Vec3 c = throughput * scene.EvalEnvironment(ray.dir) * w;
         add(c, depth);
         if (first && first_environment) *first_environment = c;
       }
@@ -95,7 +100,8 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l);
       if (IsBlack(f)) return;
       Vec3 c = beta * f;
-      if (!IsBlack(beta_caustic) && !ls.environment && mapped(ls.light)) {
+      if (!IsBlack(beta_caustic) &&
+          (ls.environment ? map->CoversEnvironment(ls.wi) : mapped(ls.light))) {
         c -= beta_caustic * bsdf.Eval(ctx, wo_l, wi_l, caustic_lobes);
         if (IsBlack(c)) return;
       }

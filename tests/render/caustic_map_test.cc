@@ -18,6 +18,8 @@
 #include <string>
 
 #include "render/caustic_map.h"
+#include "render/environment_sun.h"
+#include "render/image.h"
 #include "render/path_tracer.h"
 #include "render/sampling.h"
 #include "render/scene.h"
@@ -48,8 +50,10 @@ constexpr char kScene[] = R"(<scene version="3.0.0">
   </shape>
 </scene>)";
 
-std::unique_ptr<Scene> Build(const std::string& xml = kScene) {
-  absl::StatusOr<SceneDesc> desc = LoadSceneString(xml, "caustic.xml", {});
+// `name`: the scene file's path, which relative file names (an envmap) are read beside.
+std::unique_ptr<Scene> Build(const std::string& xml = kScene,
+                             const std::string& name = "caustic.xml") {
+  absl::StatusOr<SceneDesc> desc = LoadSceneString(xml, name, {});
   EXPECT_TRUE(desc.ok()) << desc.status();
   absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
   EXPECT_TRUE(scene.ok()) << scene.status();
@@ -239,11 +243,34 @@ void ExpectCountedOnce(const Split& s) {
       << "with " << s.with_map << " map " << s.map_at_x << " without " << s.without;
 }
 
+constexpr char kMirror[] =
+    R"(<bsdf type="conductor" id="mirror"><string name="material" value="none"/></bsdf>)";
+constexpr char kRoughMirror[] =
+    R"(<bsdf type="roughconductor" id="mirror"><string name="material" value="none"/><float name="alpha" value="0.1"/></bsdf>)";
+
+// The test scene with the floor a rough mirror (alpha 0.1) and the lamp replaced by `emitter`;
+// with `small_ceiling` the ceiling is 10 x 10 (light from the side passes its edge).
+std::string RoughMirrorScene(const std::string& emitter, bool small_ceiling) {
+  std::string xml = kScene;
+  xml.replace(xml.find(kMirror), std::string(kMirror).size(), kRoughMirror);
+  const size_t a =
+      xml.find("<shape type=\"rectangle\">\n    <transform name=\"to_world\"><scale x=\"0.25\"");
+  const size_t b = xml.find("</shape>", a) + 8;
+  xml.replace(a, b - a, emitter);
+  if (small_ceiling) {
+    const std::string ceiling = R"(<scale x="10" y="10"/><rotate x="1" angle="180"/>)";
+    xml.replace(xml.find(ceiling), ceiling.size(),
+                R"(<scale x="5" y="5"/><rotate x="1" angle="180"/>)");
+  }
+  return xml;
+}
+
 // A one-light scene whose light reaches the ceiling (z = 3) only through a glossy highlight:
 // the map holds that light, the record paths at ceiling points in [lo, hi]^2 leave it out, count
 // each light once with the map, and their variance per ray falls below a tenth.
-void ExpectHighlightIsTheMaps(const std::string& xml, float lo, float hi) {
-  const std::unique_ptr<Scene> scene = Build(xml);
+void ExpectHighlightIsTheMaps(const std::string& xml, float lo, float hi,
+                              const std::string& name = "caustic.xml") {
+  const std::unique_ptr<Scene> scene = Build(xml, name);
   ASSERT_NE(scene, nullptr);
   ASSERT_EQ(scene->lights().size(), 1u);
   ASSERT_TRUE(CausticMap::SceneHasCaustics(*scene));
@@ -282,21 +309,10 @@ TEST(CausticMapTest, RecordPathsAndMapCountMirrorLightOnce) {
 // from the spot, reflected by the glossy lobe), the record paths leave it out and count each
 // light once with the map, and their variance per ray falls: the point of the split.
 TEST(CausticMapTest, SpotHighlightOnGlossyFloorIsTheMaps) {
-  std::string xml = kScene;
-  xml.replace(
-      xml.find(
-          R"(<bsdf type="conductor" id="mirror"><string name="material" value="none"/></bsdf>)"),
-      std::string(
-          R"(<bsdf type="conductor" id="mirror"><string name="material" value="none"/></bsdf>)")
-          .size(),
-      R"(<bsdf type="roughconductor" id="mirror"><string name="material" value="none"/><float name="alpha" value="0.1"/></bsdf>)");
-  const size_t a =
-      xml.find("<shape type=\"rectangle\">\n    <transform name=\"to_world\"><scale x=\"0.25\"");
-  const size_t b = xml.find("</shape>", a) + 8;
-  xml.replace(
-      a, b - a,
+  const std::string xml = RoughMirrorScene(
       R"(<emitter type="spot"><transform name="to_world"><lookat origin="0, 0, 1" target="0, 0, 0" up="0, 1, 0"/></transform>)"
-      R"(<rgb name="intensity" value="10"/><float name="cutoff_angle" value="30"/><float name="beam_width" value="25"/></emitter>)");
+      R"(<rgb name="intensity" value="10"/><float name="cutoff_angle" value="30"/><float name="beam_width" value="25"/></emitter>)",
+      false);
   ExpectHighlightIsTheMaps(xml, 0.2f, 1.0f);
 }
 
@@ -309,31 +325,52 @@ TEST(CausticMapTest, SpotHighlightOnGlossyFloorIsTheMaps) {
 // falls. With a perfect mirror instead there is no map: the sun through a delta lobe is light
 // no path tracer renders.
 TEST(CausticMapTest, SunHighlightOnGlossyFloorIsTheMaps) {
-  std::string xml = kScene;
-  const std::string mirror =
-      R"(<bsdf type="conductor" id="mirror"><string name="material" value="none"/></bsdf>)";
-  xml.replace(
-      xml.find(mirror), mirror.size(),
-      R"(<bsdf type="roughconductor" id="mirror"><string name="material" value="none"/><float name="alpha" value="0.1"/></bsdf>)");
-  const size_t a =
-      xml.find("<shape type=\"rectangle\">\n    <transform name=\"to_world\"><scale x=\"0.25\"");
-  const size_t b = xml.find("</shape>", a) + 8;
-  xml.replace(a, b - a,
-              R"(<emitter type="directional"><vector name="direction" value="-1, 0, -1"/>)"
-              R"(<rgb name="irradiance" value="10"/></emitter>)");
-  const std::string ceiling = R"(<scale x="10" y="10"/><rotate x="1" angle="180"/>)";
-  ASSERT_NE(xml.find(ceiling), std::string::npos);
-  xml.replace(xml.find(ceiling), ceiling.size(),
-              R"(<scale x="5" y="5"/><rotate x="1" angle="180"/>)");
+  const std::string xml =
+      RoughMirrorScene(R"(<emitter type="directional"><vector name="direction" value="-1, 0, -1"/>)"
+                       R"(<rgb name="irradiance" value="10"/></emitter>)",
+                       true);
   ExpectHighlightIsTheMaps(xml, 0.5f, 2.5f);
 
   std::string smooth = xml;
-  const std::string rough =
-      R"(<bsdf type="roughconductor" id="mirror"><string name="material" value="none"/><float name="alpha" value="0.1"/></bsdf>)";
-  smooth.replace(smooth.find(rough), rough.size(), mirror);
+  smooth.replace(smooth.find(kRoughMirror), std::string(kRoughMirror).size(), kMirror);
   const std::unique_ptr<Scene> smooth_scene = Build(smooth);
   ASSERT_NE(smooth_scene, nullptr);
   EXPECT_FALSE(CausticMap::SceneHasCaustics(*smooth_scene));
+}
+
+// The environment's sun (EnvironmentSun): the sun test's scene lit instead by an envmap (a dim
+// sky of 0.05 and a 3 x 3 texel sun of irradiance about 10, in the sun's direction above). The
+// map takes the sun's highlight from its directions only (the sky's reflection in the floor
+// stays with the records: counted once all the same), and the records' variance per ray falls.
+TEST(CausticMapTest, EnvironmentSunHighlightIsTheMaps) {
+  Image sky(256, 128);
+  for (Vec3& p : sky.pixels) p = Vec3(0.05f);
+  // Towards the sky along (1, 0, 1) / sqrt(2): u = 0.375, v = 0.5 (EnvmapUv).
+  const float texel = (2 * kPi / 256) * (kPi / 128);
+  for (int y = 63; y < 66; ++y)
+    for (int x = 95; x < 98; ++x) sky.pixels[size_t(y) * 256 + size_t(x)] = Vec3(10 / (9 * texel));
+  const std::string path = ::testing::TempDir() + "/caustic-sun-sky.exr";
+  const std::string name = ::testing::TempDir() + "/caustic-sun.xml";
+  ASSERT_TRUE(WriteExr(sky, path).ok());
+  const std::string xml = RoughMirrorScene(
+      R"(<emitter type="envmap"><string name="filename" value="caustic-sun-sky.exr"/></emitter>)",
+      true);
+  const std::unique_ptr<Scene> scene = Build(xml, name);
+  ASSERT_NE(scene, nullptr);
+  const EnvironmentSun sun = EnvironmentSun::Find(*scene);
+  ASSERT_FALSE(sun.empty());
+  EXPECT_GT(Dot(sun.axis(), Normalize(Vec3(1, 0, 1))), std::cos(0.02f));
+  EXPECT_TRUE(sun.Contains(Normalize(Vec3(1, 0, 1))));
+  EXPECT_FALSE(sun.Contains(Normalize(Vec3(1, 0, 0.8f))));
+  EXPECT_NEAR(sun.irradiance(), 10.0, 1.0);
+  ExpectHighlightIsTheMaps(xml, 0.5f, 2.5f, name);
+  // Without the sun there is no environment sun and no map.
+  for (Vec3& p : sky.pixels) p = Vec3(0.05f);
+  ASSERT_TRUE(WriteExr(sky, path).ok());
+  const std::unique_ptr<Scene> dim = Build(xml, name);
+  ASSERT_NE(dim, nullptr);
+  EXPECT_TRUE(EnvironmentSun::Find(*dim).empty());
+  EXPECT_FALSE(CausticMap::SceneHasCaustics(*dim));
 }
 
 }  // namespace

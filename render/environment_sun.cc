@@ -1,0 +1,118 @@
+#include "render/environment_sun.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "render/light.h"
+#include "render/scene.h"
+
+namespace irfarm {
+namespace {
+
+constexpr int kU = EnvironmentSun::kCellsU, kV = EnvironmentSun::kCellsV;
+
+// Solid angle of row j's cells.
+double CellSolidAngle(int j) {
+  const double theta0 = kPi * double(j) / kV, theta1 = kPi * double(j + 1) / kV;
+  return (2 * kPi / kU) * (std::cos(theta0) - std::cos(theta1));
+}
+
+}  // namespace
+
+EnvironmentSun EnvironmentSun::Find(const Scene& scene) {
+  EnvironmentSun sun;
+  bool envmap = false;
+  for (const Light& l : scene.lights()) envmap |= l.type == LightType::kEnvmap;
+  if (!envmap) return sun;
+  std::vector<float> lum(size_t(kU) * kV);
+  double total = 0;
+  for (int j = 0; j < kV; ++j) {
+    const double omega = CellSolidAngle(j);
+    for (int i = 0; i < kU; ++i) {
+      const Vec3 d = EnvmapDirection((float(i) + 0.5f) / kU, (float(j) + 0.5f) / kV);
+      const float y = Luminance(scene.EvalEnvironment(d));
+      lum[size_t(j) * kU + size_t(i)] = std::isfinite(y) ? std::max(y, 0.0f) : 0.0f;
+      total += double(lum[size_t(j) * kU + size_t(i)]) * omega;
+    }
+  }
+  const double threshold = kSunRatio * total / (4 * kPi);
+  if (!(threshold > 0)) return sun;
+  // The core cells, their luminance-weighted mean direction, and the region grown by one cell.
+  std::vector<uint8_t> marked(lum.size(), 0);
+  Vec3 axis;
+  bool any = false;
+  for (int j = 0; j < kV; ++j)
+    for (int i = 0; i < kU; ++i) {
+      const float y = lum[size_t(j) * kU + size_t(i)];
+      if (y < threshold) continue;
+      any = true;
+      const Vec3 d = EnvmapDirection((float(i) + 0.5f) / kU, (float(j) + 0.5f) / kV);
+      axis += d * float(double(y) * CellSolidAngle(j));
+      for (int dj = -1; dj <= 1; ++dj) {
+        const int jj = j + dj;
+        if (jj < 0 || jj >= kV) continue;
+        for (int di = -1; di <= 1; ++di) marked[size_t(jj) * kU + size_t((i + di + kU) % kU)] = 1;
+      }
+    }
+  if (!any || !(LengthSquared(axis) > 0)) return sun;
+  axis = Normalize(axis);
+  // The largest angle of a marked cell's corner from the axis; the cells' weights.
+  float min_cos = 1;
+  std::vector<uint32_t> cells;
+  std::vector<float> cdf;
+  double acc = 0, irradiance = 0;
+  for (int j = 0; j < kV; ++j)
+    for (int i = 0; i < kU; ++i) {
+      if (!marked[size_t(j) * kU + size_t(i)]) continue;
+      for (int c = 0; c < 4; ++c) {
+        const Vec3 d = EnvmapDirection(float(i + (c & 1)) / kU, float(j + (c >> 1)) / kV);
+        min_cos = std::min(min_cos, Dot(d, axis));
+      }
+      float peak = 0;
+      for (int dj = -1; dj <= 1; ++dj) {
+        const int jj = j + dj;
+        if (jj < 0 || jj >= kV) continue;
+        for (int di = -1; di <= 1; ++di)
+          peak = std::max(peak, lum[size_t(jj) * kU + size_t((i + di + kU) % kU)]);
+      }
+      const Vec3 d = EnvmapDirection((float(i) + 0.5f) / kU, (float(j) + 0.5f) / kV);
+      acc += double(peak) * CellSolidAngle(j);
+      irradiance += double(lum[size_t(j) * kU + size_t(i)]) * CellSolidAngle(j) *
+                    std::max(0.0f, Dot(d, axis));
+      cells.push_back(uint32_t(j) * kU + uint32_t(i));
+      cdf.push_back(float(acc));
+    }
+  const float radius = std::acos(std::clamp(min_cos, -1.0f, 1.0f));
+  if (!(radius <= kSunMaxRadius) || !(acc > 0)) return sun;
+  sun.marked_ = std::move(marked);
+  sun.cells_ = std::move(cells);
+  sun.cdf_ = std::move(cdf);
+  sun.axis_ = axis;
+  sun.radius_ = radius;
+  sun.irradiance_ = float(irradiance);
+  return sun;
+}
+
+bool EnvironmentSun::Contains(const Vec3& d) const {
+  if (marked_.empty()) return false;
+  float u, v;
+  EnvmapUv(d, &u, &v);
+  const int i = std::clamp(int(u * kU), 0, kU - 1), j = std::clamp(int(v * kV), 0, kV - 1);
+  return marked_[size_t(j) * kU + size_t(i)] != 0;
+}
+
+void EnvironmentSun::Sample(float u1, float u2, float u3, Vec3* d, float* pdf) const {
+  const float total = cdf_.back();
+  const size_t k =
+      std::min(size_t(std::upper_bound(cdf_.begin(), cdf_.end(), u1 * total) - cdf_.begin()),
+               cells_.size() - 1);
+  const float weight = cdf_[k] - (k > 0 ? cdf_[k - 1] : 0.0f);
+  const int i = int(cells_[k] % kU), j = int(cells_[k] / kU);
+  const float u = (float(i) + u2) / kU, v = (float(j) + u3) / kV;
+  *d = EnvmapDirection(u, v);
+  // Uniform in (u, v) over the cell: solid-angle density 1 / (du dv 2 pi^2 sin(theta)).
+  const float sin_theta = std::max(std::sin(v * kPi), 1e-6f);
+  *pdf = (weight / total) * float(kU) * float(kV) / (2 * kPi * kPi * sin_theta);
+}
+
+}  // namespace irfarm
