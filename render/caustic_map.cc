@@ -345,7 +345,7 @@ uint32_t CausticMap::Lobes(const Scene& scene) {
 bool CausticMap::SceneHasCaustics(const Scene& scene) {
   if (Lobes(scene) == 0) return false;
   return !Emitters(scene, EnvironmentSun()).empty() ||
-         !Emitters(scene, EnvironmentSun::Find(scene)).empty();
+         !Emitters(scene, scene.environment_sun()).empty();
 }
 
 std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
@@ -354,7 +354,7 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
   CausticMapStats st;
   std::unique_ptr<CausticMap> map;
   const uint32_t lobes = Lobes(scene);
-  EnvironmentSun sun = lobes != 0 ? EnvironmentSun::Find(scene) : EnvironmentSun();
+  const EnvironmentSun& sun = scene.environment_sun();
   std::vector<Emitter> emitters = Emitters(scene, sun);
   if (lobes != 0 && !emitters.empty()) {
     std::vector<float> cdf;
@@ -434,7 +434,7 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
       for (Photon& p : photons) p.power *= inv;
       map.reset(new CausticMap());
       map->lobes_ = lobes;
-      if (from_sun) map->sun_ = std::move(sun);
+      if (from_sun) map->sun_ = &sun;
       st.stored = long(photons.size());
       const Index all(&photons);
       // Estimates at every kSiteStride-th photon only: the lookups' sites.

@@ -90,7 +90,7 @@ class CausticMap {
   static bool Covers(const Scene& scene, int light);
   // Whether the map holds the caustics of the environment's light along world direction d
   // (unit, towards the sky): the directions of its sun (EnvironmentSun), where it has one.
-  bool CoversEnvironment(const Vec3& d) const { return sun_.Contains(d); }
+  bool CoversEnvironment(const Vec3& d) const { return sun_ != nullptr && sun_->Contains(d); }
 
   ~CausticMap();
   CausticMap(const CausticMap&) = delete;
@@ -118,9 +118,9 @@ class CausticMap {
     float x, y, z, radius2;  // a site's position and its disc's squared radius, packed
   };
   uint32_t lobes_ = 0;
-  EnvironmentSun sun_;               // empty unless the map holds the environment's sun
-  std::vector<Photon> photons_;      // the sites: every kSiteStride-th stored photon
-  std::vector<Estimate> estimates_;  // their irradiance estimates
+  const EnvironmentSun* sun_ = nullptr;  // the scene's, where the map holds it
+  std::vector<Photon> photons_;          // the sites: every kSiteStride-th stored photon
+  std::vector<Estimate> estimates_;      // their irradiance estimates
   std::vector<Site> sites_;
   // A grid over the sites' bounds: cell c lists the sites whose disc's box reaches it,
   // cell_sites_[cell_start_[c] .. cell_start_[c + 1]). Most lookups far from any caustic find an

@@ -4,7 +4,6 @@
 #include <cmath>
 
 #include "render/light.h"
-#include "render/scene.h"
 
 namespace irfarm {
 namespace {
@@ -19,18 +18,17 @@ double CellSolidAngle(int j) {
 
 }  // namespace
 
-EnvironmentSun EnvironmentSun::Find(const Scene& scene) {
+EnvironmentSun EnvironmentSun::Find(const std::function<Vec3(const Vec3&)>& radiance,
+                                    bool has_envmap) {
   EnvironmentSun sun;
-  bool envmap = false;
-  for (const Light& l : scene.lights()) envmap |= l.type == LightType::kEnvmap;
-  if (!envmap) return sun;
+  if (!has_envmap) return sun;
   std::vector<float> lum(size_t(kU) * kV);
   double total = 0;
   for (int j = 0; j < kV; ++j) {
     const double omega = CellSolidAngle(j);
     for (int i = 0; i < kU; ++i) {
       const Vec3 d = EnvmapDirection((float(i) + 0.5f) / kU, (float(j) + 0.5f) / kV);
-      const float y = Luminance(scene.EvalEnvironment(d));
+      const float y = Luminance(radiance(d));
       lum[size_t(j) * kU + size_t(i)] = std::isfinite(y) ? std::max(y, 0.0f) : 0.0f;
       total += double(lum[size_t(j) * kU + size_t(i)]) * omega;
     }
@@ -68,15 +66,18 @@ EnvironmentSun EnvironmentSun::Find(const Scene& scene) {
         const Vec3 d = EnvmapDirection(float(i + (c & 1)) / kU, float(j + (c >> 1)) / kV);
         min_cos = std::min(min_cos, Dot(d, axis));
       }
-      float peak = 0;
-      for (int dj = -1; dj <= 1; ++dj) {
-        const int jj = j + dj;
-        if (jj < 0 || jj >= kV) continue;
-        for (int di = -1; di <= 1; ++di)
-          peak = std::max(peak, lum[size_t(jj) * kU + size_t((i + di + kU) % kU)]);
-      }
+      // The cell's mean luminance from kSub x kSub points (its light, whatever its centre got).
+      constexpr int kSub = 4;
+      double mean = 0;
+      for (int b = 0; b < kSub; ++b)
+        for (int a = 0; a < kSub; ++a) {
+          const float y = Luminance(radiance(EnvmapDirection((float(i) + (a + 0.5f) / kSub) / kU,
+                                                             (float(j) + (b + 0.5f) / kSub) / kV)));
+          mean += std::isfinite(y) ? std::max(y, 0.0f) : 0.0f;
+        }
+      mean /= kSub * kSub;
       const Vec3 d = EnvmapDirection((float(i) + 0.5f) / kU, (float(j) + 0.5f) / kV);
-      acc += double(peak) * CellSolidAngle(j);
+      acc += mean * CellSolidAngle(j);
       irradiance += double(lum[size_t(j) * kU + size_t(i)]) * CellSolidAngle(j) *
                     std::max(0.0f, Dot(d, axis));
       cells.push_back(uint32_t(j) * kU + uint32_t(i));

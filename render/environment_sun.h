@@ -16,13 +16,12 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "cache/math.h"
 
 namespace irfarm {
-
-class Scene;
 
 class EnvironmentSun {
  public:
@@ -30,15 +29,17 @@ class EnvironmentSun {
   static constexpr float kSunRatio = 100;
   static constexpr float kSunMaxRadius = 0.1f;  // radians (about 6 degrees)
 
-  // The scene's environment sun; empty when it has no envmap or the envmap has no sun.
-  static EnvironmentSun Find(const Scene& scene);
+  // The environment's sun, from its radiance along world directions (all environment lights
+  // summed, as LightSampler::EvalEnvironment has it); empty when the scene has no envmap
+  // (`has_envmap` false: a constant has none) or the envmap has no sun. Scene::Build finds it.
+  static EnvironmentSun Find(const std::function<Vec3(const Vec3&)>& radiance, bool has_envmap);
   bool empty() const { return cells_.empty(); }
 
   // Whether world direction d (towards the sky, unit) is in the sun's region.
   bool Contains(const Vec3& d) const;
   // A direction in the region (unit, towards the sky) and its solid-angle density, from three
-  // uniform numbers; cells are picked by their centre's luminance (the largest of its
-  // neighbours', so a cell the sun's peak spills into is not starved) times their solid angle.
+  // uniform numbers; cells are picked by their mean luminance (4 x 4 points each) times their
+  // solid angle, a point uniformly within the cell.
   void Sample(float u1, float u2, float u3, Vec3* d, float* pdf) const;
   // The luminance-weighted mean direction of the region (unit, towards the sky) and the largest
   // angle of a cell's corner from it.

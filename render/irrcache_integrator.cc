@@ -58,6 +58,7 @@ IrrcacheIntegrator::IrrcacheIntegrator(const Scene& scene, IrradianceCache* cach
     ratio_slot_.push_back(ratio ? slots++ : -1);
   }
   ratio_slots_ = slots;
+  if (settings.direct_sun && !scene.environment_sun().empty()) sun_ = &scene.environment_sun();
 }
 
 namespace {
@@ -113,6 +114,22 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
     ++counters.shadow_rays;
     return !scene_.Occluded(Scene::SpawnShadowRay(hit, s));
   };
+  // The environment's sun (IrrcacheSettings::direct_sun): one sample by its luminance.
+  if (sun_ != nullptr) {
+    LightSample s;
+    float pdf;
+    sun_->Sample(rng.Next(), rng.Next(), rng.Next(), &s.wi, &pdf);
+    const float cos_i = Dot(s.wi, nf);
+    if (pdf > 0 && cos_i > 0 && visible(s)) {
+      const Vec3 c =
+          (lobe ? lobe->Eval(s.wi) : weight * cos_i) * scene_.EvalEnvironment(s.wi) / pdf;
+      if (IsFinite(c)) {
+        L += c;
+      } else {
+        ++counters.nonfinite_samples;
+      }
+    }
+  }
   if (nl > kAllLightsMax || one_sample) {
     for (int j = 0; j < k; ++j) {
       const float u1 = rng.Next();
@@ -231,6 +248,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   PathSettings record_path = settings_.path;
   record_path.rr_depth = std::min(record_path.rr_depth, depth + 1);
   record_path.caustics = settings_.caustics;
+  record_path.direct_sun = sun_;
   // Hessian spacing keeps each stratum's ray; split-sphere records do not fill (or zero) it.
   std::optional<StrataRays> grid;
   if (settings_.spacing == RecordSpacing::kHessian && T * P <= kMaxHessianStrata) grid.emplace();
@@ -262,6 +280,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
     const float u2 = rng.Next(), u3 = rng.Next();
     if (!lights.SampleEnvironment(nf, u2, u3, ls, true)) return false;
     if (!(Dot(ls->wi, nf) > 0) || Dot(ls->wi, ng_side) <= 0) return false;
+    if (sun_ != nullptr && sun_->Contains(ls->wi)) return false;  // DirectLight's (direct_sun)
     ++counters.shadow_rays;
     return !scene_.Occluded(Scene::SpawnShadowRay(hit, *ls));
   };
@@ -486,6 +505,9 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
       if (scene_.has_environment()) {
         const float w = EnvironmentMisWeight(prev_pdf, prev_p, prev_n, ray.dir);
         // Past non-diffuse bounces, the environment's sun is a caustic: the map's, if it has it.
+        // On the first segment the environment's sun is the record point's direct light
+        // (direct_sun: DirectLight's, wherever the record is looked up).
+        if (first && sun_ != nullptr && sun_->Contains(ray.dir)) break;
         const Vec3 throughput =
             !first && caustic_lobes != 0 && settings_.caustics->CoversEnvironment(ray.dir)
                 ? beta - beta_caustic

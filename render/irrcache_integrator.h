@@ -134,6 +134,16 @@ struct IrrcacheSettings {
   // 501 and 511 10-23% lower; living-room 3% lower on average; rooms 512 and 513 even in error x
   // time over five seeds; RecordEnvironmentTest checks it against strata alone.
   float environment_samples = 0.25f;
+  // An environment map's sun (EnvironmentSun: a photographed sky's few directions far above the
+  // rest) is direct light like a directional light's: one sample of it (by its luminance) with a
+  // shadow ray at every diffuse point that takes direct light (DirectLight) and at every
+  // non-delta vertex of the records' paths (PathSettings::direct_sun), and the records and the
+  // paths leave it out of the environment's light wherever such a sample was made (their first
+  // segment, their environment samples, escapes after a non-delta vertex). Without it, the sun
+  // through a window is found by a record's few strata that point at it: its patch on the floor
+  // and the light it sends on were the records' noise, the image's mean 20% off from seed to
+  // seed (docs/bench/sun-caustics-2026-12-05/).
+  bool direct_sun = true;
   static constexpr int kEnvironmentProbes = 16;
   float secondary_ray_fraction = 0.25f;
   // Default settings: lower record_rays where the pilot shows that records cost more than their
@@ -351,8 +361,9 @@ class IrrcacheIntegrator {
   const Scene& scene_;
   IrradianceCache* cache_;
   IrrcacheSettings settings_;
-  int strata_t_ = 1, strata_p_ = 1;  // primary records' strata
-  std::vector<int> ratio_slot_;      // per local light: its DirectTerms slot, or -1
+  int strata_t_ = 1, strata_p_ = 1;      // primary records' strata
+  std::vector<int> ratio_slot_;          // per local light: its DirectTerms slot, or -1
+  const EnvironmentSun* sun_ = nullptr;  // the scene's sun where direct_sun: see there
   int ratio_slots_ = 0;
 };
 

@@ -20,6 +20,11 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
   Vec3 beta_caustic = map != nullptr ? Vec3(1, 1, 1) : Vec3(), beta_caustic_next;
   const auto mapped = [&](int light) { return map != nullptr && CausticMap::Covers(scene, light); };
   const LightSampler& lights = scene.light_sampler();
+  // PathSettings::direct_sun: whether the vertex `ray` left took a sample of the sun (the first
+  // segment: the record point's direct light does), so its directions' light is not counted
+  // again where the ray escapes.
+  const EnvironmentSun* sun = settings.direct_sun;
+  bool sun_sampled = sun != nullptr && skip_first_local_emission;
   // AOVs: depth of the first non-specular vertex (-1: not reached yet), and the path length so
   // far. A contribution made at vertex `d` is direct up to one vertex past that one.
   int diffuse_depth = -1;
@@ -35,7 +40,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     SurfaceHit hit;
     if (!scene.Intersect(ray, &hit)) {
       if (first && first_distance) *first_distance = INFINITY;
-      if (scene.has_environment()) {
+      if (scene.has_environment() && !(sun_sampled && sun->Contains(ray.dir))) {
         const bool skip_mis = prev_pdf == 0 || (first && skip_first_local_emission);
         const float w = skip_mis ? 1.0f
                                  : PowerHeuristic(prev_pdf, lights.NeePdfEnvironment(
@@ -95,6 +100,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     }
     // One light sample, MIS-weighted against BSDF sampling (a delta light's sample: weight 1).
     const auto shade_light = [&](const LightSample& ls) {
+      if (ls.environment && sun != nullptr && sun->Contains(ls.wi)) return;  // the sun sample's
       const Vec3 wi_l = frame.ToLocal(ls.wi);
       if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return;
       const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l);
@@ -110,9 +116,27 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       const float w = ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l));
       add(c * scene.LightValue(ls) * w, depth);
     };
-    if (bsdf.HasSmooth())  // next-event estimation, MIS against BSDF sampling
+    if (bsdf.HasSmooth()) {  // next-event estimation, MIS against BSDF sampling
       lights.SampleForNee(settings.all_lights, settings.env_importance, hit.p, n_select, rng,
                           &counters.lights_skipped, shade_light);
+      if (sun != nullptr) {  // the environment's sun: one sample, the only estimate of its light
+        LightSample ls;
+        float pdf;
+        ls.environment = true;
+        sun->Sample(rng.Next(), rng.Next(), rng.Next(), &ls.wi, &pdf);
+        const Vec3 wi_l = frame.ToLocal(ls.wi);
+        if (pdf > 0 && SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) {
+          Vec3 c = beta * bsdf.Eval(ctx, wo_l, wi_l);
+          if (!IsBlack(beta_caustic) && map->CoversEnvironment(ls.wi))
+            c -= beta_caustic * bsdf.Eval(ctx, wo_l, wi_l, caustic_lobes);
+          if (!IsBlack(c)) {
+            ++counters.shadow_rays;
+            if (!scene.Occluded(Scene::SpawnShadowRay(hit, ls)))
+              add(c * scene.EvalEnvironment(ls.wi) / pdf, depth);
+          }
+        }
+      }
+    }
     const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
     const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3);
     if (IsBlack(bs.weight)) break;  // failed sample, or a one-sided surface seen from the back
@@ -140,6 +164,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     }
     eta_scale *= bs.eta * bs.eta;
     prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
+    sun_sampled = sun != nullptr && bsdf.HasSmooth() && !bs.IsDelta();
     if (IsBlack(beta)) break;
     if (depth >= settings.rr_depth) {
       const float q = std::min(MaxComponent(beta) * eta_scale, 0.95f);

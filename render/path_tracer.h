@@ -6,6 +6,7 @@
 
 #include "render/aov.h"
 #include "render/caustic_map.h"
+#include "render/environment_sun.h"
 #include "render/render_counters.h"
 #include "render/sampling.h"
 #include "render/scene.h"
@@ -47,6 +48,13 @@ struct PathSettings {
   // ceiling a record sees (strata that find it rarely and very bright: blotches), is the
   // photons'.
   const CausticMap* caustics = nullptr;
+  // Irradiance records' paths where an environment map's sun is direct light
+  // (IrrcacheSettings::direct_sun): every non-delta vertex takes one sample of it (by its
+  // luminance) with the full BSDF, and the environment's light from its directions is left out
+  // where such a sample was made (escapes past a non-delta vertex, the environment's next-event
+  // samples) and on the first segment when skip_first_local_emission (the record point's direct
+  // light, DirectLight's).
+  const EnvironmentSun* direct_sun = nullptr;
 };
 
 // Radiance arriving at the ray's origin along `ray`, whose first hit is path vertex `depth`.

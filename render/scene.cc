@@ -350,6 +350,10 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc) {
   const int num_local = int(local.size());
   for (Light& l : env) local.push_back(l);
   s->lights_.Build(std::move(local), num_local);
+  bool has_envmap = false;
+  for (const Light& l : s->lights_.lights()) has_envmap |= l.type == LightType::kEnvmap;
+  s->sun_ = EnvironmentSun::Find([&s](const Vec3& d) { return s->lights_.EvalEnvironment(d); },
+                                 has_envmap);
   return s;
 }
 

@@ -18,6 +18,7 @@
 #include "absl/status/statusor.h"
 #include "render/bsdfs/bsdf.h"
 #include "render/camera.h"
+#include "render/environment_sun.h"
 #include "render/light_sampler.h"
 #include "render/scene_desc.h"
 #include "render/texture.h"
@@ -105,6 +106,8 @@ class Scene {
   const std::vector<Light>& lights() const { return lights_.lights(); }
   const LightSampler& light_sampler() const { return lights_; }
   bool has_environment() const { return lights_.has_environment(); }
+  // The environment map's sun (render/environment_sun.h), found once here; empty: none.
+  const EnvironmentSun& environment_sun() const { return sun_; }
   const Bounds3& bounds() const { return bounds_; }
   // The bounds of the shapes whose material has any of `lobes` (BSDF lobe bits); empty: none.
   Bounds3 BoundsOfLobes(uint32_t lobes) const;
@@ -160,6 +163,7 @@ class Scene {
   std::vector<std::unique_ptr<Texture>> textures_;
   std::vector<std::unique_ptr<Bsdf>> materials_;  // SceneDesc::bsdfs, built
   LightSampler lights_;                           // local lights first, then environment lights
+  EnvironmentSun sun_;
   bool has_pass_through_ = false;     // some material lets rays through (mask): see Occluded
   bool pass_through_filter_ = false;  // ... and Embree's occlusion filter handles it
   Camera camera_;

@@ -357,7 +357,7 @@ TEST(CausticMapTest, EnvironmentSunHighlightIsTheMaps) {
       true);
   const std::unique_ptr<Scene> scene = Build(xml, name);
   ASSERT_NE(scene, nullptr);
-  const EnvironmentSun sun = EnvironmentSun::Find(*scene);
+  const EnvironmentSun& sun = scene->environment_sun();
   ASSERT_FALSE(sun.empty());
   EXPECT_GT(Dot(sun.axis(), Normalize(Vec3(1, 0, 1))), std::cos(0.02f));
   EXPECT_TRUE(sun.Contains(Normalize(Vec3(1, 0, 1))));
@@ -369,7 +369,7 @@ TEST(CausticMapTest, EnvironmentSunHighlightIsTheMaps) {
   ASSERT_TRUE(WriteExr(sky, path).ok());
   const std::unique_ptr<Scene> dim = Build(xml, name);
   ASSERT_NE(dim, nullptr);
-  EXPECT_TRUE(EnvironmentSun::Find(*dim).empty());
+  EXPECT_TRUE(dim->environment_sun().empty());
   EXPECT_FALSE(CausticMap::SceneHasCaustics(*dim));
 }
 

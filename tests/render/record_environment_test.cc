@@ -35,52 +35,17 @@ std::string WritePatchMap() {
 }
 
 std::string SceneXml(const std::string& map) {
-  return R"(<scene version="3.0.0">
-  <sensor type="perspective">
-    <transform name="to_world"><lookat origin="0, 3, -3" target="0, 0, 0" up="0, 1, 0"/></transform>
-    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/></film>
-  </sensor>
-  <emitter type="envmap"><string name="filename" value=")" +
-         map + R"("/></emitter>
-  <shape type="rectangle">
-    <transform name="to_world"><rotate x="1" angle="-90"/><scale value="4"/></transform>
-    <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>
-  </shape>
-  <shape type="rectangle">
-    <transform name="to_world"><rotate x="0" y="1" z="1" angle="70"/><scale value="0.7"/><translate y="0.6"/></transform>
-    <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
-  </shape>
-</scene>
-)";
+  return FloorAndPanelScene(
+      R"(<emitter type="envmap"><string name="filename" value=")" + map + R"("/></emitter>)",
+      R"(<rotate x="0" y="1" z="1" angle="70"/><scale value="0.7"/><translate y="0.6"/>)");
 }
 
-struct Stats {
-  double mean = 0, var = 0;  // of the records' luminance
-};
-
 // `n` records of `rays` rays at floor point (x, z), each from its own stream.
-Stats Records(const Scene& scene, float env_samples, float x, float z, int rays, int n) {
+RecordStats Records(const Scene& scene, float env_samples, float x, float z, int rays, int n) {
   IrrcacheSettings settings;
   settings.record_rays = rays;
   settings.environment_samples = env_samples;
-  const IrrcacheIntegrator integrator(scene, nullptr, settings);  // ComputeRecord only
-  SurfaceHit hit;
-  EXPECT_TRUE(scene.Intersect(Ray{Vec3(x, 0.05f, z), Vec3(0, -1, 0), INFINITY}, &hit));
-  const Vec3 nf(0, 1, 0);
-  RenderCounters counters;
-  double sum = 0, sum2 = 0;
-  for (int i = 0; i < n; ++i) {
-    Rng rng(uint64_t(1000 + i), 3);
-    const double e =
-        Luminance(integrator.ComputeRecord(hit, nf, 1, 0.01f, rng, counters).irradiance);
-    sum += e;
-    sum2 += e * e;
-  }
-  EXPECT_EQ(counters.nonfinite_samples, 0u);
-  Stats s;
-  s.mean = sum / n;
-  s.var = std::max(0.0, sum2 / n - s.mean * s.mean);
-  return s;
+  return FloorRecords(scene, settings, Vec3(x, 0, z), n, 1000, 3);
 }
 
 TEST(RecordEnvironmentTest, MapSamplesAgreeWithStrataAndVaryLess) {
@@ -95,8 +60,8 @@ TEST(RecordEnvironmentTest, MapSamplesAgreeWithStrataAndVaryLess) {
   int shaded = 0;
   double open = 0;
   for (const auto& pt : points) {
-    const Stats strata = Records(scene, 0.0f, pt[0], pt[1], kRays, kRecords);
-    const Stats mis = Records(scene, 0.25f, pt[0], pt[1], kRays, kRecords);
+    const RecordStats strata = Records(scene, 0.0f, pt[0], pt[1], kRays, kRecords);
+    const RecordStats mis = Records(scene, 0.25f, pt[0], pt[1], kRays, kRecords);
     const double se = std::sqrt((strata.var + mis.var) / kRecords);
     EXPECT_NEAR(mis.mean, strata.mean, 4 * se)
         << "at (" << pt[0] << ", " << pt[1] << "): " << mis.mean << " against " << strata.mean;

@@ -16,11 +16,63 @@
 #include <string>
 
 #include "render/image.h"
+#include "render/irrcache_integrator.h"
 #include "render/renderer.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
 
 namespace irfarm {
+
+// A diffuse floor (8 x 8 at y = 0, reflectance 0.5) and a black panel placed by the transform
+// `panel`, seen from (0, 3, -3) at 16 x 16 pixels, lit by `emitter` (an <emitter> element): the
+// scene of the tests of an environment map's light at records.
+inline std::string FloorAndPanelScene(const std::string& emitter, const std::string& panel) {
+  return R"(<scene version="3.0.0">
+  <sensor type="perspective">
+    <transform name="to_world"><lookat origin="0, 3, -3" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/></film>
+  </sensor>
+  )" + emitter +
+         R"(
+  <shape type="rectangle">
+    <transform name="to_world"><rotate x="1" angle="-90"/><scale value="4"/></transform>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>
+  </shape>
+  <shape type="rectangle">
+    <transform name="to_world">)" +
+         panel + R"(</transform>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+  </shape>
+</scene>
+)";
+}
+
+// The mean and variance of the luminance of n records (IrrcacheIntegrator::ComputeRecord) at the
+// floor point below p (normal +y), record i from its own stream (seed + i, stream); none may have
+// a non-finite sample.
+struct RecordStats {
+  double mean = 0, var = 0;
+};
+inline RecordStats FloorRecords(const Scene& scene, const IrrcacheSettings& settings, const Vec3& p,
+                                int n, uint64_t seed, uint64_t stream) {
+  const IrrcacheIntegrator integrator(scene, nullptr, settings);  // ComputeRecord only
+  SurfaceHit hit;
+  EXPECT_TRUE(scene.Intersect(Ray{p + Vec3(0, 0.05f, 0), Vec3(0, -1, 0), INFINITY}, &hit));
+  RenderCounters counters;
+  double sum = 0, sum2 = 0;
+  for (int i = 0; i < n; ++i) {
+    Rng rng(seed + uint64_t(i), stream);
+    const double e =
+        Luminance(integrator.ComputeRecord(hit, Vec3(0, 1, 0), 1, 0.01f, rng, counters).irradiance);
+    sum += e;
+    sum2 += e * e;
+  }
+  EXPECT_EQ(counters.nonfinite_samples, 0u);
+  RecordStats s;
+  s.mean = sum / n;
+  s.var = std::max(0.0, sum2 / n - s.mean * s.mean);
+  return s;
+}
 
 inline std::string TestScenePath(const std::string& name) {
   return std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/scene.xml";

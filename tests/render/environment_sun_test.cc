@@ -1,0 +1,193 @@
+// An environment map's sun (render/environment_sun.h) as direct light (IrrcacheSettings::
+// direct_sun): the records leave its directions out of the environment's light, and DirectLight
+// takes one sample of it at every shading point.
+//
+// The scene: a dim sky (0.05) with a 2 x 2 texel sun of irradiance about 5, 50 degrees up, over a
+// diffuse floor, and a black panel that shades part of the floor from the sun. The checks:
+// - the sun is found where it is, and a sky without one (or a broad bright patch) has none;
+// - a record with the split counts the environment's light from every direction but the sun's:
+//   its mean is the brute-force integral of L cos V over the other directions (a fine grid of
+//   directions with a shadow ray each), and the record without the split adds the sun's own
+//   integral (tolerances: four standard errors of the records' means, measured, and the grid's
+//   own 1%); where the sun is not shaded the split records vary far less;
+// - a camera sample on the floor (Li: DirectLight plus the cache's irradiance) has the same mean
+//   with and without the split (four standard errors). In the open its variance is higher with
+//   the split (one sun sample per camera sample, where the whole record found the sun with its
+//   environment samples); in a room lit through a window the records' variance is what the split
+//   removes (the image figures in docs/bench/sun-caustics-2026-12-05/).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "cache/irradiance_cache.h"
+#include "render/environment_sun.h"
+#include "render/image.h"
+#include "render/irrcache_integrator.h"
+#include "render/renderer.h"
+#include "render/scene_loader.h"
+#include "tests/render/render_test_util.h"
+
+namespace irfarm {
+namespace {
+
+constexpr int kMapW = 256, kMapH = 128;
+
+// The sun's direction (towards the sky): 50 degrees up, towards +x +z.
+Vec3 SunDirection() {
+  const float e = 50 * kPi / 180;
+  return Normalize(Vec3(std::cos(e) * 0.6f, std::sin(e), std::cos(e) * 0.8f));
+}
+
+// A 256 x 128 lat-long map: 0.05 everywhere, and `sun_texels` x `sun_texels` texels around the
+// sun's direction whose radiance sums to irradiance `sun_e` (at normal incidence).
+std::string WriteSky(const std::string& name, int sun_texels, float sun_e) {
+  Image map(kMapW, kMapH);
+  for (Vec3& p : map.pixels) p = Vec3(0.05f);
+  if (sun_texels > 0) {
+    float u, v;
+    EnvmapUv(SunDirection(), &u, &v);
+    const int x0 = int(u * kMapW) - sun_texels / 2, y0 = int(v * kMapH) - sun_texels / 2;
+    const float texel =
+        (2 * kPi / kMapW) * (kPi / kMapH) * std::sin((float(y0) + 0.5f * sun_texels) * kPi / kMapH);
+    for (int y = y0; y < y0 + sun_texels; ++y)
+      for (int x = x0; x < x0 + sun_texels; ++x)
+        map.pixels[size_t(y) * kMapW + size_t(x)] =
+            Vec3(sun_e / (float(sun_texels * sun_texels) * texel));
+  }
+  EXPECT_TRUE(WriteExr(map, ::testing::TempDir() + "/" + name).ok());
+  return name;
+}
+
+std::string SceneXml(const std::string& map) {
+  return FloorAndPanelScene(
+      R"(<emitter type="envmap"><string name="filename" value=")" + map + R"("/></emitter>)",
+      R"(<rotate x="1" angle="-90"/><scale value="0.5"/><translate y="1"/>)");
+}
+
+LoadedScene Load(const std::string& map) {
+  return BuildLoaded(
+      LoadSceneString(SceneXml(map), ::testing::TempDir() + "/sun-scene-" + map + ".xml", {}));
+}
+
+// Brute force: the floor point's irradiance from the environment over the directions outside
+// the sun's region (*sky) and inside it (*sun), on a fine (theta, phi) grid over the hemisphere
+// (cells of 0.09 degrees: the sun's region holds about a thousand) with a shadow ray each.
+void Irradiance(const Scene& scene, const Vec3& p, double* sky, double* sun) {
+  const EnvironmentSun& region = scene.environment_sun();
+  constexpr int kTheta = 1024, kPhi = 4096;
+  *sky = *sun = 0;
+  for (int i = 0; i < kTheta; ++i) {
+    const double t0 = 0.5 * kPi * i / kTheta, t1 = 0.5 * kPi * (i + 1) / kTheta;
+    const float theta = float(0.5 * (t0 + t1));
+    // The band's projected solid angle per phi cell: (sin^2 t1 - sin^2 t0) / 2 * dphi.
+    const double w =
+        0.5 * (std::sin(t1) * std::sin(t1) - std::sin(t0) * std::sin(t0)) * (2 * kPi / kPhi);
+    for (int j = 0; j < kPhi; ++j) {
+      const float phi = 2 * kPi * (float(j) + 0.5f) / kPhi;
+      const Vec3 d(std::sin(theta) * std::cos(phi), std::cos(theta),
+                   std::sin(theta) * std::sin(phi));
+      if (scene.Occluded(Ray{p + Vec3(0, 1e-4f, 0), d, INFINITY})) continue;
+      (region.Contains(d) ? *sun : *sky) += w * Luminance(scene.EvalEnvironment(d));
+    }
+  }
+}
+
+RecordStats Records(const Scene& scene, bool direct_sun, const Vec3& p, int rays, int n) {
+  IrrcacheSettings settings;
+  settings.record_rays = rays;
+  settings.direct_sun = direct_sun;
+  return FloorRecords(scene, settings, p, n, 2000, 5);
+}
+
+TEST(EnvironmentSunTest, FoundWhereItIsAndOnlyThere) {
+  LoadedScene with = Load(WriteSky("sun-sky.exr", 2, 5));
+  const EnvironmentSun& sun = with.scene->environment_sun();
+  ASSERT_FALSE(sun.empty());
+  EXPECT_GT(Dot(sun.axis(), SunDirection()), std::cos(0.02f));
+  EXPECT_LT(sun.radius(), EnvironmentSun::kSunMaxRadius);
+  EXPECT_TRUE(sun.Contains(SunDirection()));
+  EXPECT_FALSE(sun.Contains(Normalize(SunDirection() + Vec3(0.1f, 0, 0))));
+  EXPECT_NEAR(sun.irradiance(), 5.0, 0.5);
+  // Its samples' density integrates to 1 over the region (a check on Sample's pdf).
+  Rng rng(1, 2);
+  double inv = 0;
+  constexpr int kN = 20000;
+  for (int i = 0; i < kN; ++i) {
+    Vec3 d;
+    float pdf;
+    sun.Sample(rng.Next(), rng.Next(), rng.Next(), &d, &pdf);
+    EXPECT_TRUE(sun.Contains(d));
+    inv += 1.0 / pdf;
+  }
+  // E[1 / pdf] is the region's solid angle; the region lies within radius() of the axis.
+  const double cap = 2 * kPi * (1 - std::cos(double(sun.radius())));
+  EXPECT_GT(inv / kN, 0.2 * cap);
+  EXPECT_LT(inv / kN, cap);
+  // A sky without a sun, and one whose bright patch is 20 degrees wide (a studio's softbox),
+  // have none.
+  LoadedScene dim = Load(WriteSky("dim-sky.exr", 0, 0));
+  EXPECT_TRUE(dim.scene->environment_sun().empty());
+  LoadedScene broad = Load(WriteSky("broad-sky.exr", 14, 5));
+  EXPECT_TRUE(broad.scene->environment_sun().empty());
+}
+
+TEST(EnvironmentSunTest, RecordsLeaveTheSunToDirectLight) {
+  LoadedScene built = Load(WriteSky("sun-sky.exr", 2, 5));
+  const Scene& scene = *built.scene;
+  ASSERT_FALSE(scene.environment_sun().empty());
+  constexpr int kRays = 256, kRecords = 400;
+  // In the open, and in the panel's shadow (the sun 50 degrees up over a panel 1 above).
+  const Vec3 points[] = {Vec3(-2, 0, -2), Vec3(-0.6f, 0, -0.8f)};
+  for (const Vec3& p : points) {
+    double sky, sun;
+    Irradiance(scene, p, &sky, &sun);
+    const RecordStats split = Records(scene, true, p, kRays, kRecords);
+    const RecordStats whole = Records(scene, false, p, kRays, kRecords);
+    std::printf(
+        "at (%.1f, %.1f): sky %.4f sun %.4f; records split %.4f (var %.3g), whole %.4f "
+        "(var %.3g)\n",
+        p.x, p.z, sky, sun, split.mean, split.var, whole.mean, whole.var);
+    EXPECT_NEAR(split.mean, sky, 4 * std::sqrt(split.var / kRecords) + 0.01 * sky);
+    EXPECT_NEAR(whole.mean, sky + sun, 4 * std::sqrt(whole.var / kRecords) + 0.01 * (sky + sun));
+    if (sun > sky) {
+      EXPECT_LT(split.var, whole.var / 10);
+    }
+  }
+}
+
+TEST(EnvironmentSunTest, CameraSamplesAgreeWithAndWithoutTheSplit) {
+  LoadedScene built = Load(WriteSky("sun-sky.exr", 2, 5));
+  const Scene& scene = *built.scene;
+  RenderSettings render;
+  render.integrator = "irrcache";
+  // A camera ray onto the floor in the open; each sample with a fresh cache (its own record).
+  const Ray ray{Vec3(-2, 1, -3), Normalize(Vec3(0, -1, 1)), INFINITY};
+  constexpr int kSamples = 400;
+  double mean[2], var[2];
+  for (const bool split : {false, true}) {
+    IrrcacheSettings settings;
+    settings.record_rays = 256;
+    settings.direct_sun = split;
+    double sum = 0, sum2 = 0;
+    RenderCounters counters;
+    for (int i = 0; i < kSamples; ++i) {
+      IrradianceCache cache(CacheSettingsFor(scene, render));
+      const IrrcacheIntegrator integrator(scene, &cache, settings);
+      Rng rng(uint64_t(i), 9);
+      const double l = Luminance(integrator.Li(ray, LightStrata{}, rng, counters, nullptr));
+      sum += l;
+      sum2 += l * l;
+    }
+    EXPECT_EQ(counters.nonfinite_samples, 0u);
+    mean[split] = sum / kSamples;
+    var[split] = std::max(0.0, sum2 / kSamples - mean[split] * mean[split]);
+  }
+  std::printf("whole %.5f (var %.3g), split %.5f (var %.3g)\n", mean[0], var[0], mean[1], var[1]);
+  EXPECT_NEAR(mean[1], mean[0], 4 * std::sqrt((var[0] + var[1]) / kSamples));
+}
+
+}  // namespace
+}  // namespace irfarm
