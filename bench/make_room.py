@@ -10,14 +10,15 @@ The camera stands near the z = 0 wall at eye height and looks into the room. Onl
 subset of ../shared/scenes/README.md, so Mitsuba 3 reads the same file.
 
   python3 bench/make_room.py SEED OUT_DIR [--window yes|no] [--lamps rect|mesh|bulb|none]
-      [--finish matte|glossy] [--sky constant|envmap]
+      [--finish matte|glossy] [--sky constant|envmap|sun-envmap]
       writes OUT_DIR/scene.xml (--lamps mesh: ceiling disks and fluorescent tubes, emissive
       triangle meshes, instead of rectangles; --lamps bulb: small spheres, spot and point
       lights; --lamps none: the same room with no lamp, lit by day through its window;
       --finish glossy: a rough plastic floor and a rough metal box; --sky envmap: the
       window lets in an environment map, a photographed sky turned about the vertical at random,
       instead of a sun and a constant sky, as in a real interior such as living-room; it is
-      copied to OUT_DIR/sky.exr)
+      copied to OUT_DIR/sky.exr; --sky sun-envmap: the sun and the constant sky drawn into an
+      environment map, OUT_DIR/sky.hdr, as a photographed sky with its sun would light it)
   python3 bench/make_room.py SEED OUT_DIR --reference 1024      and a Mitsuba 3 reference:
       reference.exr (mean of 256-spp chunks, seeds 1000...), reference.json (seconds, spp and the
       reference's own noise: relmse_half_vs_half of the even and odd chunks and
@@ -59,7 +60,53 @@ SKY_FILE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "sky
 SKY_SCALE = 0.06
 
 
-def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="constant"):
+def sun_sky_hdr(sun_dir, sun, sky, width=512, height=256, radius_deg=1.5):
+    """A latitude-longitude environment map (Mitsuba's: u = phi / 2 pi with phi = atan2(x, -z),
+    v = theta / pi from +y) of the constant sky `sky` plus a disc of `radius_deg` around the
+    direction the sun comes from (-sun_dir) whose texels' radiance sums to the sun's irradiance
+    `sun`, as a Radiance .hdr file (RGBE, run-length scanlines without runs): a photographed
+    sky with its sun, in the standard library only."""
+    to_sun = [-c for c in sun_dir]
+    cos_r = math.cos(math.radians(radius_deg))
+    disc, omega = [], 0.0
+    for y in range(height):
+        theta = (y + 0.5) / height * math.pi
+        texel = (2 * math.pi / width) * (math.pi / height) * math.sin(theta)
+        for x in range(width):
+            phi = (x + 0.5) / width * 2 * math.pi
+            d = (math.sin(theta) * math.sin(phi), math.cos(theta), -math.sin(theta) * math.cos(phi))
+            if sum(a * b for a, b in zip(d, to_sun)) >= cos_r:
+                disc.append(y * width + x)
+                omega += texel
+    pixels = [list(sky) for _ in range(width * height)]
+    for i in disc:
+        pixels[i] = [s + e / omega for s, e in zip(sky, sun)]
+
+    def rgbe(c):
+        v = max(c)
+        if v < 1e-32:
+            return (0, 0, 0, 0)
+        m, e = math.frexp(v)
+        scale = m * 256.0 / v
+        return tuple(min(255, int(ch * scale)) for ch in c) + (e + 128,)
+
+    out = bytearray(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n")
+    out += f"-Y {height} +X {width}\n".encode()
+    for y in range(height):
+        row = [rgbe(pixels[y * width + x]) for x in range(width)]
+        out += bytes((2, 2, width >> 8, width & 255))
+        for ch in range(4):
+            values = [p[ch] for p in row]
+            for k in range(0, width, 128):
+                chunk = values[k:k + 128]
+                out.append(len(chunk))
+                out += bytes(chunk)
+    return bytes(out)
+
+
+def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="constant",
+              files=None):
+    """The scene's XML; files (a dict), when given, receives the other files it names."""
     daylight_only = lamps_kind == "none"
     if daylight_only:
         lamps_kind = "rect"
@@ -119,6 +166,14 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="co
         <float name="scale" value="{SKY_SCALE * sky / 0.25 * (4 if daylight_only else 1):.4f}"/>
     </emitter>
 """]
+        elif sky_kind == "sun-envmap":
+            # The same sun and sky, drawn into an environment map (a 1.5-degree sun disc).
+            emitters = ["""    <emitter type="envmap">
+        <string name="filename" value="sky.hdr"/>
+    </emitter>
+"""]
+            if files is not None:
+                files["sky.hdr"] = sun_sky_hdr(sun_dir, sun, [sky * 0.8, sky * 0.95, sky * 1.1])
         else:
             emitters.append(f"""    <emitter type="constant">
         <rgb name="radiance" value="{rgb([sky * 0.8, sky * 0.95, sky * 1.1])}"/>
@@ -187,7 +242,7 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="co
     eye = (rnd.uniform(0.3 * W, 0.7 * W), rnd.uniform(1.2, 1.6), rnd.uniform(0.25, 0.5))
     target = (rnd.uniform(0.2 * W, 0.8 * W), rnd.uniform(0.8, 1.4), D * 0.8)
     head = f"""<?xml version="1.0" encoding="utf-8"?>
-<!-- bench/make_room.py seed {seed}: {W:.3f} x {H:.3f} x {D:.3f} m, {('window, environment map' if sky_kind == 'envmap' else 'window, sun and sky') if window else 'no window'}, {len(lamps)} lamp(s), {len(boxes)} box(es) -->
+<!-- bench/make_room.py seed {seed}: {W:.3f} x {H:.3f} x {D:.3f} m, {({'envmap': 'window, environment map', 'sun-envmap': 'window, sun and sky in an environment map'}.get(sky_kind, 'window, sun and sky')) if window else 'no window'}, {len(lamps)} lamp(s), {len(boxes)} box(es) -->
 <scene version="3.0.0">
     <default name="spp" value="256"/>
     <default name="resx" value="320"/>
@@ -289,19 +344,25 @@ def main():
                     "(sphere, spot and point lights), or none (lit by day through the window)")
     ap.add_argument("--finish", choices=["matte", "glossy"], default="matte",
                     help="glossy: a rough plastic floor and a rough metal box")
-    ap.add_argument("--sky", choices=["constant", "envmap"], default="constant",
-                    help="envmap: the window lets in a photographed sky (no sun, no constant sky)")
+    ap.add_argument("--sky", choices=["constant", "envmap", "sun-envmap"], default="constant",
+                    help="envmap: the window lets in a photographed sky (no sun, no constant sky);"
+                    " sun-envmap: the sun and the constant sky drawn into an environment map "
+                    "(sky.hdr: a 1.5-degree sun disc)")
     ap.add_argument("--reference", type=int, default=0, help="spp of a Mitsuba 3 reference")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     window = None if a.window is None else a.window == "yes"
-    if a.sky == "envmap" or a.lamps == "none":
+    if a.sky != "constant" or a.lamps == "none":
         if window is False:
             ap.error("--sky envmap and --lamps none light the room through its window: not with "
                      "--window no")
         window = True
+    files = {}
     with open(os.path.join(a.out, "scene.xml"), "w") as f:
-        f.write(make_room(a.seed, window, a.lamps, a.finish, a.sky))
+        f.write(make_room(a.seed, window, a.lamps, a.finish, a.sky, files))
+    for name, data in files.items():
+        with open(os.path.join(a.out, name), "wb") as f:
+            f.write(data)
     if a.sky == "envmap":
         shutil.copyfile(SKY_FILE, os.path.join(a.out, "sky.exr"))
     if a.reference > 0:

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # bench/make_room.py (random rooms for judging irfarm on scenes it has not seen): rooms of several
 # seeds, with and without a window, with rectangle, mesh and bulb lamps or none (lit by day), matte
-# and glossy, with a sun and constant sky or an environment map through the window, load in irfarm
+# and glossy, with a sun and constant sky, an environment map, or the sun and the sky drawn into
+# an environment map (sky.hdr) through the window, load in irfarm
 # without a warning and render lit (every channel mean above 0.01, no non-finite pixel):
 # what the generator writes is a scene the loader accepts as it is, whatever the seed.
 #   make_room_test.sh IRFARM_BINARY SOURCE_DIR
@@ -12,7 +13,7 @@ trap 'rm -rf "$tmp"' EXIT
 for args in "1 --window yes" "2 --window no" "3" "4 --window yes" "5 --lamps mesh" \
   "6 --lamps bulb --finish glossy" "7 --lamps bulb --window yes --finish glossy" \
   "8 --window yes --sky envmap" "9 --window yes --sky envmap --lamps bulb --finish glossy" \
-  "10 --lamps none --sky envmap"; do
+  "10 --lamps none --sky envmap" "11 --lamps none --sky sun-envmap --finish glossy"; do
   read -r seed rest <<<"$args"
   dir=$tmp/room-$seed
   # shellcheck disable=SC2086
