@@ -90,12 +90,15 @@ EnvironmentSun EnvironmentSun::Find(const std::function<Vec3(const Vec3&)>& radi
   sun.cdf_ = std::move(cdf);
   sun.axis_ = axis;
   sun.radius_ = radius;
+  sun.cos_radius_ = std::cos(radius) - 1e-4f;  // a margin for rounding
   sun.irradiance_ = float(irradiance);
   return sun;
 }
 
 bool EnvironmentSun::Contains(const Vec3& d) const {
-  if (marked_.empty()) return false;
+  // Every marked cell lies within radius_ of the axis: most directions are rejected here, before
+  // the grid's atan2 and acos.
+  if (marked_.empty() || Dot(d, axis_) < cos_radius_) return false;
   float u, v;
   EnvmapUv(d, &u, &v);
   const int i = std::clamp(int(u * kU), 0, kU - 1), j = std::clamp(int(v * kV), 0, kV - 1);

@@ -54,6 +54,7 @@ class EnvironmentSun {
   std::vector<float> cdf_;       // cumulative weights over cells_
   Vec3 axis_;
   float radius_ = 0, irradiance_ = 0;
+  float cos_radius_ = 2;  // Contains' quick rejection: below it, outside (2: empty)
 };
 
 }  // namespace irfarm
