@@ -39,7 +39,7 @@ struct RenderArgs {
   int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
   float accuracy = 0, min_spacing = 0, max_spacing = 0, lookup_factor = 0;
   uint64_t seed = 0;
-  bool no_overture = false, quiet = false, caustics = true;
+  bool no_overture = false, quiet = false, caustics = true, direct_sun = true;
   bool aovs = false;     // write the AOV layers (render/aov.h) into the output EXR
   bool denoise = false;  // OUT.exr denoised (render/denoiser.h), OUT.noisy.exr as rendered
   // Default "image" for both integrators (bench/denoise_bench.py, 10 scenes with living-room):
@@ -128,6 +128,7 @@ int RunRender(const RenderArgs& args) {
   s.seed = args.seed;
   s.overture = !args.no_overture;
   s.caustics = args.caustics;
+  ic.direct_sun = args.direct_sun;
   s.record_map = !args.record_map.empty();
   s.sample_map = !args.sample_map.empty();
   if (!args.adaptive.empty()) s.adaptive = args.adaptive == "on";
@@ -337,6 +338,9 @@ int main(int argc, char** argv) {
       "--caustics,!--no-caustics", ra.caustics,
       "irrcache: caustics (light through mirrors, smooth glass and sharp metals) from a photon map "
       "instead of the records (the default; --no-caustics leaves them to the records)");
+  render->add_flag("--direct-sun,!--no-direct-sun", ra.direct_sun,
+                   "irrcache: an environment map's sun sampled as direct light, not left to the "
+                   "records (the default where the map has a compact sun)");
   render->add_option("--threads", ra.threads, "threads (default: all cores)");
   render->add_option("--seed", ra.seed, "random seed");
   render->add_option("--stats", ra.stats, "write the stats JSON here");
