@@ -98,6 +98,11 @@ bool HasSharpGlossy(const Bsdf& bsdf) {
 // Solid angle a spot light emits into (its cutoff cone).
 float SpotSolidAngle(const Light& l) { return 2 * kPi * (1 - l.cos_cutoff); }
 
+// Whether emitter e's photons leave a square (a directional light, or the environment's sun).
+bool FromSquare(const Scene& scene, const Emitter& e) {
+  return e.light < 0 || scene.lights()[size_t(e.light)].type == LightType::kDirectional;
+}
+
 // A square across travel direction `dir` whose photons reach every point of `target` along
 // directions within `spread` radians of dir, lying upstream of the whole scene (Emitter).
 void PlaceSquare(const Scene& scene, const Bounds3& target, const Vec3& dir, float spread,
@@ -169,8 +174,7 @@ void Emit(const Scene& scene, const EnvironmentSun& sun, const Emitter& e, Rng& 
   // directional light's irradiance, or the sun's radiance along a sampled direction over its
   // density, projected on the square.
   Vec3 travel, per_area;
-  const bool square =
-      e.light < 0 || scene.lights()[size_t(e.light)].type == LightType::kDirectional;
+  const bool square = FromSquare(scene, e);
   if (e.light < 0) {
     Vec3 d;
     float pdf;
@@ -178,6 +182,7 @@ void Emit(const Scene& scene, const EnvironmentSun& sun, const Emitter& e, Rng& 
     travel = -d;
     const float cos = Dot(d, sun.axis());
     per_area = pdf > 0 && cos > 0 ? scene.EvalEnvironment(d) * (cos / pdf) : Vec3();
+    if (!IsFinite(per_area)) per_area = Vec3();  // a scene's map may hold non-finite texels
   } else if (square) {
     travel = scene.lights()[size_t(e.light)].direction;
     per_area = scene.lights()[size_t(e.light)].intensity;
@@ -343,9 +348,7 @@ uint32_t CausticMap::Lobes(const Scene& scene) {
 }
 
 bool CausticMap::SceneHasCaustics(const Scene& scene) {
-  if (Lobes(scene) == 0) return false;
-  return !Emitters(scene, EnvironmentSun()).empty() ||
-         !Emitters(scene, scene.environment_sun()).empty();
+  return Lobes(scene) != 0 && !Emitters(scene, scene.environment_sun()).empty();
 }
 
 std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
@@ -360,20 +363,20 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
     std::vector<float> cdf;
     float acc = 0;
     for (const Emitter& e : emitters) cdf.push_back(acc += e.pick);
-    bool pilot = false;     // the first batch only aims the directional lights' photons
+    bool pilot = false;     // the first batch only aims the squares' photons (kProjection)
     bool from_sun = false;  // the environment's sun is one of the emitters
     for (const Emitter& e : emitters) {
       from_sun |= e.light < 0;
-      pilot |= e.light < 0 || scene.lights()[size_t(e.light)].type == LightType::kDirectional;
+      pilot |= FromSquare(scene, e);
     }
     std::vector<Photon> photons;
     constexpr long kChunk = 1024;
     std::vector<std::vector<Photon>> chunks(kBatch / kChunk);
     std::vector<long> chunk_lost(chunks.size());
-    // Pilot: (emitter, projection cell) of each directional photon that landed.
+    // Pilot: (emitter, projection cell) of each square's photon that landed.
     std::vector<std::vector<std::pair<uint32_t, uint32_t>>> chunk_landed(chunks.size());
-    long lost =
-        0;  // photons lost at once (Trace): they hit nothing or a back that reflects nothing
+    // Photons lost at once (Trace): they hit nothing, or a back that reflects nothing.
+    long lost = 0;
     long counted = 0;  // photons emitted after the pilot: the stored photons' power divides by it
     while (long(photons.size()) < settings.target_photons && st.emitted < settings.max_emitted) {
       const long first = st.emitted;
@@ -415,8 +418,7 @@ std::unique_ptr<CausticMap> CausticMap::Build(const Scene& scene,
       }
       // Mark the cells the pilot's photons landed through, and their neighbours.
       for (Emitter& e : emitters)
-        if (e.light < 0 || scene.lights()[size_t(e.light)].type == LightType::kDirectional)
-          e.marked.assign(size_t(kProjection * kProjection), 0);
+        if (FromSquare(scene, e)) e.marked.assign(size_t(kProjection * kProjection), 0);
       for (const auto& c : chunk_landed)
         for (const auto& [ei, cell] : c) {
           const int cx = int(cell) % kProjection, cy = int(cell) / kProjection;

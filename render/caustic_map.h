@@ -14,16 +14,16 @@
 // and nothing is counted twice.
 //
 // Photons are emitted from area lights (rectangles, spheres, meshes) in proportion to their
-// power and, where the map has glossy lobes, from point, spot and directional lights (the sun:
-// from a disc that covers the shapes with the map's lobes); environment light stays with the
-// records. They are followed through the map's lobes only and
-// stored at each surface with a diffuse lobe after at least one such bounce; a photon whose first
-// hit is not such a lobe is direct light (the integrators' next-event estimation) and is dropped.
-// A delta light's photon whose first bounce is a delta lobe is dropped too: a path traced from
-// the other end reaches a delta light only by next-event estimation, which a delta lobe cannot
-// make, so neither our path tracer nor Mitsuba's renders that light. Photon i draws its numbers
-// from its own stream, and batches are appended in order, so the map does not depend on the
-// thread count.
+// power, from an environment map's sun (EnvironmentSun) and, where the map has glossy lobes,
+// from point, spot and directional lights (a sun's photons from a square across it that covers
+// the shapes with the map's lobes); the rest of the environment's light stays with the records.
+// They are followed through the map's lobes only and stored at each surface with a diffuse lobe
+// after at least one such bounce; a photon whose first hit is not such a lobe is direct light (the
+// integrators' next-event estimation) and is dropped. A delta light's photon whose first bounce is
+// a delta lobe is dropped too: a path traced from the other end reaches a delta light only by
+// next-event estimation, which a delta lobe cannot make, so neither our path tracer nor Mitsuba's
+// renders that light. Photon i draws its numbers from its own stream, and batches are appended in
+// order, so the map does not depend on the thread count.
 //
 // Irradiance is precomputed at every 8th stored photon (Christensen 1999, who used a subset too):
 // the k nearest photons on the same side (normals within kNormalCos) over the disc that holds
@@ -71,8 +71,8 @@ struct CausticMapStats {
 
 class CausticMap {
  public:
-  // nullptr when the scene has nothing that makes caustics (no delta BSDF, or no area light) or
-  // when no emitted photon found one.
+  // nullptr when the scene has nothing that makes caustics (none of the map's lobes, or no light
+  // the map covers) or when too few emitted photons found one (kLeastCausticShare).
   static std::unique_ptr<CausticMap> Build(const Scene& scene, const CausticMapSettings& settings,
                                            tbb::task_arena& arena, CausticMapStats* stats);
   // Whether a scene has what a caustic map needs (cheap; Build checks it too).
