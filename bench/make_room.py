@@ -10,7 +10,7 @@ The camera stands near the z = 0 wall at eye height and looks into the room. Onl
 subset of ../shared/scenes/README.md, so Mitsuba 3 reads the same file.
 
   python3 bench/make_room.py SEED OUT_DIR [--window yes|no] [--lamps rect|mesh|bulb|none]
-      [--finish matte|glossy] [--sky constant|envmap|sun-envmap]
+      [--finish matte|glossy] [--sky constant|envmap|sun-envmap] [--glass]
       writes OUT_DIR/scene.xml (--lamps mesh: ceiling disks and fluorescent tubes, emissive
       triangle meshes, instead of rectangles; --lamps bulb: small spheres, spot and point
       lights; --lamps none: the same room with no lamp, lit by day through its window;
@@ -18,7 +18,8 @@ subset of ../shared/scenes/README.md, so Mitsuba 3 reads the same file.
       window lets in an environment map, a photographed sky turned about the vertical at random,
       instead of a sun and a constant sky, as in a real interior such as living-room; it is
       copied to OUT_DIR/sky.exr; --sky sun-envmap: the sun and the constant sky drawn into an
-      environment map, OUT_DIR/sky.hdr, as a photographed sky with its sun would light it)
+      environment map, OUT_DIR/sky.hdr, as a photographed sky with its sun would light it;
+      --glass: a thin glass pane in the window and a glass diffuser under each rectangular lamp)
   python3 bench/make_room.py SEED OUT_DIR --reference 1024      and a Mitsuba 3 reference:
       reference.exr (mean of 256-spp chunks, seeds 1000...), reference.json (seconds, spp and the
       reference's own noise: relmse_half_vs_half of the even and odd chunks and
@@ -105,7 +106,7 @@ def sun_sky_hdr(sun_dir, sun, sky, width=512, height=256, radius_deg=1.5):
 
 
 def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="constant",
-              files=None):
+              files=None, glass=False):
     """The scene's XML; files (a dict), when given, receives the other files it names."""
     daylight_only = lamps_kind == "none"
     if daylight_only:
@@ -141,6 +142,9 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="co
         x0 = rnd.uniform(0.4, W - ww - 0.4)
         y0 = rnd.uniform(0.7, H - wh - 0.3)
         x1, y1 = x0 + ww, y0 + wh
+        if glass:  # glazed: a thin pane of glass in the opening
+            out.append(rect("window-pane", "mat-glass", (ww / 2, wh / 2), [("y", 180)],
+                            ((x0 + x1) / 2, (y0 + y1) / 2, D)))
         # The far wall (z = D, normal -z) around the opening: below, above, left, right.
         for k, (a, b, c, d) in enumerate(
                 [(0, W, 0, y0), (0, W, y1, H), (0, x0, y0, y1), (x1, W, y0, y1)]):
@@ -196,6 +200,8 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="co
     # shape is a triangle mesh: a ceiling disk, a fluorescent tube hung under the ceiling, or an
     # upright tube standing by a wall (a cylinder emits from its whole side).
     lamps = []
+    covers = []  # glass=True: a thin glass diffuser pane under each rectangular lamp
+    cover_boxes = []  # their x, z extents
     for i in range(rnd.randint(1, 3)):
         lw, ld = rnd.uniform(0.15, 0.6), rnd.uniform(0.15, 0.6)
         x, z = rnd.uniform(lw + 0.3, W - lw - 0.3), rnd.uniform(ld + 0.3, D - ld - 0.3)
@@ -205,6 +211,18 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="co
             lamps.append(bulb(rnd, i, x, H, z, 4 * lw * ld * power))
             continue
         if lamps_kind != "mesh":
+            if glass:
+                # Lamps may overlap (coplanar emitters, which z-fight); under glass, where only
+                # paths through the diffuser find them, Mitsuba and irfarm then see different
+                # ones (room 931: 10% apart), so a lamp whose diffuser would overlap an earlier
+                # one is left out (its draws are made all the same: the room stays the same).
+                box = (x - 1.25 * lw, x + 1.25 * lw, z - 1.25 * ld, z + 1.25 * ld)
+                if any(box[0] < b[1] and b[0] < box[1] and box[2] < b[3] and b[2] < box[3]
+                       for b in cover_boxes):
+                    continue
+                cover_boxes.append(box)
+                covers.append(rect(f"cover{i}", "mat-glass", (1.25 * lw, 1.25 * ld), [("x", 90)],
+                                   (x, H - 0.07, z)))
             lamps.append(rect(f"light{i}", "mat-lamp", (lw, ld), [("x", 90)], (x, H - 0.01, z),
                               emitter=colour))
             continue
@@ -239,6 +257,7 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="co
 """)
     if daylight_only:  # the same room, its lamps drawn (so the rest stays the same) and left out
         lamps = []
+        covers = []
     eye = (rnd.uniform(0.3 * W, 0.7 * W), rnd.uniform(1.2, 1.6), rnd.uniform(0.25, 0.5))
     target = (rnd.uniform(0.2 * W, 0.8 * W), rnd.uniform(0.8, 1.4), D * 0.8)
     head = f"""<?xml version="1.0" encoding="utf-8"?>
@@ -274,8 +293,11 @@ def make_room(seed, window=None, lamps_kind="rect", finish="matte", sky_kind="co
         <float name="alpha" value="{rnd.uniform(0.1, 0.35):.3f}"/>
     </bsdf>
 """
+    if glass:
+        bsdfs += """    <bsdf type="thindielectric" id="mat-glass"/>
+"""
     return head + bsdfs + "".join(out) + "".join(emitters) + "".join(boxes) + "".join(lamps) + \
-        "</scene>\n"
+        "".join(covers) + "</scene>\n"
 
 
 def bulb(rnd, i, x, H, z, flux_scale):
@@ -348,6 +370,10 @@ def main():
                     help="envmap: the window lets in a photographed sky (no sun, no constant sky);"
                     " sun-envmap: the sun and the constant sky drawn into an environment map "
                     "(sky.hdr: a 1.5-degree sun disc)")
+    ap.add_argument("--glass", action="store_true",
+                    help="thin glass (thindielectric): a pane in the window and a diffuser pane "
+                    "under each rectangular lamp (a directional sun does not come through the "
+                    "pane, in Mitsuba's path tracer or in irfarm: no path reaches a delta light)")
     ap.add_argument("--reference", type=int, default=0, help="spp of a Mitsuba 3 reference")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -359,7 +385,7 @@ def main():
         window = True
     files = {}
     with open(os.path.join(a.out, "scene.xml"), "w") as f:
-        f.write(make_room(a.seed, window, a.lamps, a.finish, a.sky, files))
+        f.write(make_room(a.seed, window, a.lamps, a.finish, a.sky, files, a.glass))
     for name, data in files.items():
         with open(os.path.join(a.out, name), "wb") as f:
             f.write(data)

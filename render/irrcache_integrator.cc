@@ -112,11 +112,12 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
   auto visible = [&](const LightSample& s) {
     if (Dot(s.wi, hit.ng) * wo_side <= 0) return false;  // below the geometric surface
     ++counters.shadow_rays;
-    return !scene_.Occluded(Scene::SpawnShadowRay(hit, s));
+    return !scene_.ShadowOccluded(hit, s);
   };
   // The environment's sun (IrrcacheSettings::direct_sun): one sample by its luminance.
   if (sun_ != nullptr) {
     LightSample s;
+    s.environment = true;
     float pdf;
     sun_->Sample(rng.Next(), rng.Next(), rng.Next(), &s.wi, &pdf);
     const float cos_i = Dot(s.wi, nf);
@@ -282,7 +283,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
     if (!(Dot(ls->wi, nf) > 0) || Dot(ls->wi, ng_side) <= 0) return false;
     if (sun_ != nullptr && sun_->Contains(ls->wi)) return false;  // DirectLight's (direct_sun)
     ++counters.shadow_rays;
-    return !scene_.Occluded(Scene::SpawnShadowRay(hit, *ls));
+    return !scene_.ShadowOccluded(hit, *ls);
   };
   int m_env = 0;
   if (lights.has_environment_map() && settings_.environment_samples > 0) {
@@ -502,6 +503,7 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
   for (int i = 0; i < kMaxSpecularChain; ++i, ++depth) {
     SurfaceHit hit;
     if (!scene_.Intersect(ray, &hit)) {
+      if (first) *first_distance = INFINITY;  // out through whatever it passed straight through
       if (scene_.has_environment()) {
         const float w = EnvironmentMisWeight(prev_pdf, prev_p, prev_n, ray.dir);
         // Past non-diffuse bounces, the environment's sun is a caustic: the map's, if it has it.
@@ -518,12 +520,13 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
       }
       break;
     }
-    if (i == 0) *first_distance = hit.t;
+    // The first segment's length, across the masks and panes it passed straight through.
+    if (first) *first_distance = (i == 0 ? 0.0f : *first_distance) + hit.t;
     footprint += hit.t * cone;
     const Vec3 wo = -ray.dir;
-    // At the first hit: the record point's direct light; past non-diffuse bounces only: a
-    // caustic, the photon map's when there is one.
-    if (hit.light >= 0 && i > 0) {
+    // At the first hit (straight through masks and panes as well): the record point's direct
+    // light; past non-diffuse bounces only: a caustic, the photon map's when there is one.
+    if (hit.light >= 0 && !first) {
       const Vec3 le = scene_.Emitted(hit, wo);
       const Vec3 throughput =
           caustic_lobes != 0 && CausticMap::Covers(scene_, hit.light) ? beta - beta_caustic : beta;
@@ -733,7 +736,7 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
           if (IsBlack(c)) return;
         }
         ++counters.shadow_rays;
-        if (scene_.Occluded(Scene::SpawnShadowRay(hit, ls))) return;
+        if (scene_.ShadowOccluded(hit, ls)) return;
         const float w = ls.pdf == 0
                             ? 1.0f
                             : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l, kNonDiffuseLobes));

@@ -57,8 +57,9 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       }
       break;
     }
-    if (first && first_distance) *first_distance = hit.t;
     path_length += hit.t;
+    // The first segment's length, across the masks and panes it passed straight through.
+    if (first && first_distance) *first_distance = path_length;
     const Vec3 wo = -ray.dir;
     if (hit.light >= 0 && !(first && skip_first_local_emission)) {
       const Vec3 le = scene.Emitted(hit, wo);
@@ -112,7 +113,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
         if (IsBlack(c)) return;
       }
       ++counters.shadow_rays;
-      if (scene.Occluded(Scene::SpawnShadowRay(hit, ls))) return;
+      if (scene.ShadowOccluded(hit, ls)) return;
       const float w = ls.pdf == 0 ? 1.0f : PowerHeuristic(ls.pdf, bsdf.Pdf(ctx, wo_l, wi_l));
       add(c * scene.LightValue(ls) * w, depth);
     };
@@ -131,8 +132,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
             c -= beta_caustic * bsdf.Eval(ctx, wo_l, wi_l, caustic_lobes);
           if (!IsBlack(c)) {
             ++counters.shadow_rays;
-            if (!scene.Occluded(Scene::SpawnShadowRay(hit, ls)))
-              add(c * scene.EvalEnvironment(ls.wi) / pdf, depth);
+            if (!scene.ShadowOccluded(hit, ls)) add(c * scene.EvalEnvironment(ls.wi) / pdf, depth);
           }
         }
       }

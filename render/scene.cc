@@ -9,6 +9,19 @@
 namespace irfarm {
 namespace {
 
+// Occluded's occlusion query context: Embree's own first (filter functions get a pointer to
+// it), then whether the shadow ray ends at a delta light (Bsdf::PassThrough).
+struct ShadowContext {
+  RTCIntersectContext embree;
+  bool delta_light = false;
+};
+
+// |cos| of the angle between two directions of any length (1 where either is zero).
+float AbsCos(const Vec3& a, const Vec3& b) {
+  const float l = std::sqrt(Dot(a, a) * Dot(b, b));
+  return l > 0 ? std::min(1.0f, std::abs(Dot(a, b)) / l) : 1.0f;
+}
+
 void EmbreeError(void* user, RTCError code, const char* str) {
   auto* msg = static_cast<std::string*>(user);
   if (msg->empty()) *msg = "embree error " + std::to_string(int(code)) + ": " + (str ? str : "");
@@ -472,13 +485,14 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
   return true;
 }
 
-bool Scene::Occluded(const Ray& ray) const {
-  if (has_pass_through_ && !pass_through_filter_) return OccludedPassThrough(ray);
+bool Scene::Occluded(const Ray& ray, bool delta_light) const {
+  if (has_pass_through_ && !pass_through_filter_) return OccludedPassThrough(ray, delta_light);
   if (ray_log_ != nullptr) ray_log_->push_back(TracedRay{ray, true});
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
+  ShadowContext ctx;
+  rtcInitIntersectContext(&ctx.embree);
+  ctx.delta_light = delta_light;
   RTCRay r = ToRtcRay(ray);
-  rtcOccluded1(rtc_scene_, &ctx, &r);
+  rtcOccluded1(rtc_scene_, &ctx.embree, &r);
   return r.tfar < 0;
 }
 
@@ -492,19 +506,21 @@ uint64_t Scene::PassThroughHash(const Vec3& origin, const Vec3& dir) {
                      (bits(origin.z) << 32) | bits(dir.x + 3 * dir.y + 7 * dir.z));
 }
 
-float Scene::PassProbability(unsigned geom, unsigned prim, float bu, float bv,
-                             const Vec3& p) const {
+float Scene::PassProbability(unsigned geom, unsigned prim, float bu, float bv, const Vec3& p,
+                             float cos_theta, bool delta_light) const {
   const Mesh& m = meshes_[geom];
   float u = bu, v = bv;  // without uvs, as Intersect: u = b1, v = b2
   if (m.sphere)
     SphereUv(Normalize(p - m.center), &u, &v);
   else if (!m.uvs.empty())
     TriangleUv(m.uvs, &m.indices[3 * size_t(prim)], 1 - bu - bv, bu, bv, &u, &v);
-  return materials_[size_t(m.material)]->PassThrough(BsdfContext{u, v});
+  return materials_[size_t(m.material)]->PassThrough(BsdfContext{u, v}, cos_theta, delta_light);
 }
 
 void Scene::PassThroughFilter(const RTCFilterFunctionNArguments* args) {
   const Scene* s = static_cast<const Scene*>(args->geometryUserPtr);
+  // Occluded's context: Embree's, first, and what the query is for.
+  const bool delta_light = reinterpret_cast<const ShadowContext*>(args->context)->delta_light;
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
     const Vec3 o(RTCRayN_org_x(args->ray, args->N, i), RTCRayN_org_y(args->ray, args->N, i),
@@ -515,8 +531,11 @@ void Scene::PassThroughFilter(const RTCFilterFunctionNArguments* args) {
     const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
     // The ray's tfar is the candidate hit's distance while the filter runs.
     const Vec3 p = o + d * RTCRayN_tfar(args->ray, args->N, i);
-    const float pass = s->PassProbability(geom, prim, RTCHitN_u(args->hit, args->N, i),
-                                          RTCHitN_v(args->hit, args->N, i), p);
+    const Vec3 ng(RTCHitN_Ng_x(args->hit, args->N, i), RTCHitN_Ng_y(args->hit, args->N, i),
+                  RTCHitN_Ng_z(args->hit, args->N, i));
+    const float pass =
+        s->PassProbability(geom, prim, RTCHitN_u(args->hit, args->N, i),
+                           RTCHitN_v(args->hit, args->N, i), p, AbsCos(d, ng), delta_light);
     if (!(pass > 0)) continue;  // blocks: the hit stands and the query ends
     // A sphere is hit twice by a ray through it: the way out is a surface of its own.
     const Scene::Mesh& m = s->meshes_[geom];
@@ -532,12 +551,13 @@ void Scene::PassThroughFilter(const RTCFilterFunctionNArguments* args) {
 // the hit (deterministic, so renders repeat; uncorrelated between rays). The expected visibility is
 // the product of the pass probabilities, as for camera and bounce rays that sample the mask's null
 // lobe.
-bool Scene::OccludedPassThrough(Ray ray) const {
+bool Scene::OccludedPassThrough(Ray ray, bool delta_light) const {
   uint64_t h = PassThroughHash(ray.origin, ray.dir);
   for (int i = 0; i < 64; ++i) {
     SurfaceHit hit;
     if (!Intersect(ray, &hit)) return false;
-    const float pass = materials_[size_t(hit.material)]->PassThrough(BsdfContext{hit.u, hit.v});
+    const float pass = materials_[size_t(hit.material)]->PassThrough(
+        BsdfContext{hit.u, hit.v}, AbsCos(ray.dir, hit.ng), delta_light);
     if (!(pass > 0)) return true;
     h = HashCombine(h, (uint64_t(hit.geom) << 32) | hit.prim);
     if (Rng::ToUnitFloat(uint32_t(h >> 32)) >= pass) return true;

@@ -67,7 +67,13 @@ class Scene {
   Scene& operator=(const Scene&) = delete;
 
   bool Intersect(const Ray& ray, SurfaceHit* hit) const;
-  bool Occluded(const Ray& ray) const;
+  // Whether the segment is blocked. Masks and panes let it through with their pass probability
+  // (Bsdf::PassThrough); `delta_light`: the segment ends at a delta light, which panes block.
+  bool Occluded(const Ray& ray, bool delta_light = false) const;
+  // The shadow ray from `hit` to the light sample (SpawnShadowRay), blocked or not.
+  bool ShadowOccluded(const SurfaceHit& hit, const LightSample& ls) const {
+    return Occluded(SpawnShadowRay(hit, ls), ls.FromDeltaLight());
+  }
 
   // A ray leaving hit point `p` (geometric normal ng, error scale s) in direction dir.
   static Ray SpawnRay(const Vec3& p, const Vec3& ng, float s, const Vec3& dir);
@@ -152,10 +158,12 @@ class Scene {
   // Where Embree lacks filter functions, OccludedPassThrough walks the hits with Intersect.
   static void PassThroughFilter(const RTCFilterFunctionNArguments* args);
   // The chance that a shadow ray passes the surface of geometry `geom` at the hit (primitive
-  // prim, Embree's barycentrics bu, bv, point p).
-  float PassProbability(unsigned geom, unsigned prim, float bu, float bv, const Vec3& p) const;
+  // prim, Embree's barycentrics bu, bv, point p), meeting it at |cos| = cos_theta to its
+  // geometric normal.
+  float PassProbability(unsigned geom, unsigned prim, float bu, float bv, const Vec3& p,
+                        float cos_theta, bool delta_light) const;
   static uint64_t PassThroughHash(const Vec3& origin, const Vec3& dir);
-  bool OccludedPassThrough(Ray ray) const;
+  bool OccludedPassThrough(Ray ray, bool delta_light) const;
 
   RTCDevice device_ = nullptr;
   RTCScene rtc_scene_ = nullptr;

@@ -119,8 +119,14 @@ class Bsdf {
     return Vec3(0, 0, 1);
   }
 
-  // Probability that a ray passes straight through (mask); 0 for ordinary surfaces.
-  virtual float PassThrough(const BsdfContext& /*ctx*/) const { return 0; }
+  // Probability that a shadow ray passes straight through (the kNullTransmission lobe: a mask, a
+  // thin pane of glass) when it meets the surface at |cos theta| = cos_theta to its normal, on
+  // its way to a delta light (point, spot, directional) or not; 0 for ordinary surfaces. Sample's
+  // null lobe is chosen with the same probability and weight 1 (a grey weight may be folded in).
+  virtual float PassThrough(const BsdfContext& /*ctx*/, float /*cos_theta*/,
+                            bool /*delta_light*/) const {
+    return 0;
+  }
 
   bool HasDiffuse() const { return (Flags() & kDiffuseReflection) != 0; }
   bool HasNonDiffuse() const {

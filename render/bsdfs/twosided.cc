@@ -37,7 +37,9 @@ class TwoSidedBsdf final : public Bsdf {
     return wo.z >= 0 ? front_->DiffuseAlbedo(ctx, wo) : back_->DiffuseAlbedo(ctx, FlipZ(wo));
   }
 
-  float PassThrough(const BsdfContext& ctx) const override { return front_->PassThrough(ctx); }
+  float PassThrough(const BsdfContext& ctx, float cos_theta, bool delta_light) const override {
+    return front_->PassThrough(ctx, cos_theta, delta_light);
+  }
 
   Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {
     return wo.z >= 0 ? front_->ShadingNormal(ctx, wo) : FlipZ(back_->ShadingNormal(ctx, FlipZ(wo)));

@@ -102,5 +102,52 @@ TEST(PassThroughTest, TexturedOpacityIsReadWhereIntersectReadsIt) {
   EXPECT_LT(opaque, 3 * checked / 4);
 }
 
+// A thin pane of glass (thindielectric, relative index 1.5, tilted 60 degrees about x) passes
+// shadow rays with its transmittance 1 - 2F / (1 + F) (F: the Fresnel equations, written out
+// here) at the angle they meet it, from either side; a ray towards a delta light does not pass
+// (Mitsuba's shadow rays stop at it, and no path reaches a delta light through it).
+TEST(PassThroughTest, ThinPanePassesShadowRaysWithItsTransmittance) {
+  const std::string xml = R"(<scene version="3.0.0">
+  <sensor type="perspective"/>
+  <bsdf type="thindielectric" id="pane"><float name="int_ior" value="1.5"/>
+    <float name="ext_ior" value="1"/></bsdf>
+  <shape type="rectangle"><transform name="to_world"><scale value="10"/>
+    <rotate x="1" angle="60"/></transform><ref id="pane"/></shape>
+</scene>)";
+  absl::StatusOr<SceneDesc> desc = LoadSceneString(xml, "pane.xml", {});
+  ASSERT_TRUE(desc.ok()) << desc.status();
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  const auto transmittance = [](double mu) {
+    const double eta = 1.5, ct = std::sqrt(1 - (1 - mu * mu) / (eta * eta));
+    const double rs = (mu - eta * ct) / (mu + eta * ct), rp = (eta * mu - ct) / (eta * mu + ct);
+    const double f = 0.5 * (rs * rs + rp * rp);
+    return 1 - 2 * f / (1 + f);
+  };
+  const Vec3 n(0, -std::sin(kPi / 3), std::cos(kPi / 3));  // the pane's normal
+  const int count = 40000;
+  // Directions at 0, 60 and 80 degrees from the normal, from the front and from the back.
+  for (const float deg : {0.0f, 60.0f, 80.0f}) {
+    for (const float side : {1.0f, -1.0f}) {
+      const float th = deg * kPi / 180;
+      const Vec3 d = (n * std::cos(th) + Vec3(1, 0, 0) * std::sin(th)) * -side;
+      Rng rng(5, 6);
+      int passed = 0, passed_delta = 0;
+      for (int i = 0; i < count; ++i) {
+        // A point on the pane (spanned by x and its tilted y axis), 2 units before it.
+        const Vec3 on = Vec3(rng.Next() - 0.5f, 0, 0) +
+                        Vec3(0, std::cos(kPi / 3), std::sin(kPi / 3)) * (rng.Next() - 0.5f);
+        const Vec3 o = on - d * 2;
+        passed += !(*scene)->Occluded(Ray{o, d, 4});
+        passed_delta += !(*scene)->Occluded(Ray{o, d, 4}, true);
+      }
+      const double t = transmittance(std::cos(th));
+      EXPECT_NEAR(double(passed) / count, t, Tolerance(t, count))
+          << deg << " degrees, side " << side;
+      EXPECT_EQ(passed_delta, 0) << deg << " degrees, side " << side;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace irfarm
