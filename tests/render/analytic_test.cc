@@ -42,8 +42,10 @@ std::string SceneXml(const std::string& extra) {
          "</scene>\n";
 }
 
-// Mean radiance of the image (all pixels see the plane's centre region).
-Vec3 RenderMean(const std::string& xml, const std::string& integrator, const std::string& dir) {
+// Mean radiance of the image (all pixels see the plane's centre region); cache_levels > 0 sets
+// irrcache's cache levels (else the pilot chooses).
+Vec3 RenderMean(const std::string& xml, const std::string& integrator, const std::string& dir,
+                int cache_levels = 0) {
   const std::string path = dir + "/scene.xml";
   absl::StatusOr<SceneDesc> desc = LoadSceneString(xml, path, LoadOptions{});
   EXPECT_TRUE(desc.ok()) << desc.status();
@@ -54,6 +56,10 @@ Vec3 RenderMean(const std::string& xml, const std::string& integrator, const std
   RenderSettings settings = *SettingsForScene(*desc, integrator);
   settings.spp = 256;
   settings.irrcache.record_rays = 4096;
+  if (cache_levels > 0) {
+    settings.irrcache.cache_levels = cache_levels;
+    settings.irrcache.choose_cache_levels = false;
+  }
   const RenderOutput out = Render(**scene, settings);
   Vec3 sum;
   for (const Vec3& p : out.image.pixels) sum += p;
@@ -175,6 +181,24 @@ TEST_P(AnalyticTest, SkyThroughAThinPane) {
   ExpectRadiance(RenderMean(xml, GetParam(), dir_),
                  float(PaneReflectance(1) * 0.8 + (1 - PaneReflectance(1)) * b), 0.02f,
                  "sky through a pane");
+}
+
+// A lamp behind the pane: a large emitting plane (radiance 0.8, facing down) at z = 2.5 above the
+// pane, the camera at z = 1 under it, looking down at the plane, which sees the lamp through the
+// pane as it saw the sky above: B = rho L tau / (1 - rho rho_p). With two cache levels as well:
+// a record ray through the pane that meets the lamp finds the record point's direct light, which
+// the record must leave out (counted twice before).
+TEST_P(AnalyticTest, LampThroughAThinPane) {
+  std::string xml = SceneXml(Pane("") + R"(<shape type="rectangle">
+    <transform name="to_world"><scale value="100"/><rotate x="1" angle="180"/>
+      <translate z="2.5"/></transform>
+    <emitter type="area"><rgb name="radiance" value="0.8"/></emitter></shape>)");
+  xml.replace(xml.find("origin=\"0, 0, 3\""), 16, "origin=\"0, 0, 1\"");
+  const double rho = 0.5, tau = PaneHemisphericalTransmittance();
+  const float want = float(rho * 0.8 * tau / (1 - rho * (1 - tau)));
+  ExpectRadiance(RenderMean(xml, GetParam(), dir_), want, 0.02f, "lamp through a pane");
+  if (GetParam() == "irrcache")
+    ExpectRadiance(RenderMean(xml, GetParam(), dir_, 2), want, 0.02f, "two cache levels");
 }
 
 // A delta light behind the pane lights nothing through it: no path can reach such a light, and
