@@ -16,6 +16,13 @@ double CellSolidAngle(int j) {
   return (2 * kPi / kU) * (std::cos(theta0) - std::cos(theta1));
 }
 
+// Solid angle of row j's sub-cells (EnvironmentSun::kSubCells per cell each way).
+double SubCellSolidAngle(int j) {
+  constexpr int kSub = EnvironmentSun::kSubCells;
+  const double theta0 = kPi * double(j) / (kV * kSub), theta1 = kPi * double(j + 1) / (kV * kSub);
+  return (2 * kPi / (kU * kSub)) * (std::cos(theta0) - std::cos(theta1));
+}
+
 }  // namespace
 
 EnvironmentSun EnvironmentSun::Find(const std::function<Vec3(const Vec3&)>& radiance,
@@ -54,7 +61,11 @@ EnvironmentSun EnvironmentSun::Find(const std::function<Vec3(const Vec3&)>& radi
     }
   if (!any || !(LengthSquared(axis) > 0)) return sun;
   axis = Normalize(axis);
-  // The largest angle of a marked cell's corner from the axis; the cells' weights.
+  // The largest angle of a marked cell's corner from the axis; the sub-cells' weights: each
+  // marked cell is kSub x kSub sub-cells, weighed by the luminance at their centres times their
+  // solid angle (a floor keeps every one sampleable).
+  constexpr int kSub = EnvironmentSun::kSubCells;
+  const double floor = 1e-3 * total / (4 * kPi);
   float min_cos = 1;
   std::vector<uint32_t> cells;
   std::vector<float> cdf;
@@ -66,22 +77,19 @@ EnvironmentSun EnvironmentSun::Find(const std::function<Vec3(const Vec3&)>& radi
         const Vec3 d = EnvmapDirection(float(i + (c & 1)) / kU, float(j + (c >> 1)) / kV);
         min_cos = std::min(min_cos, Dot(d, axis));
       }
-      // The cell's mean luminance from kSub x kSub points (its light, whatever its centre got).
-      constexpr int kSub = 4;
-      double mean = 0;
-      for (int b = 0; b < kSub; ++b)
+      for (int b = 0; b < kSub; ++b) {
+        const double omega = SubCellSolidAngle(j * kSub + b);
         for (int a = 0; a < kSub; ++a) {
-          const float y = Luminance(radiance(EnvmapDirection((float(i) + (a + 0.5f) / kSub) / kU,
-                                                             (float(j) + (b + 0.5f) / kSub) / kV)));
-          mean += std::isfinite(y) ? std::max(y, 0.0f) : 0.0f;
+          const Vec3 d = EnvmapDirection((float(i) + (float(a) + 0.5f) / kSub) / kU,
+                                         (float(j) + (float(b) + 0.5f) / kSub) / kV);
+          const float y = Luminance(radiance(d));
+          const double lum_sub = std::isfinite(y) ? std::max(double(y), 0.0) : 0.0;
+          acc += std::max(lum_sub, floor) * omega;
+          irradiance += lum_sub * omega * std::max(0.0f, Dot(d, axis));
+          cells.push_back(uint32_t(j * kSub + b) * (kU * kSub) + uint32_t(i * kSub + a));
+          cdf.push_back(float(acc));
         }
-      mean /= kSub * kSub;
-      const Vec3 d = EnvmapDirection((float(i) + 0.5f) / kU, (float(j) + 0.5f) / kV);
-      acc += mean * CellSolidAngle(j);
-      irradiance += double(lum[size_t(j) * kU + size_t(i)]) * CellSolidAngle(j) *
-                    std::max(0.0f, Dot(d, axis));
-      cells.push_back(uint32_t(j) * kU + uint32_t(i));
-      cdf.push_back(float(acc));
+      }
     }
   const float radius = std::acos(std::clamp(min_cos, -1.0f, 1.0f));
   if (!(radius <= kSunMaxRadius) || !(acc > 0)) return sun;
@@ -111,12 +119,13 @@ void EnvironmentSun::Sample(float u1, float u2, float u3, Vec3* d, float* pdf) c
       std::min(size_t(std::upper_bound(cdf_.begin(), cdf_.end(), u1 * total) - cdf_.begin()),
                cells_.size() - 1);
   const float weight = cdf_[k] - (k > 0 ? cdf_[k - 1] : 0.0f);
-  const int i = int(cells_[k] % kU), j = int(cells_[k] / kU);
-  const float u = (float(i) + u2) / kU, v = (float(j) + u3) / kV;
+  constexpr int kFineU = kU * kSubCells, kFineV = kV * kSubCells;
+  const int i = int(cells_[k] % kFineU), j = int(cells_[k] / kFineU);
+  const float u = (float(i) + u2) / kFineU, v = (float(j) + u3) / kFineV;
   *d = EnvmapDirection(u, v);
-  // Uniform in (u, v) over the cell: solid-angle density 1 / (du dv 2 pi^2 sin(theta)).
+  // Uniform in (u, v) over the sub-cell: solid-angle density 1 / (du dv 2 pi^2 sin(theta)).
   const float sin_theta = std::max(std::sin(v * kPi), 1e-6f);
-  *pdf = (weight / total) * float(kU) * float(kV) / (2 * kPi * kPi * sin_theta);
+  *pdf = (weight / total) * float(kFineU) * float(kFineV) / (2 * kPi * kPi * sin_theta);
 }
 
 }  // namespace irfarm

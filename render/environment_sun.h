@@ -28,6 +28,10 @@ class EnvironmentSun {
   static constexpr int kCellsU = 1024, kCellsV = 512;
   static constexpr float kSunRatio = 100;
   static constexpr float kSunMaxRadius = 0.1f;  // radians (about 6 degrees)
+  // Sample's resolution: each cell is kSubCells x kSubCells sub-cells (0.044 degrees), finer than
+  // a 2048 x 1024 map's texels, so a sample's value over its density hardly varies across a sun
+  // that covers part of a cell.
+  static constexpr int kSubCells = 8;
 
   // The environment's sun, from its radiance along world directions (all environment lights
   // summed, as LightSampler::EvalEnvironment has it); empty when the scene has no envmap
@@ -38,8 +42,8 @@ class EnvironmentSun {
   // Whether world direction d (towards the sky, unit) is in the sun's region.
   bool Contains(const Vec3& d) const;
   // A direction in the region (unit, towards the sky) and its solid-angle density, from three
-  // uniform numbers; cells are picked by their mean luminance (4 x 4 points each) times their
-  // solid angle, a point uniformly within the cell.
+  // uniform numbers; sub-cells are picked by the luminance at their centres times their solid
+  // angle, a point uniformly within the sub-cell.
   void Sample(float u1, float u2, float u3, Vec3* d, float* pdf) const;
   // The luminance-weighted mean direction of the region (unit, towards the sky) and the largest
   // angle of a cell's corner from it.
@@ -50,7 +54,7 @@ class EnvironmentSun {
 
  private:
   std::vector<uint8_t> marked_;  // kCellsU x kCellsV, row-major (v rows); empty when none
-  std::vector<uint32_t> cells_;  // the marked cells
+  std::vector<uint32_t> cells_;  // the marked cells' sub-cells (row-major, kSubCells finer)
   std::vector<float> cdf_;       // cumulative weights over cells_
   Vec3 axis_;
   float radius_ = 0, irradiance_ = 0;

@@ -134,6 +134,48 @@ TEST(EnvironmentSunTest, FoundWhereItIsAndOnlyThere) {
   EXPECT_TRUE(broad.scene->environment_sun().empty());
 }
 
+// A sun of the real size (0.27 degrees: 3 x 3 texels of a 2048 x 1024 map), smaller than one of
+// the region's grid cells (0.35 degrees): Sample picks sub-cells finer than the map's texels, so
+// one sample's estimate of the sun's irradiance, L cos / pdf, hardly varies. A perfect sampler of
+// this uniform disc gives every sample the same value; a point drawn uniformly within whole cells
+// would fall on the sky (value about 0) as often as on the sun (relative deviation above 1).
+TEST(EnvironmentSunTest, SamplesOfASunSmallerThanACellAgree) {
+  constexpr int kW = 2048, kH = 1024, kTexels = 3;
+  constexpr float kSunE = 5;
+  Image map(kW, kH);
+  for (Vec3& p : map.pixels) p = Vec3(0.05f);
+  float u0, v0;
+  EnvmapUv(SunDirection(), &u0, &v0);
+  const int x0 = int(u0 * kW) - 1, y0 = int(v0 * kH) - 1;
+  double omega = 0;
+  for (int y = y0; y < y0 + kTexels; ++y)
+    omega += kTexels * (2 * kPi / kW) * (kPi / kH) * std::sin((y + 0.5) * kPi / kH);
+  for (int y = y0; y < y0 + kTexels; ++y)
+    for (int x = x0; x < x0 + kTexels; ++x)
+      map.pixels[size_t(y) * kW + size_t(x)] = Vec3(float(kSunE / omega));
+  ASSERT_TRUE(WriteExr(map, ::testing::TempDir() + "/small-sun.exr").ok());
+  LoadedScene loaded = Load("small-sun.exr");
+  const Scene& scene = *loaded.scene;
+  const EnvironmentSun& sun = scene.environment_sun();
+  ASSERT_FALSE(sun.empty());
+  Rng rng(3, 4);
+  constexpr int kN = 20000;
+  double sum = 0, sum2 = 0;
+  for (int i = 0; i < kN; ++i) {
+    Vec3 d;
+    float pdf;
+    sun.Sample(rng.Next(), rng.Next(), rng.Next(), &d, &pdf);
+    ASSERT_GT(pdf, 0);
+    const double e = Luminance(scene.EvalEnvironment(d)) * Dot(d, sun.axis()) / pdf;
+    sum += e;
+    sum2 += e * e;
+  }
+  const double mean = sum / kN, sd = std::sqrt(std::max(0.0, sum2 / kN - mean * mean));
+  // The region's irradiance: the sun's 5 plus the sky's 0.05 over the region's solid angle.
+  EXPECT_NEAR(mean, kSunE, 0.05 * kSunE);
+  EXPECT_LT(sd / mean, 0.25) << "mean " << mean;
+}
+
 TEST(EnvironmentSunTest, RecordsLeaveTheSunToDirectLight) {
   LoadedScene built = Load(WriteSky("sun-sky.exr", 2, 5));
   const Scene& scene = *built.scene;
