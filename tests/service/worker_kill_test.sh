@@ -2,9 +2,13 @@
 # Failure tests with real processes on 127.0.0.1, Cornell box at 128x128 (64 tiles of 16 px):
 #  1. a worker killed with SIGKILL mid-job: the job still completes with every tile and its image,
 #     box-filtered to 64x64, has a relMSE against the 64x64 reference (reference-x4.exr) within
-#     Mitsuba's own at the job's 128x128 and 256 spp, box-filtered the same way (the largest of 8
-#     seeds, 3.3e-4, tests/data/scenes/cornell-box/mitsuba-x4-noise.json: a bound that does not
-#     come from irfarm; irrcache at its defaults is claimed to beat Mitsuba at 256 spp);
+#     Mitsuba's own at the job's 128x128 and 64 spp, box-filtered the same way (the largest of 8
+#     seeds, 1.27e-3, tests/data/scenes/cornell-box/mitsuba-x4-noise.json: a bound that does not
+#     come from irfarm). This test is about losing nothing: one tile lost or rendered twice over
+#     the wrong pixels puts the image near 1.5e-2. Its images measure 1.8-3.5e-4 (30 runs,
+#     2026-12-05), against Mitsuba's 3.1e-4 mean at 256 spp: the bound of 256 spp failed about
+#     one run in 30, on the tail. The quality claim against Mitsuba at 256 spp is
+#     two_workers_test.sh's and batch_test.sh's (64x64, with room to spare);
 #  2. on a real redis-server: the coordinator killed with SIGKILL mid-job and restarted on the
 #     same Redis: every tile finished and every record merged before the kill is still there,
 #     and the job completes with its image within the same bound.
@@ -12,7 +16,7 @@ source "$(dirname "$0")/lib.sh"
 SCENE=$DATA/scenes/cornell-box/scene.xml
 REF=$DATA/scenes/cornell-box/reference-x4.exr
 OPTS=(-Dresx=128 -Dresy=128)
-TOL=$(mitsuba_x4_error cornell-box "128x128 256spp")
+TOL=$(mitsuba_x4_error cornell-box "128x128 64spp")
 
 # job_completes WHAT NAME: $JOB succeeds (180 s) with all 64 tiles; its image ($WORK/NAME.exr),
 # box-filtered to 64x64, is within the tolerance.
