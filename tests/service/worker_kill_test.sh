@@ -4,8 +4,8 @@
 #     box-filtered to 64x64, has a relMSE against the 64x64 reference (reference-x4.exr) within
 #     Mitsuba's own at the job's 128x128 and 64 spp, box-filtered the same way (the largest of 8
 #     seeds, 1.27e-3, tests/data/scenes/cornell-box/mitsuba-x4-noise.json: a bound that does not
-#     come from irfarm). This test is about losing nothing: one tile lost or rendered twice over
-#     the wrong pixels puts the image near 1.5e-2. Its images measure 1.8-3.5e-4 (30 runs,
+#     come from irfarm). This test is about losing nothing: one tile blacked out puts the image at
+#     1.8e-3 (a dark corner) to 9.0e-3 (the centre). Its images measure 1.8-3.5e-4 (30 runs,
 #     2026-12-05), against Mitsuba's 3.1e-4 mean at 256 spp: the bound of 256 spp failed about
 #     one run in 30, on the tail. The quality claim against Mitsuba at 256 spp is
 #     two_workers_test.sh's and batch_test.sh's (64x64, with room to spare);
