@@ -499,7 +499,8 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
   // the light of the map's lights it finds is a caustic at the record point, the map's.
   const uint32_t caustic_lobes = settings_.caustics != nullptr ? settings_.caustics->lobes() : 0u;
   Vec3 beta_caustic = caustic_lobes != 0 ? Vec3(1, 1, 1) : Vec3();
-  bool first = true;  // still on the first segment (masks passed through)
+  bool first = true;       // still on the first segment (masks passed through)
+  float first_length = 0;  // its length so far, across the masks and panes it passed
   for (int i = 0; i < kMaxSpecularChain; ++i, ++depth) {
     SurfaceHit hit;
     if (!scene_.Intersect(ray, &hit)) {
@@ -520,8 +521,7 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
       }
       break;
     }
-    // The first segment's length, across the masks and panes it passed straight through.
-    if (first) *first_distance = (i == 0 ? 0.0f : *first_distance) + hit.t;
+    if (first) *first_distance = first_length += hit.t;
     footprint += hit.t * cone;
     const Vec3 wo = -ray.dir;
     // At the first hit (straight through masks and panes as well): the record point's direct

@@ -97,8 +97,6 @@ struct LightSample {
   // radiance lookup (a texture fetch far from cache) is left to Scene::LightValue, called after
   // the shadow ray, since in interiors most shadow rays towards the sky are blocked.
   bool environment = false;
-  // A point, spot or directional light's sample (pdf 0 and not the environment's).
-  bool FromDeltaLight() const { return pdf == 0 && !environment; }
 };
 
 }  // namespace irfarm

@@ -70,9 +70,11 @@ class Scene {
   // Whether the segment is blocked. Masks and panes let it through with their pass probability
   // (Bsdf::PassThrough); `delta_light`: the segment ends at a delta light, which panes block.
   bool Occluded(const Ray& ray, bool delta_light = false) const;
-  // The shadow ray from `hit` to the light sample (SpawnShadowRay), blocked or not.
+  // The shadow ray from `hit` to the light sample (SpawnShadowRay), blocked or not; towards a
+  // point, spot or directional light (Light::IsDelta) panes block it.
   bool ShadowOccluded(const SurfaceHit& hit, const LightSample& ls) const {
-    return Occluded(SpawnShadowRay(hit, ls), ls.FromDeltaLight());
+    const bool delta = ls.light >= 0 && lights()[size_t(ls.light)].IsDelta();
+    return Occluded(SpawnShadowRay(hit, ls), delta);
   }
 
   // A ray leaving hit point `p` (geometric normal ng, error scale s) in direction dir.
