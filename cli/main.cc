@@ -39,7 +39,7 @@ struct RenderArgs {
   int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
   float accuracy = 0, min_spacing = 0, max_spacing = 0, lookup_factor = 0;
   uint64_t seed = 0;
-  bool no_overture = false, quiet = false, caustics = true, direct_sun = true;
+  bool no_overture = false, quiet = false, caustics = true, direct_sun = true, env_guide = true;
   bool aovs = false;     // write the AOV layers (render/aov.h) into the output EXR
   bool denoise = false;  // OUT.exr denoised (render/denoiser.h), OUT.noisy.exr as rendered
   // Default "image" for both integrators (bench/denoise_bench.py, 10 scenes with living-room):
@@ -71,7 +71,9 @@ int RunRender(const RenderArgs& args) {
   const PhaseTime load_time = load_timer.Stop();
 
   PhaseTimer build_timer("build");
-  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
+  SceneBuildOptions build_options;
+  build_options.environment_guide = args.env_guide;
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc, build_options);
   if (!scene.ok()) {
     std::fprintf(stderr, "%s\n", std::string(scene.status().message()).c_str());
     return 1;
@@ -169,6 +171,7 @@ int RunRender(const RenderArgs& args) {
   st.phases.insert(st.phases.begin(), load_time);
   st.triangles = (*scene)->counts().triangles;
   st.degenerate_dropped = (*scene)->counts().degenerate_dropped;
+  st.environment_guide_cells = (*scene)->environment_guide().cells();
   for (const std::string& w : st.warnings) spdlog::warn("{}", w);  // the render's own
   st.warnings.insert(st.warnings.begin(), desc->warnings.begin(), desc->warnings.end());
 
@@ -341,6 +344,9 @@ int main(int argc, char** argv) {
   render->add_flag("--direct-sun,!--no-direct-sun", ra.direct_sun,
                    "irrcache: an environment map's sun sampled as direct light, not left to the "
                    "records (the default where the map has a compact sun)");
+  render->add_flag("--env-guide,!--no-env-guide", ra.env_guide,
+                   "environment samples drawn partly towards where the environment was seen from "
+                   "nearby (windows; the default where the scene has an environment light)");
   render->add_option("--threads", ra.threads, "threads (default: all cores)");
   render->add_option("--seed", ra.seed, "random seed");
   render->add_option("--stats", ra.stats, "write the stats JSON here");

@@ -279,7 +279,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
   // and unblocked (a shadow ray).
   const auto sample_map = [&](LightSample* ls) {
     const float u2 = rng.Next(), u3 = rng.Next();
-    if (!lights.SampleEnvironment(nf, u2, u3, ls, true)) return false;
+    if (!lights.SampleEnvironment(hit.p, nf, u2, u3, ls, true)) return false;
     if (!(Dot(ls->wi, nf) > 0) || Dot(ls->wi, ng_side) <= 0) return false;
     if (sun_ != nullptr && sun_->Contains(ls->wi)) return false;  // DirectLight's (direct_sun)
     ++counters.shadow_rays;
@@ -317,7 +317,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       const float radiance = IsFinite(L) ? Luminance(L) : 0.0f;
       if (m_env > 0 && !IsBlack(env_first)) {
         const float p_cos = local.z * kInvPi;
-        const float p_env = lights.PdfEnvironmentAlone(nf, dir, true);
+        const float p_env = lights.PdfEnvironmentAlone(hit.p, nf, dir, true);
         L += env_first * (n_strata * p_cos / (n_strata * p_cos + float(m_env) * p_env) - 1.0f);
       }
       if (IsFinite(L)) {

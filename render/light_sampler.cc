@@ -381,7 +381,7 @@ bool LightSampler::Sample(const Vec3& p, const Vec3& n, float u1, float u2, floa
     u1r = std::clamp((target - acc) / w[chosen], 0.0f, 0x1.fffffep-1f);
   }
   if (chosen == nl) {  // the environment
-    if (!SampleEnvironment(n, u2, u3, s, env_importance)) return false;
+    if (!SampleEnvironment(p, n, u2, u3, s, env_importance)) return false;
     s->pdf *= psel;
     s->value = Vec3(1.0f / s->pdf);  // times EvalEnvironment(wi): Scene::LightValue
     return true;
@@ -392,34 +392,52 @@ bool LightSampler::Sample(const Vec3& p, const Vec3& n, float u1, float u2, floa
   return true;
 }
 
-bool LightSampler::SampleEnvironment(const Vec3& n, float u2, float u3, LightSample* s,
-                                     bool importance) const {
-  bool by_cosine = true;
-  if (importance && !env_map_.empty()) {
-    // u2 picks the part of the mixture and is then stretched back to [0, 1).
-    by_cosine = u2 < kEnvCosineShare;
-    u2 = by_cosine ? u2 / kEnvCosineShare : (u2 - kEnvCosineShare) / (1 - kEnvCosineShare);
+bool LightSampler::SampleEnvironment(const Vec3& p, const Vec3& n, float u2, float u3,
+                                     LightSample* s, bool importance) const {
+  const int cell = guide_ != nullptr ? guide_->CellOf(p, n) : -1;
+  bool by_guide = false;
+  if (cell >= 0) {
+    by_guide = u2 < kGuideShare;
+    u2 = by_guide ? u2 / kGuideShare : (u2 - kGuideShare) / (1 - kGuideShare);
     u2 = std::min(u2, 0x1.fffffep-1f);
   }
-  if (!by_cosine) {
-    float grid_pdf = 0;
-    if (!env_map_.Sample(u2, u3, &s->wi, &grid_pdf)) return false;
-    // Below the horizon nothing arrives: no shadow ray (and no density there, PdfEnvironmentAlone).
-    const float c = HasNormal(n) ? Dot(s->wi, n) : 1.0f;
-    if (!(c > 0)) return false;
-    const float cosine = HasNormal(n) ? c * kInvPi : 0.25f * kInvPi;
-    // The mixture's pdf, with the cell's density as the sampler drew it.
-    s->pdf = kEnvCosineShare * cosine + (1 - kEnvCosineShare) * grid_pdf;
+  if (by_guide) {
+    float guide_pdf = 0;
+    if (!guide_->Sample(cell, u2, u3, &s->wi, &guide_pdf)) return false;
+    const float base = UnguidedPdf(n, s->wi, importance);
+    if (!(base > 0)) return false;  // below the horizon
+    s->pdf = kGuideShare * guide_pdf + (1 - kGuideShare) * base;
   } else {
-    if (HasNormal(n)) {
-      Vec3 a, b;
-      MakeFrame(n, &a, &b);
-      const Vec3 local = CosineHemisphere(u2, u3);
-      s->wi = a * local.x + b * local.y + n * local.z;
-    } else {
-      s->wi = UniformSphere(u2, u3);
+    bool by_cosine = true;
+    if (importance && !env_map_.empty()) {
+      // u2 picks the part of the mixture and is then stretched back to [0, 1).
+      by_cosine = u2 < kEnvCosineShare;
+      u2 = by_cosine ? u2 / kEnvCosineShare : (u2 - kEnvCosineShare) / (1 - kEnvCosineShare);
+      u2 = std::min(u2, 0x1.fffffep-1f);
     }
-    s->pdf = PdfEnvironmentAlone(n, s->wi, importance);
+    if (!by_cosine) {
+      float grid_pdf = 0;
+      if (!env_map_.Sample(u2, u3, &s->wi, &grid_pdf)) return false;
+      // Below the horizon nothing arrives: no shadow ray (and no density there,
+      // PdfEnvironmentAlone).
+      const float c = HasNormal(n) ? Dot(s->wi, n) : 1.0f;
+      if (!(c > 0)) return false;
+      const float cosine = HasNormal(n) ? c * kInvPi : 0.25f * kInvPi;
+      // The mixture's pdf, with the cell's density as the sampler drew it.
+      s->pdf = kEnvCosineShare * cosine + (1 - kEnvCosineShare) * grid_pdf;
+    } else {
+      if (HasNormal(n)) {
+        Vec3 a, b;
+        MakeFrame(n, &a, &b);
+        const Vec3 local = CosineHemisphere(u2, u3);
+        s->wi = a * local.x + b * local.y + n * local.z;
+      } else {
+        s->wi = UniformSphere(u2, u3);
+      }
+      s->pdf = UnguidedPdf(n, s->wi, importance);
+    }
+    if (cell >= 0 && s->pdf > 0)
+      s->pdf = kGuideShare * guide_->Pdf(cell, s->wi) + (1 - kGuideShare) * s->pdf;
   }
   if (!(s->pdf > 0)) return false;
   s->distance = INFINITY;
@@ -429,7 +447,7 @@ bool LightSampler::SampleEnvironment(const Vec3& n, float u2, float u3, LightSam
   return true;
 }
 
-float LightSampler::PdfEnvironmentAlone(const Vec3& n, const Vec3& wi, bool importance) const {
+float LightSampler::UnguidedPdf(const Vec3& n, const Vec3& wi, bool importance) const {
   // With a normal, SampleEnvironment gives only directions above the horizon (it refuses the
   // envmap's others): the density is 0 below, for MIS with a BSDF that transmits.
   const float c = HasNormal(n) ? Dot(wi, n) : 1.0f;
@@ -437,6 +455,14 @@ float LightSampler::PdfEnvironmentAlone(const Vec3& n, const Vec3& wi, bool impo
   const float cosine = HasNormal(n) ? c * kInvPi : 0.25f * kInvPi;
   if (!importance || env_map_.empty()) return cosine;
   return kEnvCosineShare * cosine + (1 - kEnvCosineShare) * env_map_.Pdf(wi);
+}
+
+float LightSampler::PdfEnvironmentAlone(const Vec3& p, const Vec3& n, const Vec3& wi,
+                                        bool importance) const {
+  const float base = UnguidedPdf(n, wi, importance);
+  if (!(base > 0)) return 0;
+  const int cell = guide_ != nullptr ? guide_->CellOf(p, n) : -1;
+  return cell < 0 ? base : kGuideShare * guide_->Pdf(cell, wi) + (1 - kGuideShare) * base;
 }
 
 float LightSampler::PdfArea(const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
@@ -458,13 +484,13 @@ float LightSampler::NeePdfArea(bool all, const Vec3& p, const Vec3& n, int light
 float LightSampler::NeePdfEnvironment(bool all, const Vec3& p, const Vec3& n, const Vec3& wi,
                                       bool env_importance) const {
   if (!SamplesEveryLight(all)) return PdfEnvironment(p, n, wi, env_importance);
-  return has_environment() ? PdfEnvironmentAlone(n, wi, env_importance) : 0;
+  return has_environment() ? PdfEnvironmentAlone(p, n, wi, env_importance) : 0;
 }
 
 float LightSampler::PdfEnvironment(const Vec3& p, const Vec3& n, const Vec3& wi,
                                    bool importance) const {
   if (!has_environment()) return 0;
-  const float dir = PdfEnvironmentAlone(n, wi, importance);
+  const float dir = PdfEnvironmentAlone(p, n, wi, importance);
   return dir > 0 ? dir * SelectPdf(p, n, num_local_) : 0;
 }
 

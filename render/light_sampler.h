@@ -21,6 +21,7 @@
 
 #include <vector>
 
+#include "render/environment_guide.h"
 #include "render/environment_map_sampler.h"
 #include "render/light.h"
 #include "render/sampling.h"
@@ -39,6 +40,8 @@ class LightSampler {
   // floor reflecting it) -4%, living-room, rooms 501 and 511 within their scatter; CPU alike
   // (docs/bench/envmap-record-samples-2026-12-04/cosine-share.log).
   static constexpr float kEnvCosineShare = 0.1f;
+  // Share of environment samples drawn from the EnvironmentGuide's histogram where it has one.
+  static constexpr float kGuideShare = 0.5f;
 
   // `lights`: local lights first, then environment lights.
   void Build(std::vector<Light> lights, int num_local);
@@ -48,6 +51,8 @@ class LightSampler {
   bool has_environment() const { return int(lights_.size()) > num_local_; }
   // An environment map that SampleEnvironment(..., importance = true) samples by its radiance.
   bool has_environment_map() const { return !env_map_.empty(); }
+  // Where the environment is seen from (Scene::Build learns it after Build); null: unguided.
+  void set_guide(const EnvironmentGuide* guide) { guide_ = guide; }
 
   // Selection weight of local light i at (p, n); 0 exactly when it cannot reach p.
   float Weight(int i, const Vec3& p, const Vec3& n) const;
@@ -69,10 +74,12 @@ class LightSampler {
   // when n is zero), and with `importance` and an envmap the mixture with its radiance
   // (EnvironmentMapSampler); s->pdf is that direction's pdf alone, s->value 1 / pdf (see Sample).
   // `importance` (PathSettings::env_importance) must be the same in the matching pdf calls.
-  bool SampleEnvironment(const Vec3& n, float u2, float u3, LightSample* s,
+  // With a guide that has a cell at p, kGuideShare of the samples come from its histogram.
+  bool SampleEnvironment(const Vec3& p, const Vec3& n, float u2, float u3, LightSample* s,
                          bool importance = false) const;
-  // The pdf of SampleEnvironment(n, ...) giving wi.
-  float PdfEnvironmentAlone(const Vec3& n, const Vec3& wi, bool importance = false) const;
+  // The pdf of SampleEnvironment(p, n, ...) giving wi.
+  float PdfEnvironmentAlone(const Vec3& p, const Vec3& n, const Vec3& wi,
+                            bool importance = false) const;
   // Picks a light by weight (the environment too when include_env) and samples it; pdf and
   // value include the selection probability. An environment sample's value lacks the radiance
   // (LightSample::environment): Scene::LightValue completes it once the sample is unblocked.
@@ -125,7 +132,7 @@ class LightSampler {
     if (has_environment()) {
       LightSample s;
       const float u2 = rng.Next(), u3 = rng.Next();
-      if (SampleEnvironment(n, u2, u3, &s, env_importance)) f(s);
+      if (SampleEnvironment(p, n, u2, u3, &s, env_importance)) f(s);
     }
   }
   // The pdf with which SampleForNee(all, p, n, ...) produces direction wi towards point q of
@@ -140,10 +147,13 @@ class LightSampler {
   // Selection probability of candidate `index` (num_local_ = the environment).
   float SelectPdf(const Vec3& p, const Vec3& n, int index) const;
   float EnvironmentWeight(const Vec3& n) const;
+  // The unguided environment density (cosine, or the mixture with the map's).
+  float UnguidedPdf(const Vec3& n, const Vec3& wi, bool importance) const;
 
   std::vector<Light> lights_;
   int num_local_ = 0;
   EnvironmentMapSampler env_map_;  // empty without an envmap (or with a non-rotation frame)
+  const EnvironmentGuide* guide_ = nullptr;
 };
 
 }  // namespace irfarm

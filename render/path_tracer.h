@@ -33,7 +33,8 @@ struct PathSettings {
   // living-room, materials and principled for equal error (the importance-sampled shadow rays
   // cross the room, through windows and masked leaves, where cosine ones hit the nearest wall).
   // (irrcache's camera-path glossy vertices draw the environment by its radiance regardless:
-  // kGlossyEnvImportance in irrcache_integrator.cc.)
+  // kGlossyEnvImportance in irrcache_integrator.cc.) Either way, where the scene's
+  // EnvironmentGuide has a cell, half of the samples aim where the environment was seen from there.
   bool env_importance = false;
   // Irradiance records' paths with a caustic map (CausticMap: light of area, point and spot
   // lights that reached a diffuse surface through one or more of the map's lobes M: delta lobes,

@@ -166,6 +166,7 @@ std::string RenderStats::ToJson() const {
                            {"one_level_sampling_relmse", balance.one_level_sampling_error}};
   j["tiles"] = {{"count", tiles}, {"size", tile_size}};
   j["geometry"] = {{"triangles", triangles}, {"degenerate_dropped", degenerate_dropped}};
+  j["environment_guide"] = {{"cells", environment_guide_cells}};
   j["image"] = {{"mean_rgb", {Short(mean_rgb.x), Short(mean_rgb.y), Short(mean_rgb.z)}},
                 {"nonfinite_pixels", nonfinite_pixels}};
   j["peak_rss_mib"] = PeakRssMiB();

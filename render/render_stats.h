@@ -66,6 +66,7 @@ struct RenderStats {
   bool balanced = false;
   BalanceResult balance;
   long triangles = 0, degenerate_dropped = 0;
+  int environment_guide_cells = 0;  // EnvironmentGuide's histograms (0: none learned)
   std::vector<std::string> warnings;
 
   double PhaseWall(const std::string& name) const;

@@ -165,7 +165,8 @@ Scene::~Scene() {
   if (device_) rtcReleaseDevice(device_);
 }
 
-absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc) {
+absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc,
+                                                    const SceneBuildOptions& options) {
   std::unique_ptr<Scene> s(new Scene());
   s->camera_ = Camera(desc.camera);
   std::string embree_error;
@@ -367,6 +368,10 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc) {
   for (const Light& l : s->lights_.lights()) has_envmap |= l.type == LightType::kEnvmap;
   s->sun_ = EnvironmentSun::Find([&s](const Vec3& d) { return s->lights_.EvalEnvironment(d); },
                                  has_envmap);
+  if (options.environment_guide) {
+    s->env_guide_ = EnvironmentGuide::Learn(*s);
+    if (!s->env_guide_.empty()) s->lights_.set_guide(&s->env_guide_);
+  }
   return s;
 }
 

@@ -59,9 +59,17 @@ struct SceneStatsCounts {
   long triangles = 0, spheres = 0, degenerate_dropped = 0;
 };
 
+// What Scene::Build precomputes beyond the geometry and the lights.
+struct SceneBuildOptions {
+  // Learn where the environment is seen from (EnvironmentGuide), so that environment samples
+  // aim at the windows; off: every environment sample comes from the unguided mixture.
+  bool environment_guide = true;
+};
+
 class Scene {
  public:
-  static absl::StatusOr<std::unique_ptr<Scene>> Build(const SceneDesc& desc);
+  static absl::StatusOr<std::unique_ptr<Scene>> Build(const SceneDesc& desc,
+                                                      const SceneBuildOptions& options = {});
   ~Scene();
   Scene(const Scene&) = delete;
   Scene& operator=(const Scene&) = delete;
@@ -116,6 +124,7 @@ class Scene {
   bool has_environment() const { return lights_.has_environment(); }
   // The environment map's sun (render/environment_sun.h), found once here; empty: none.
   const EnvironmentSun& environment_sun() const { return sun_; }
+  const EnvironmentGuide& environment_guide() const { return env_guide_; }
   const Bounds3& bounds() const { return bounds_; }
   // The bounds of the shapes whose material has any of `lobes` (BSDF lobe bits); empty: none.
   Bounds3 BoundsOfLobes(uint32_t lobes) const;
@@ -174,6 +183,7 @@ class Scene {
   std::vector<std::unique_ptr<Bsdf>> materials_;  // SceneDesc::bsdfs, built
   LightSampler lights_;                           // local lights first, then environment lights
   EnvironmentSun sun_;
+  EnvironmentGuide env_guide_;        // the light sampler points at it
   bool has_pass_through_ = false;     // some material lets rays through (mask): see Occluded
   bool pass_through_filter_ = false;  // ... and Embree's occlusion filter handles it
   Camera camera_;
