@@ -16,7 +16,8 @@
 // grids. Round 1 samples the unguided mixture; round 2 draws half of its samples from round 1's
 // histograms, which find the openings far more often. A cell whose histogram gathered less than
 // kMinWeight unblocked samples stays unguided; a point takes the fine grid's cell where it has a
-// histogram, else the coarse grid's, else none. No guide where the environment gives less than
+// histogram, else the coarse grid's, else none. No guide where the scene is open to the sky (more
+// than kMaxPassFraction of the unguided samples pass) or where the environment gives less than
 // kMinEnvironmentShare of the vertices' direct light (a room lit by its lamps or by a sun).
 //
 // Directions: kBandsZ x kBandsPhi bins of equal solid angle (bands of equal world z, sectors of
@@ -41,7 +42,10 @@ class EnvironmentGuide {
   static constexpr int kCells[kLevels] = {16, 5};
   static constexpr int kPaths = 8192, kVertices = 3, kRaysPerVertex = 8;
   static constexpr float kMinWeight = 4;
-  // The environment's least share of the direct light at the vertices for a guide to be learned.
+  // A guide is learned only where fewer than kMaxPassFraction of round 1's (unguided) samples
+  // reached the environment, and where it gives at least kMinEnvironmentShare of the vertices'
+  // direct light.
+  static constexpr float kMaxPassFraction = 0.05f;
   static constexpr float kMinEnvironmentShare = 0.1f;
 
   // The scene's guide; empty without an environment light.

@@ -31,7 +31,7 @@ std::string Rect(const Vec3& c, const Vec3& u, const Vec3& v) {
 
 constexpr float kWinY = 0.3f, kWinZ0 = 0.8f, kWinZ1 = 1.4f;  // the window: y in +-0.3, z0..z1
 
-std::string RoomXml(const std::string& extra = "") {
+std::string RoomXml(const std::string& extra = "", bool window_wall = true) {
   std::string xml = R"(<scene version="3.0.0">
   <integrator type="path"/>
   <sensor type="perspective">
@@ -47,6 +47,7 @@ std::string RoomXml(const std::string& extra = "") {
   xml += Rect(Vec3(-1, 0, 1), Vec3(0, 1, 0), Vec3(0, 0, 1));  // x = -1
   xml += Rect(Vec3(0, -1, 1), Vec3(1, 0, 0), Vec3(0, 0, 1));  // y = -1
   xml += Rect(Vec3(0, 1, 1), Vec3(1, 0, 0), Vec3(0, 0, 1));   // y = +1
+  if (!window_wall) return xml + extra + "</scene>\n";
   // x = +1, around the window
   xml += Rect(Vec3(1, 0, kWinZ0 / 2), Vec3(0, 1, 0), Vec3(0, 0, kWinZ0 / 2));
   xml += Rect(Vec3(1, 0, (2 + kWinZ1) / 2), Vec3(0, 1, 0), Vec3(0, 0, (2 - kWinZ1) / 2));
@@ -56,8 +57,9 @@ std::string RoomXml(const std::string& extra = "") {
   return xml + extra + "</scene>\n";
 }
 
-std::unique_ptr<Scene> BuildRoom(bool guide, const std::string& extra = "") {
-  absl::StatusOr<SceneDesc> desc = LoadSceneString(RoomXml(extra), "room.xml", {});
+std::unique_ptr<Scene> BuildRoom(bool guide, const std::string& extra = "",
+                                 bool window_wall = true) {
+  absl::StatusOr<SceneDesc> desc = LoadSceneString(RoomXml(extra, window_wall), "room.xml", {});
   EXPECT_TRUE(desc.ok()) << desc.status();
   if (!desc.ok()) return nullptr;
   SceneBuildOptions options;
@@ -160,6 +162,14 @@ TEST(EnvironmentGuideTest, NoGuideWhereLampsOutshineTheSky) {
   ASSERT_TRUE(bright && faint);
   EXPECT_EQ(bright->environment_guide().cells(), 0);
   EXPECT_GT(faint->environment_guide().cells(), 0);
+}
+
+// A room with its window wall missing is open to the sky: most unguided samples find it already,
+// and no guide is learned.
+TEST(EnvironmentGuideTest, NoGuideWhereTheSceneIsOpenToTheSky) {
+  const std::unique_ptr<Scene> open = BuildRoom(true, "", false);
+  ASSERT_TRUE(open);
+  EXPECT_EQ(open->environment_guide().cells(), 0);
 }
 
 // MIS weighs a BSDF sample by the density SampleEnvironment would have drawn it with: the density
