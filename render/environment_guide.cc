@@ -245,8 +245,9 @@ EnvironmentGuide EnvironmentGuide::Learn(const Scene& scene) {
     }
   };
 
-  // Round 1: the unguided sampler. Round 2: half of the samples from round 1's histograms (their
-  // estimates weighted by the mixture's density), which find the openings far more often.
+  // Round 1: the unguided sampler. Round 2: LightSampler's mixture, with round 1's histograms as
+  // its guide (kGuideShare of the samples from them, each weighed by the mixture's density),
+  // which finds the openings far more often.
   round(uint64_t(kPaths), [&](const SurfaceHit& h, Rng& rng, LightSample* ls) {
     const float u2 = rng.Next(), u3 = rng.Next();
     return lights.SampleEnvironment(h.p, h.ng, u2, u3, ls, true);
@@ -276,7 +277,8 @@ EnvironmentGuide EnvironmentGuide::Learn(const Scene& scene) {
     const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
     const int cell = first.CellOf(h.p, h.ng);
     if (cell < 0) return lights.SampleEnvironment(h.p, h.ng, u2, u3, ls, true);
-    if (u1 < 0.5f) {
+    constexpr float share = LightSampler::kGuideShare;
+    if (u1 < share) {
       float pdf = 0;
       if (!first.Sample(cell, u2, u3, &ls->wi, &pdf)) return false;
       ls->distance = INFINITY;
@@ -287,7 +289,7 @@ EnvironmentGuide EnvironmentGuide::Learn(const Scene& scene) {
     }
     const float base = lights.PdfEnvironmentAlone(h.p, h.ng, ls->wi, true);
     if (!(base > 0)) return false;
-    ls->pdf = 0.5f * first.Pdf(cell, ls->wi) + 0.5f * base;
+    ls->pdf = share * first.Pdf(cell, ls->wi) + (1 - share) * base;
     return true;
   });
   finish();

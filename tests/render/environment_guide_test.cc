@@ -144,6 +144,9 @@ TEST(EnvironmentGuideTest, GuidedSkySamplesFindTheWindowAndAgree) {
       EXPECT_NEAR(u.mean, exact, 4 * u.stderr_);
       // The window is a few percent of the hemisphere: most unguided samples hit a wall.
       EXPECT_GT(g.passed, 4 * u.passed) << g.passed << " vs " << u.passed;
+      // The feature's claim, not a tolerance: at most 0.36x the variance, so the guided estimate
+      // needs at most a third of the samples for the same error (measured 0.13-0.5x the standard
+      // error; the exact value above is what both must agree with).
       EXPECT_LT(g.stderr_, 0.6 * u.stderr_);
     }
   }
