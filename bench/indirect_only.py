@@ -9,15 +9,22 @@ Per scene (all-diffuse scenes only: the cached term is then exactly what is not 
     (emission seen and light straight from area and directional lights), plus the sky seen by
     the camera (max_depth 1, sky only). irfarm and the baseline cache the sky's light at
     surfaces, so it is indirect here.
+    With --indirect-spp N instead: Mitsuba's indirect light rendered directly at N spp by the
+    integrator of bench/mitsuba_indirect.py (the same quantity without the noise of the two
+    renders it is otherwise the difference of: about 6x less noise per spp on room-224, and no
+    samples spent on the direct light).
   - the baseline at its defaults, indirect only: its records and relMSE;
-  - irfarm (build/irfarm) with --aovs, its `indirect` layer, over accuracies 0.05 .. 0.3 at its
-    default rays and levels: relMSE against records, read at the baseline's record count by
-    log-log interpolation between the two runs around it (never extrapolated);
+  - irfarm (build/irfarm) with --aovs, its `indirect` layer, over accuracies 0.05 .. 0.4 at the
+    record rays and cache levels its default run's pilot chose (--ladder-pilot: each run's
+    pilot chooses again, as before 2026-12-05): relMSE against records, read at the baseline's
+    record count by log-log interpolation between the two runs around it (never extrapolated);
+    and the same ladder at the baseline's own record rays (its stats) and the default run's
+    levels: records of equal cost;
   - irfarm at its defaults: relMSE and seconds against the baseline's (equal-time comparison).
 
   python3 bench/indirect_only.py --baseline-bin WARD/irfarm [--scenes cornell-box,...]
       [--spp 4096] [--out bench-indirect] [--irfarm-args "--spacing hessian"] [--bin 4]
-      [--noise-spp 1024]
+      [--noise-spp 1024] [--indirect-spp 8192] [--ladder-pilot]
 
 Building the baseline: `git worktree add WARD f9fc65e`, the patch in docs/bench/indirect-only/
 ward-indirect-only.patch (`git -C WARD apply`), `cmake -S WARD -B WARD/build -G Ninja && cmake
@@ -33,6 +40,8 @@ import sys
 import tempfile
 
 import numpy as np
+
+from mitsuba_indirect import mitsuba  # the mitsuba module, its fastest variant that loads here
 
 SCENES = ["cornell-box", "sunlit-room", "thin-panels", "veach-ajar", "room-a", "room-b", "room-c",
           "room-d"]
@@ -72,16 +81,6 @@ def read_rgb(path, layer=""):
     raise KeyError(f"{path}: no layer '{layer}'")
 
 
-def mitsuba():
-    """The mitsuba module with its fastest variant that loads here."""
-    import mitsuba as mi
-    for v in ("llvm_ad_rgb", "scalar_rgb"):
-        try:
-            mi.set_variant(v)
-            break
-        except Exception:
-            continue
-    return mi
 
 
 def direct_reference(scene_dir, spp, out, seed_base=90000):
@@ -148,7 +147,7 @@ def reference_floor(scene_dir, ind_ref, n, cache, direct=None, direct_spp=0, out
     return floor
 
 
-def run(binary, scene_dir, args, tmp, tag, env=None):
+def run(binary, scene_dir, args, tmp, tag, env=None, settings=None):
     out = os.path.join(tmp, tag + ".exr")
     stats = os.path.join(tmp, tag + ".json")
     subprocess.run([binary, "render", os.path.join(scene_dir, "scene.xml"), "-o", out, "--stats",
@@ -157,7 +156,34 @@ def run(binary, scene_dir, args, tmp, tag, env=None):
     with open(stats) as f:
         st = json.load(f)
     secs = sum(st["seconds"].get(k, 0) for k in ("pilot", "overture", "render"))
+    if settings is not None:
+        settings.update(st.get("settings", {}))
     return out, st["records"]["computed"], secs
+
+
+def indirect_reference(scene_dir, spp, cache, seed_base=50000):
+    """Mitsuba's indirect light rendered directly (bench/mitsuba_indirect.py), cached in `cache`."""
+    if os.path.exists(cache):
+        return np.load(cache)
+    from mitsuba_indirect import render_indirect
+    img = render_indirect(scene_dir, spp, seed_base)
+    np.save(cache, img)
+    return img
+
+
+def indirect_floor(scene_dir, ind_ref, spp_ref, n, cache):
+    """The directly rendered indirect reference's own noise in this measure, from an independent
+    render at n spp (other seeds): E[(m - r)^2] = var_r (1 + spp_r / n)."""
+    if os.path.exists(cache):
+        with open(cache) as f:
+            return json.load(f)["floor"]
+    m = indirect_reference(scene_dir, n, cache.replace(".json", ".npy"), seed_base=150000)
+    e = relmse(m, ind_ref)
+    floor = e / (1 + spp_ref / n)
+    with open(cache, "w") as f:
+        json.dump({"floor": floor, "indirect_spp": spp_ref, "mitsuba_spp": n,
+                   "relmse_mitsuba_vs_reference": e}, f)
+    return floor
 
 
 def at_records(points, n):
@@ -188,6 +214,13 @@ def main():
                     help="extra irfarm render arguments, e.g. '--spacing hessian'")
     ap.add_argument("--bin", type=int, default=1,
                     help="box-filter every image by BIN x BIN before relMSE (see BIN above)")
+    ap.add_argument("--indirect-spp", type=int, default=0,
+                    help="render the indirect reference directly at this spp "
+                         "(bench/mitsuba_indirect.py) instead of the scene's reference minus "
+                         "Mitsuba's direct light")
+    ap.add_argument("--ladder-pilot", action="store_true",
+                    help="let every ladder run's pilot choose its own rays and levels (before "
+                         "2026-12-05) instead of the default run's")
     ap.add_argument("--out", default="bench-indirect")
     a = ap.parse_args()
     global BIN
@@ -200,23 +233,38 @@ def main():
             rows = json.load(f)
     for name in ([] if a.summarize else a.scenes.split(",")):
         d = os.path.join(a.scenes_dir, name)
-        ref = read_rgb(os.path.join(d, "reference.exr"))
-        direct = direct_reference(d, a.spp, os.path.join(a.out, name + "-direct.npy"))
-        ind_ref = ref - direct
+        if a.indirect_spp:
+            ind_ref = indirect_reference(
+                d, a.indirect_spp, os.path.join(a.out, f"{name}-indirect-{a.indirect_spp}.npy"))
+        else:
+            ref = read_rgb(os.path.join(d, "reference.exr"))
+            direct = direct_reference(d, a.spp, os.path.join(a.out, name + "-direct.npy"))
+            ind_ref = ref - direct
+        base_settings = {}
         img, n_base, t_base = run(a.baseline_bin, d, [], tmp, name + "-base",
-                                  {"IRFARM_INDIRECT_ONLY": "1"})
+                                  {"IRFARM_INDIRECT_ONLY": "1"}, settings=base_settings)
         e_base = relmse(read_rgb(img), ind_ref)
         print(f"{name:12s} baseline      records {n_base:7d} {t_base:7.2f} s relMSE {e_base:.3e}",
               flush=True)
         extra = a.irfarm_args.split()
-        img, n_def, t_def = run(a.irfarm, d, ["--aovs"] + extra, tmp, name + "-def")
+        chosen = {}
+        img, n_def, t_def = run(a.irfarm, d, ["--aovs"] + extra, tmp, name + "-def",
+                                settings=chosen)
+        # The ladder varies the accuracy alone, at the rays and cache levels the default run's
+        # pilot chose (each ladder run's own pilot would choose again, and a curve through
+        # runs of different rays and levels is not one cache's error against its records).
+        fixed = [] if a.ladder_pilot or "record_rays" not in chosen else [
+            "--record-rays", str(chosen["record_rays"]), "--cache-levels",
+            str(chosen["cache_levels"])]
+        if fixed:
+            print(f"{name:12s} ladder at the default run's {' '.join(fixed)}", flush=True)
         e_def = relmse(read_rgb(img, "indirect"), ind_ref)
         print(f"{name:12s} irfarm default records {n_def:7d} {t_def:7.2f} s relMSE {e_def:.3e}",
               flush=True)
         pts = [(n_def, e_def)]
         timed = [(t_def, e_def)]
         for acc in a.accuracies.split(","):
-            img, n, t = run(a.irfarm, d, ["--aovs", "--accuracy", acc] + extra, tmp,
+            img, n, t = run(a.irfarm, d, ["--aovs", "--accuracy", acc] + fixed + extra, tmp,
                             name + "-a" + acc)
             e = relmse(read_rgb(img, "indirect"), ind_ref)
             pts.append((n, e))
@@ -224,6 +272,23 @@ def main():
             print(f"{name:12s} irfarm a={acc:5s} records {n:7d} {t:7.2f} s relMSE {e:.3e}",
                   flush=True)
         e_eq = at_records(pts, n_base)
+        # The same ladder at the baseline's own record rays (and the cache levels the default
+        # run chose): records of equal cost, so that where they are put, how they are
+        # interpolated and what the record rays find beyond their first bounce differ. (With two
+        # levels, only the camera's records are counted, as everywhere here: the second level's
+        # coarser records are the records' rays' own bounces, path-traced by the baseline.)
+        pts_same = []
+        if not a.ladder_pilot and "record_rays" in base_settings and "cache_levels" in chosen:
+            same = ["--record-rays", str(base_settings["record_rays"]), "--cache-levels",
+                    str(chosen["cache_levels"])]
+            for acc in a.accuracies.split(","):
+                img, n, t = run(a.irfarm, d, ["--aovs", "--accuracy", acc] + same + extra, tmp,
+                                name + "-s" + acc)
+                e = relmse(read_rgb(img, "indirect"), ind_ref)
+                pts_same.append((n, e))
+                print(f"{name:12s} irfarm a={acc:5s} {' '.join(same)} records {n:7d} "
+                      f"{t:7.2f} s relMSE {e:.3e}", flush=True)
+        e_same = at_records(pts_same, n_base) if pts_same else None
         # Equal time: the lowest relMSE of the runs that took no longer than the baseline.
         within = [e for t, e in timed if t <= t_base]
         e_time = min(within) if within else None
@@ -231,9 +296,19 @@ def main():
                      "baseline_relmse": e_base, "irfarm_default_records": n_def,
                      "irfarm_default_seconds": t_def, "irfarm_default_relmse": e_def,
                      "irfarm_at_baseline_records": e_eq, "irfarm_within_baseline_time": e_time,
-                     "points": pts, "timed": timed})
+                     "points": pts, "timed": timed,
+                     "irfarm_at_baseline_records_same_rays": e_same, "points_same_rays": pts_same,
+                     "baseline_record_rays": base_settings.get("record_rays")})
     for r in rows:
-        if a.noise_spp:
+        if a.noise_spp and a.indirect_spp:
+            d = os.path.join(a.scenes_dir, r["scene"])
+            ind = indirect_reference(
+                d, a.indirect_spp, os.path.join(a.out, f"{r['scene']}-indirect-{a.indirect_spp}.npy"))
+            r["reference_floor"] = indirect_floor(
+                d, ind, a.indirect_spp, a.noise_spp,
+                os.path.join(a.out, r["scene"] + "-indirect-floor.json"))
+            print(f"{r['scene']:12s} reference floor {r['reference_floor']:.3e}", flush=True)
+        elif a.noise_spp:
             d = os.path.join(a.scenes_dir, r["scene"])
             direct = direct_reference(d, a.spp, os.path.join(a.out, r["scene"] + "-direct.npy"))
             ind = read_rgb(os.path.join(d, "reference.exr")) - direct
@@ -241,26 +316,34 @@ def main():
                 d, ind, a.noise_spp, os.path.join(a.out, r["scene"] + "-floor.json"), direct,
                 a.spp, a.out)
             print(f"{r['scene']:12s} reference floor {r['reference_floor']:.3e}", flush=True)
-    lines = ["| scene | baseline (Ward, f9fc65e): records, s, relMSE | irfarm at the baseline's "
-             "records: relMSE (ratio) | irfarm in at most the baseline's time: best relMSE (ratio) "
-             "| irfarm default: records, s, relMSE (ratio) | reference floor: equal-records "
-             "ratio with it subtracted |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| scene | baseline (Ward, f9fc65e): records, rays, s, relMSE | irfarm at the "
+             "baseline's records and rays, the default run's levels: relMSE (ratio) | irfarm at the baseline's "
+             "records, the default run's rays and levels: relMSE (ratio) | irfarm in at most the "
+             "baseline's time: best relMSE (ratio) | irfarm default: records, s, relMSE (ratio) | "
+             "reference floor: equal-records ratios with it subtracted |",
+             "|---|---|---|---|---|---|---|"]
+
+    def ratio(e, r):
+        return f"{e:.2e} ({e / r['baseline_relmse']:.2f})" if e else "outside the measured records"
+
+    def floored(e, r):
+        f = r["reference_floor"]
+        return f"{(e - f) / (r['baseline_relmse'] - f):.2f}" if e else "-"
+
     for r in rows:
         eq = r["irfarm_at_baseline_records"]
+        es = r.get("irfarm_at_baseline_records_same_rays")
         et = r["irfarm_within_baseline_time"]
         lines.append(
-            f"| {r['scene']} | {r['baseline_records']}, {r['baseline_seconds']:.2f} s, "
-            f"{r['baseline_relmse']:.2e} | " +
-            (f"{eq:.2e} ({eq / r['baseline_relmse']:.2f})" if eq else "outside the measured "
-             "records") + " | " +
+            f"| {r['scene']} | {r['baseline_records']}, {r.get('baseline_record_rays', '?')}, "
+            f"{r['baseline_seconds']:.2f} s, {r['baseline_relmse']:.2e} | " + ratio(es, r) +
+            " | " + ratio(eq, r) + " | " +
             (f"{et:.2e} ({et / r['baseline_relmse']:.2f})" if et else "no run that fast") + " | " +
             f"{r['irfarm_default_records']}, {r['irfarm_default_seconds']:.2f} s, "
             f"{r['irfarm_default_relmse']:.2e} "
             f"({r['irfarm_default_relmse'] / r['baseline_relmse']:.2f}) | " +
-            (f"{r['reference_floor']:.2e}: " + (
-                f"{(eq - r['reference_floor']) / (r['baseline_relmse'] - r['reference_floor']):.2f}"
-                if eq else "-") if r.get("reference_floor") is not None else "-") + " |")
+            (f"{r['reference_floor']:.2e}: {floored(es, r)} / {floored(eq, r)}"
+             if r.get("reference_floor") is not None else "-") + " |")
     text = "\n".join(lines) + "\n"
     with open(os.path.join(a.out, "summary.md"), "w") as f:
         f.write(text)
