@@ -221,6 +221,9 @@ def main():
     ap.add_argument("--ladder-pilot", action="store_true",
                     help="let every ladder run's pilot choose its own rays and levels (before "
                          "2026-12-05) instead of the default run's")
+    ap.add_argument("--same-rays-levels", type=int, choices=[1, 2], default=0,
+                    help="cache levels of the ladder at the baseline's rays (default: the "
+                         "default run's; 1: one level, as the baseline's cache)")
     ap.add_argument("--out", default="bench-indirect")
     a = ap.parse_args()
     global BIN
@@ -275,12 +278,13 @@ def main():
         # The same ladder at the baseline's own record rays (and the cache levels the default
         # run chose): records of equal cost, so that where they are put, how they are
         # interpolated and what the record rays find beyond their first bounce differ. (With two
-        # levels, only the camera's records are counted, as everywhere here: the second level's
-        # coarser records are the records' rays' own bounces, path-traced by the baseline.)
+        # levels, the second level's records count too, as everywhere here (stats
+        # records.computed), each as one record though it has a fraction of the rays: they stand
+        # in for the bounces the baseline path-traces.)
         pts_same = []
         if not a.ladder_pilot and "record_rays" in base_settings and "cache_levels" in chosen:
             same = ["--record-rays", str(base_settings["record_rays"]), "--cache-levels",
-                    str(chosen["cache_levels"])]
+                    str(a.same_rays_levels or chosen["cache_levels"])]
             for acc in a.accuracies.split(","):
                 img, n, t = run(a.irfarm, d, ["--aovs", "--accuracy", acc] + same + extra, tmp,
                                 name + "-s" + acc)
@@ -316,8 +320,10 @@ def main():
                 d, ind, a.noise_spp, os.path.join(a.out, r["scene"] + "-floor.json"), direct,
                 a.spp, a.out)
             print(f"{r['scene']:12s} reference floor {r['reference_floor']:.3e}", flush=True)
+    same_levels = {0: "the default run's levels", 1: "one level", 2: "two levels"}[
+        a.same_rays_levels]
     lines = ["| scene | baseline (Ward, f9fc65e): records, rays, s, relMSE | irfarm at the "
-             "baseline's records and rays, the default run's levels: relMSE (ratio) | irfarm at the baseline's "
+             f"baseline's records and rays, {same_levels}: relMSE (ratio) | irfarm at the baseline's "
              "records, the default run's rays and levels: relMSE (ratio) | irfarm in at most the "
              "baseline's time: best relMSE (ratio) | irfarm default: records, s, relMSE (ratio) | "
              "reference floor: equal-records ratios with it subtracted |",
