@@ -24,7 +24,8 @@ Per scene (all-diffuse scenes only: the cached term is then exactly what is not 
 
   python3 bench/indirect_only.py --baseline-bin WARD/irfarm [--scenes cornell-box,...]
       [--spp 4096] [--out bench-indirect] [--irfarm-args "--spacing hessian"] [--bin 4]
-      [--noise-spp 1024] [--indirect-spp 8192] [--ladder-pilot]
+      [--noise-spp 1024] [--indirect-spp 8192] [--ladder-pilot] [--same-rays-levels 1]
+      [--seeds 7,8,9]
 
 Building the baseline: `git worktree add WARD f9fc65e`, the patch in docs/bench/indirect-only/
 ward-indirect-only.patch (`git -C WARD apply`), `cmake -S WARD -B WARD/build -G Ninja && cmake
@@ -147,11 +148,11 @@ def reference_floor(scene_dir, ind_ref, n, cache, direct=None, direct_spp=0, out
     return floor
 
 
-def run(binary, scene_dir, args, tmp, tag, env=None, settings=None):
+def run(binary, scene_dir, args, tmp, tag, env=None, settings=None, seed=7):
     out = os.path.join(tmp, tag + ".exr")
     stats = os.path.join(tmp, tag + ".json")
     subprocess.run([binary, "render", os.path.join(scene_dir, "scene.xml"), "-o", out, "--stats",
-                    stats, "-q", "--seed", "7"] + args, check=True, capture_output=True,
+                    stats, "-q", "--seed", str(seed)] + args, check=True, capture_output=True,
                    env=dict(os.environ, **(env or {})))
     with open(stats) as f:
         st = json.load(f)
@@ -159,6 +160,18 @@ def run(binary, scene_dir, args, tmp, tag, env=None, settings=None):
     if settings is not None:
         settings.update(st.get("settings", {}))
     return out, st["records"]["computed"], secs
+
+
+def measure(seeds, binary, scene_dir, args, tmp, tag, ref, layer="", env=None, settings=None):
+    """run() once per seed: the mean records, seconds and relMSE against `ref` (of the image's
+    `layer`). `settings` receives the first seed's."""
+    got = []
+    for k, seed in enumerate(seeds):
+        img, n, t = run(binary, scene_dir, args, tmp, f"{tag}-{seed}", env,
+                        settings if k == 0 else None, seed)
+        got.append((n, t, relmse(read_rgb(img, layer), ref)))
+    n, t, e = (sum(g[i] for g in got) / len(got) for i in range(3))
+    return int(round(n)), t, e
 
 
 def indirect_reference(scene_dir, spp, cache, seed_base=50000):
@@ -224,10 +237,15 @@ def main():
     ap.add_argument("--same-rays-levels", type=int, choices=[1, 2], default=0,
                     help="cache levels of the ladder at the baseline's rays (default: the "
                          "default run's; 1: one level, as the baseline's cache)")
+    ap.add_argument("--seeds", default="7",
+                    help="comma-separated seeds: every figure (records, seconds, relMSE; the "
+                         "baseline's too) is the mean over them (one run's ladder reading moves "
+                         "by about 0.1 from run to run)")
     ap.add_argument("--out", default="bench-indirect")
     a = ap.parse_args()
     global BIN
     BIN = a.bin
+    seeds = [int(s) for s in a.seeds.split(",")]
     os.makedirs(a.out, exist_ok=True)
     tmp = tempfile.mkdtemp(prefix="irfarm-indirect-")
     rows = []
@@ -244,15 +262,15 @@ def main():
             direct = direct_reference(d, a.spp, os.path.join(a.out, name + "-direct.npy"))
             ind_ref = ref - direct
         base_settings = {}
-        img, n_base, t_base = run(a.baseline_bin, d, [], tmp, name + "-base",
-                                  {"IRFARM_INDIRECT_ONLY": "1"}, settings=base_settings)
-        e_base = relmse(read_rgb(img), ind_ref)
+        n_base, t_base, e_base = measure(seeds, a.baseline_bin, d, [], tmp, name + "-base",
+                                         ind_ref, env={"IRFARM_INDIRECT_ONLY": "1"},
+                                         settings=base_settings)
         print(f"{name:12s} baseline      records {n_base:7d} {t_base:7.2f} s relMSE {e_base:.3e}",
               flush=True)
         extra = a.irfarm_args.split()
         chosen = {}
-        img, n_def, t_def = run(a.irfarm, d, ["--aovs"] + extra, tmp, name + "-def",
-                                settings=chosen)
+        n_def, t_def, e_def = measure(seeds, a.irfarm, d, ["--aovs"] + extra, tmp, name + "-def",
+                                      ind_ref, "indirect", settings=chosen)
         # The ladder varies the accuracy alone, at the rays and cache levels the default run's
         # pilot chose (each ladder run's own pilot would choose again, and a curve through
         # runs of different rays and levels is not one cache's error against its records).
@@ -261,15 +279,13 @@ def main():
             str(chosen["cache_levels"])]
         if fixed:
             print(f"{name:12s} ladder at the default run's {' '.join(fixed)}", flush=True)
-        e_def = relmse(read_rgb(img, "indirect"), ind_ref)
         print(f"{name:12s} irfarm default records {n_def:7d} {t_def:7.2f} s relMSE {e_def:.3e}",
               flush=True)
         pts = [(n_def, e_def)]
         timed = [(t_def, e_def)]
         for acc in a.accuracies.split(","):
-            img, n, t = run(a.irfarm, d, ["--aovs", "--accuracy", acc] + fixed + extra, tmp,
-                            name + "-a" + acc)
-            e = relmse(read_rgb(img, "indirect"), ind_ref)
+            n, t, e = measure(seeds, a.irfarm, d, ["--aovs", "--accuracy", acc] + fixed + extra,
+                              tmp, name + "-a" + acc, ind_ref, "indirect")
             pts.append((n, e))
             timed.append((t, e))
             print(f"{name:12s} irfarm a={acc:5s} records {n:7d} {t:7.2f} s relMSE {e:.3e}",
@@ -286,9 +302,8 @@ def main():
             same = ["--record-rays", str(base_settings["record_rays"]), "--cache-levels",
                     str(a.same_rays_levels or chosen["cache_levels"])]
             for acc in a.accuracies.split(","):
-                img, n, t = run(a.irfarm, d, ["--aovs", "--accuracy", acc] + same + extra, tmp,
-                                name + "-s" + acc)
-                e = relmse(read_rgb(img, "indirect"), ind_ref)
+                n, t, e = measure(seeds, a.irfarm, d, ["--aovs", "--accuracy", acc] + same + extra,
+                                  tmp, name + "-s" + acc, ind_ref, "indirect")
                 pts_same.append((n, e))
                 print(f"{name:12s} irfarm a={acc:5s} {' '.join(same)} records {n:7d} "
                       f"{t:7.2f} s relMSE {e:.3e}", flush=True)
