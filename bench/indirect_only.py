@@ -357,7 +357,8 @@ def main():
         et = r["irfarm_within_baseline_time"]
         lines.append(
             f"| {r['scene']} | {r['baseline_records']}, {r.get('baseline_record_rays', '?')}, "
-            f"{r['baseline_seconds']:.2f} s, {r['baseline_relmse']:.2e} | " + ratio(es, r) +
+            f"{r['baseline_seconds']:.2f} s, {r['baseline_relmse']:.2e} | " +
+            (ratio(es, r) if r.get("points_same_rays") else "not run") +
             " | " + ratio(eq, r) + " | " +
             (f"{et:.2e} ({et / r['baseline_relmse']:.2f})" if et else "no run that fast") + " | " +
             f"{r['irfarm_default_records']}, {r['irfarm_default_seconds']:.2f} s, "
