@@ -245,9 +245,9 @@ EnvironmentGuide EnvironmentGuide::Learn(const Scene& scene) {
     }
   };
 
-  // Round 1: the unguided sampler. Round 2: LightSampler's mixture, with round 1's histograms as
-  // its guide (kGuideShare of the samples from them, each weighed by the mixture's density),
-  // which finds the openings far more often.
+  // Round 1: the unguided sampler. Round 2: LightSampler's mixture with round 1's histograms as
+  // its guide (LightSampler::kGuideShare of the samples from them, each weighed by the mixture's
+  // density), which finds the openings far more often.
   round(uint64_t(kPaths), [&](const SurfaceHit& h, Rng& rng, LightSample* ls) {
     const float u2 = rng.Next(), u3 = rng.Next();
     return lights.SampleEnvironment(h.p, h.ng, u2, u3, ls, true);
@@ -274,23 +274,8 @@ EnvironmentGuide EnvironmentGuide::Learn(const Scene& scene) {
   }
   const EnvironmentGuide first = g;
   round(uint64_t(kPaths) + vertices.size(), [&](const SurfaceHit& h, Rng& rng, LightSample* ls) {
-    const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
-    const int cell = first.CellOf(h.p, h.ng);
-    if (cell < 0) return lights.SampleEnvironment(h.p, h.ng, u2, u3, ls, true);
-    constexpr float share = LightSampler::kGuideShare;
-    if (u1 < share) {
-      float pdf = 0;
-      if (!first.Sample(cell, u2, u3, &ls->wi, &pdf)) return false;
-      ls->distance = INFINITY;
-      ls->environment = true;
-      ls->light = -1;
-    } else if (!lights.SampleEnvironment(h.p, h.ng, u2, u3, ls, true)) {
-      return false;
-    }
-    const float base = lights.PdfEnvironmentAlone(h.p, h.ng, ls->wi, true);
-    if (!(base > 0)) return false;
-    ls->pdf = share * first.Pdf(cell, ls->wi) + (1 - share) * base;
-    return true;
+    const float u2 = rng.Next(), u3 = rng.Next();
+    return lights.SampleEnvironment(&first, h.p, h.ng, u2, u3, ls, true);
   });
   finish();
   return g;

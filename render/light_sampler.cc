@@ -394,7 +394,12 @@ bool LightSampler::Sample(const Vec3& p, const Vec3& n, float u1, float u2, floa
 
 bool LightSampler::SampleEnvironment(const Vec3& p, const Vec3& n, float u2, float u3,
                                      LightSample* s, bool importance) const {
-  const int cell = guide_ != nullptr ? guide_->CellOf(p, n) : -1;
+  return SampleEnvironment(guide_, p, n, u2, u3, s, importance);
+}
+
+bool LightSampler::SampleEnvironment(const EnvironmentGuide* guide, const Vec3& p, const Vec3& n,
+                                     float u2, float u3, LightSample* s, bool importance) const {
+  const int cell = guide != nullptr ? guide->CellOf(p, n) : -1;
   bool by_guide = false;
   if (cell >= 0) {
     by_guide = u2 < kGuideShare;
@@ -403,7 +408,7 @@ bool LightSampler::SampleEnvironment(const Vec3& p, const Vec3& n, float u2, flo
   }
   if (by_guide) {
     float guide_pdf = 0;
-    if (!guide_->Sample(cell, u2, u3, &s->wi, &guide_pdf)) return false;
+    if (!guide->Sample(cell, u2, u3, &s->wi, &guide_pdf)) return false;
     const float base = UnguidedPdf(n, s->wi, importance);
     if (!(base > 0)) return false;  // below the horizon
     s->pdf = kGuideShare * guide_pdf + (1 - kGuideShare) * base;
@@ -437,7 +442,7 @@ bool LightSampler::SampleEnvironment(const Vec3& p, const Vec3& n, float u2, flo
       s->pdf = UnguidedPdf(n, s->wi, importance);
     }
     if (cell >= 0 && s->pdf > 0)
-      s->pdf = kGuideShare * guide_->Pdf(cell, s->wi) + (1 - kGuideShare) * s->pdf;
+      s->pdf = kGuideShare * guide->Pdf(cell, s->wi) + (1 - kGuideShare) * s->pdf;
   }
   if (!(s->pdf > 0)) return false;
   s->distance = INFINITY;

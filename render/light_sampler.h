@@ -77,6 +77,10 @@ class LightSampler {
   // With a guide that has a cell at p, kGuideShare of the samples come from its histogram.
   bool SampleEnvironment(const Vec3& p, const Vec3& n, float u2, float u3, LightSample* s,
                          bool importance = false) const;
+  // The same with `guide` instead of the sampler's own (null: unguided); EnvironmentGuide::Learn
+  // samples its second round with its first round's histograms.
+  bool SampleEnvironment(const EnvironmentGuide* guide, const Vec3& p, const Vec3& n, float u2,
+                         float u3, LightSample* s, bool importance) const;
   // The pdf of SampleEnvironment(p, n, ...) giving wi.
   float PdfEnvironmentAlone(const Vec3& p, const Vec3& n, const Vec3& wi,
                             bool importance = false) const;
