@@ -156,7 +156,9 @@ def main():
     ap.add_argument("--spp", type=int, default=1024)
     ap.add_argument("--seed", type=int, default=50000)
     ap.add_argument("--out", required=True, help=".npy to write")
-    ap.add_argument("--check-against", help="a .npy (or scene reference minus direct) to compare")
+    ap.add_argument("--check-against",
+                    help="a .npy of the same scene's indirect light to compare with (e.g. "
+                         "bench/indirect_only.py's reference minus direct, saved with np.save)")
     a = ap.parse_args()
     img = render_indirect(a.scene_dir, a.spp, a.seed)
     np.save(a.out, img)
