@@ -44,6 +44,8 @@ absl::StatusOr<Texture> Texture::Load(const TextureDesc& desc) {
 }
 
 int Texture::Wrap(int i, int n) const {
+  // Most lookups land inside the image: no integer division for them.
+  if (static_cast<unsigned>(i) < static_cast<unsigned>(n)) return i;
   switch (wrap_) {
     case 1: {  // mirror
       int m = i % (2 * n);
