@@ -19,8 +19,10 @@ namespace {
 
 // Records on the walls of a [-1,1]^3 room with validity radii a*R of 0.5 to 2 times the mean
 // record spacing (a = 0.1): the density of a real cache, where a lookup sees a few records.
-std::unique_ptr<IrradianceCache> MakeCache(int n) {
+// `linear_fit`: CacheSettings::linear_fit (the renderer's default), or Ward's weighted mean.
+std::unique_ptr<IrradianceCache> MakeCache(int n, bool linear_fit) {
   CacheSettings cs;
+  cs.linear_fit = linear_fit;
   cs.bounds.Extend(Vec3(-1, -1, -1));
   cs.bounds.Extend(Vec3(1, 1, 1));
   cs.max_accuracy = 0.2f;
@@ -42,7 +44,7 @@ std::unique_ptr<IrradianceCache> MakeCache(int n) {
 }
 
 void BM_CacheLookup(benchmark::State& state) {
-  const auto cache = MakeCache(int(state.range(0)));
+  const auto cache = MakeCache(int(state.range(0)), state.range(1) != 0);
   Rng rng(3, 4);
   int hits = 0;
   for (auto _ : state) {
@@ -56,7 +58,8 @@ void BM_CacheLookup(benchmark::State& state) {
   state.counters["bytes_per_record"] = double(m.bytes_per_record);
   state.counters["octree_per_record_bytes"] = double(m.octree_bytes) / double(m.record_bytes);
 }
-BENCHMARK(BM_CacheLookup)->Arg(1000)->Arg(10000)->Arg(100000);
+// Second argument: 1 = linear fit (the renderer's lookups), 0 = Ward's weighted mean.
+BENCHMARK(BM_CacheLookup)->ArgsProduct({{1000, 10000, 100000}, {1, 0}});
 
 // The same cache and lookups in runs of 16, one run per pixel, as a pixel's camera samples land:
 // uniformly over a pixel footprint of half the mean record spacing (caches of real renders hold
@@ -64,7 +67,7 @@ BENCHMARK(BM_CacheLookup)->Arg(1000)->Arg(10000)->Arg(100000);
 // the final pass uses it (2 footprints, 0.1 rad). Time per lookup, gathers included.
 void BM_CacheLookupPixelRuns(benchmark::State& state) {
   const int n = int(state.range(0));
-  const auto cache = MakeCache(n);
+  const auto cache = MakeCache(n, state.range(1) != 0);
   const float footprint = 0.5f * std::sqrt(24.0f / float(n));
   Rng rng(3, 4);
   LookupRegion region;
@@ -85,7 +88,7 @@ void BM_CacheLookupPixelRuns(benchmark::State& state) {
   state.counters["from_region"] = double(reused) / double(state.iterations());
   state.counters["region_records"] = region_records / double(state.iterations());
 }
-BENCHMARK(BM_CacheLookupPixelRuns)->Arg(1000)->Arg(10000)->Arg(100000);
+BENCHMARK(BM_CacheLookupPixelRuns)->ArgsProduct({{1000, 10000, 100000}, {1, 0}});
 
 std::unique_ptr<Scene> CornellBox() {
   absl::StatusOr<SceneDesc> desc =

@@ -10,6 +10,7 @@
 #endif
 
 #include "cache/irradiance_weight.h"
+#include "cache/local_linear_fit.h"
 
 namespace irfarm {
 namespace {
@@ -150,8 +151,14 @@ void IrradianceCache::ForEachWithin(const Block* head, const Vec3& p, float alph
 struct IrradianceCache::Accumulator {
   // A constructor, not aggregate initialization, which zero-filled `pending` on every lookup (a
   // 256-byte memset, 4% of a region lookup's time).
-  Accumulator(const Vec3& x_in, const Vec3& n_in, float a_in, int max_level_in, float narrow_in)
-      : x(x_in), n(n_in), a(a_in), max_level(max_level_in), narrow(narrow_in) {}
+  Accumulator(const Vec3& x_in, const Vec3& n_in, float a_in, int max_level_in, float narrow_in,
+              bool linear_fit_in)
+      : x(x_in),
+        n(n_in),
+        a(a_in),
+        max_level(max_level_in),
+        narrow(narrow_in),
+        linear_fit(linear_fit_in) {}
   Vec3 x, n;
   float a;
   int max_level;
@@ -161,7 +168,10 @@ struct IrradianceCache::Accumulator {
   double narrow_e[3] = {0, 0, 0};
   double e[3] = {0, 0, 0};
   int count = 0;
-  int remote = 0;  // counted records with origin != 0
+  int remote = 0;   // counted records with origin != 0
+  bool linear_fit;  // CacheSettings::linear_fit
+  LocalLinearFit fit;
+  Vec3 fit_s, fit_t;  // the fit's tangent frame (made at the first record taken)
   static constexpr int kPending = 32;
   uint64_t pending[kPending];  // RecordRefs of records within reach not weighed yet
   int pending_count = 0;
@@ -170,7 +180,7 @@ struct IrradianceCache::Accumulator {
     if (r.level > max_level) return;
     const float w = RecordWeight(x, n, a, r);
     if (w > 0) {
-      Take(w, r.irradiance, r.origin != 0);
+      Take(w, r.irradiance, r.origin != 0, r.position);
       Narrow(w, r.position, r.normal, r.radius, r.irradiance);
     }
   }
@@ -186,12 +196,17 @@ struct IrradianceCache::Accumulator {
     }
   }
   // A record that counts with weight w > 0.
-  void Take(float w, const Vec3& irradiance, bool from_elsewhere) {
+  void Take(float w, const Vec3& irradiance, bool from_elsewhere, const Vec3& position) {
     weight += w;
     weight_sq += double(w) * w;
     for (int k = 0; k < 3; ++k) e[k] += double(w) * irradiance[k];
     ++count;
     remote += int(from_elsewhere);
+    if (linear_fit) {
+      if (count == 1) MakeFrame(n, &fit_s, &fit_t);
+      const Vec3 d = position - x;
+      fit.Add(w, Dot(d, fit_s), Dot(d, fit_t), irradiance);
+    }
   }
   // Scans the ready slots of one node's blocks: squared-distance reject on the hot part, the full
   // rule (RecordWeight, the same as brute force) on the few records within reach.
@@ -230,7 +245,8 @@ struct IrradianceCache::Accumulator {
       info->from_region = false;
     }
     if (count == 0) return false;
-    *irradiance = Vec3(float(e[0] / weight), float(e[1] / weight), float(e[2] / weight));
+    if (!linear_fit || !fit.ValueAtOrigin(irradiance))
+      *irradiance = Vec3(float(e[0] / weight), float(e[1] / weight), float(e[2] / weight));
     return true;
   }
 };
@@ -253,6 +269,7 @@ IrradianceCache::IrradianceCache(const CacheSettings& settings)
       neighbour_slope_(settings.neighbour_slope > 0 && std::isfinite(settings.neighbour_slope)
                            ? settings.neighbour_slope
                            : 0.0f),
+      linear_fit_(settings.linear_fit),
       roots_{} {
   for (auto& tree : roots_)
     for (Node*& root : tree) root = new Node;
@@ -602,7 +619,7 @@ void IrradianceCache::WalkNodes(const Vec3& x, unsigned classes, int max_level, 
 
 bool IrradianceCache::Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradiance,
                              LookupInfo* info, int max_level, float narrow_a) const {
-  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level, narrow_a};
+  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level, narrow_a, linear_fit_};
   const float reach_scale = float(double(acc.a) * grid_scale_ * (1 + kReachSlack));
   // The walk only collects the record blocks of the nodes it enters, prefetching each, and scans
   // them afterwards: the cache misses on blocks then overlap each other and the walk instead of
@@ -749,7 +766,7 @@ bool IrradianceCache::LookupNear(const Vec3& x, const Vec3& n, float a, float ra
     Gather(x, n, a, radius, angle, max_level, region);
   }
   if (region->count < 0) return Lookup(x, n, a, irradiance, info, max_level, narrow_a);
-  Accumulator acc{x, n, a, max_level, narrow_a};
+  Accumulator acc{x, n, a, max_level, narrow_a, linear_fit_};
   // Squared-distance reject on the copied hot parts (RecordWeight's expression: never rejects a
   // record the rule counts), then the full rule on the few within reach.
   for (int k0 = 0; k0 < region->count; k0 += 4) {
@@ -761,7 +778,8 @@ bool IrradianceCache::LookupNear(const Vec3& x, const Vec3& n, float a, float ra
     for (int m = near; m != 0; m &= m - 1) {
       const int l = __builtin_ctz(m), k = k0 + l;
       if (w[l] > 0) {
-        acc.Take(w[l], Vec3(region->ex[k], region->ey[k], region->ez[k]), region->remote[k]);
+        acc.Take(w[l], Vec3(region->ex[k], region->ey[k], region->ez[k]), region->remote[k],
+                 Vec3(region->x[k], region->y[k], region->z[k]));
         acc.Narrow(w[l], Vec3(region->x[k], region->y[k], region->z[k]),
                    Vec3(region->nx[k], region->ny[k], region->nz[k]), region->r[k],
                    Vec3(region->ex[k], region->ey[k], region->ez[k]));
@@ -775,7 +793,7 @@ bool IrradianceCache::LookupNear(const Vec3& x, const Vec3& n, float a, float ra
 
 bool IrradianceCache::LookupBruteForce(const Vec3& x, const Vec3& n, float a, Vec3* irradiance,
                                        LookupInfo* info, int max_level, float narrow_a) const {
-  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level, narrow_a};
+  Accumulator acc{x, n, std::min(a, max_accuracy_), max_level, narrow_a, linear_fit_};
   ForEach([&acc](const IrradianceRecord& r) { acc.Add(r); });
   return acc.Finish(irradiance, info);
 }

@@ -64,6 +64,10 @@ struct CacheSettings {
   // for the record inserted and for the records it is inserted among, so that a record next to a
   // small one (in a gap, a corner) cannot reach over it into light it never saw. 0 = off.
   float neighbour_slope = 0;
+  // Lookups return the value at x of the plane fitted to the records that count by weighted least
+  // squares (Ward's weights; cache/local_linear_fit.h) instead of their weighted mean, where the
+  // records span the tangent plane. false: Ward's weighted mean.
+  bool linear_fit = false;
 };
 
 struct LookupInfo {
@@ -135,12 +139,12 @@ class IrradianceCache {
 
   // Interpolated irradiance at point x with unit normal n, accuracy a (Ward's rule, see
   // RecordWeight in cache/irradiance_weight.h): E = sum w_i E_i / sum w_i over the records that
-  // count. a is clamped to max_accuracy(). Returns false and leaves *irradiance untouched when no
-  // record counts. info may be null; when given it is always filled. Thread-safe, allocation-free.
-  // Only records with level <= max_level count.
-  // With 0 < narrow_a < a, info->counts_at_narrow also tells whether any record counts at
-  // narrow_a (the renderer weighs records at a and makes a new one where none counts at
-  // narrow_a).
+  // count, or with CacheSettings::linear_fit the weighted least-squares plane's value at x. a is
+  // clamped to max_accuracy(). Returns false and leaves *irradiance untouched when no record
+  // counts. info may be null; when given it is always filled. Thread-safe, allocation-free. Only
+  // records with level <= max_level count. With 0 < narrow_a < a, info->counts_at_narrow also tells
+  // whether any record counts at narrow_a (the renderer weighs records at a and makes a new one
+  // where none counts at narrow_a).
   bool Lookup(const Vec3& x, const Vec3& n, float a, Vec3* irradiance, LookupInfo* info,
               int max_level = kAnyLevel, float narrow_a = 0) const;
 
@@ -310,6 +314,7 @@ class IrradianceCache {
 
   float max_accuracy_;
   float neighbour_slope_;
+  bool linear_fit_;
   double root_lo_[3];
   double grid_scale_;  // grid cells per scene unit at depth kMaxDepth
   Node* roots_[kTrees][kClasses];

@@ -35,7 +35,7 @@ struct RenderArgs {
   std::string adaptive;  // "on", "off" or "" (the integrator's default)
   int min_spp = 0, max_spp = 0;
   double target_error = 0, time_limit = 0, sampling_error = 0;
-  std::string integrator, spacing, light_sampling;
+  std::string integrator, spacing, light_sampling, interpolation;
   int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
   float accuracy = 0, min_spacing = 0, max_spacing = 0, lookup_factor = 0;
   uint64_t seed = 0;
@@ -115,6 +115,7 @@ int RunRender(const RenderArgs& args) {
     ic.spacing = args.spacing == RecordSpacingName(RecordSpacing::kHessian)
                      ? RecordSpacing::kHessian
                      : RecordSpacing::kSplitSphere;
+  if (!args.interpolation.empty()) ic.linear_fit = args.interpolation == "linear";
   if (args.cache_levels > 0) {
     ic.cache_levels = args.cache_levels;
     ic.choose_cache_levels = false;  // the user's levels, as asked
@@ -328,6 +329,12 @@ int main(int argc, char** argv) {
           ->check(CLI::IsMember(std::vector<std::string>{
               irfarm::RecordSpacingName(irfarm::RecordSpacing::kSplitSphere),
               irfarm::RecordSpacingName(irfarm::RecordSpacing::kHessian)}));
+  CLI::Option* interpolation =
+      render
+          ->add_option("--interpolation", ra.interpolation,
+                       "irrcache: lookups take the plane fitted to the records that count "
+                       "(linear, the default) or their weighted mean (ward, for comparison)")
+          ->check(CLI::IsMember({"linear", "ward"}));
   render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
   render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
   CLI::Option* lookup_factor =
@@ -373,7 +380,8 @@ int main(int argc, char** argv) {
                    "--time-limit); no sample budget then")
       ->check(CLI::PositiveNumber)
       ->excludes(lookup_factor)
-      ->excludes(spacing);
+      ->excludes(spacing)
+      ->excludes(interpolation);
   render->add_option("--time-limit", ra.time_limit, "stop adding samples after this many seconds")
       ->check(CLI::PositiveNumber);
   render->add_option("-D", ra.defines, "name=value for the scene's <default>s");

@@ -50,6 +50,11 @@ struct IrrcacheSettings {
   // the cache's own error against the split sphere's on all eight indirect-only scenes; the split
   // sphere stays for comparison (README "Hessian spacing").
   RecordSpacing spacing = RecordSpacing::kHessian;
+  // Lookups take the value of the plane fitted to the records that count (weighted least
+  // squares, Ward's weights; CacheSettings::linear_fit, cache/local_linear_fit.h) instead of
+  // their weighted mean; false: Ward's weighted mean (`--interpolation ward`, for comparison).
+  // --target-error keeps Ward's mean: its error model was calibrated with it.
+  bool linear_fit = true;
   // Rectangles' direct light as analytic unoccluded irradiance times the pixel's shadow ratio
   // (DirectTerms); false: the plain Monte Carlo estimate (for comparison).
   bool analytic_direct = true;

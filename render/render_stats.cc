@@ -88,7 +88,8 @@ std::string RenderStats::ToJson() const {
                    {"min_spacing_px", Short(min_spacing_px)},
                    {"max_spacing_px", Short(max_spacing_px)},
                    {"lookup_factor", Short(lookup_factor)},
-                   {"spacing", spacing}};
+                   {"spacing", spacing},
+                   {"interpolation", interpolation}};
   Json& seconds = j["seconds"] = Json::object();
   Json& cpu_seconds = j["cpu_seconds"] = Json::object();
   double wall = 0, cpu = 0;

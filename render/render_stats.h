@@ -38,8 +38,9 @@ struct RenderStats {
   float accuracy = 0;
   int record_rays = 0, strata_theta = 0, strata_phi = 0, light_samples = 0, cache_levels = 0;
   float min_spacing_px = 0, max_spacing_px = 0;
-  float lookup_factor = 0;  // IrrcacheSettings::lookup_factor
-  std::string spacing;      // IrrcacheSettings::spacing: "hessian" or "split-sphere"
+  float lookup_factor = 0;    // IrrcacheSettings::lookup_factor
+  std::string spacing;        // IrrcacheSettings::spacing: "hessian" or "split-sphere"
+  std::string interpolation;  // the cache's lookups: "linear" (CacheSettings::linear_fit) or "ward"
   std::vector<PhaseTime> phases;
   RenderCounters counters;
   uint64_t records_received = 0;  // from other processes (the service), 0 for a local render

@@ -98,6 +98,7 @@ CacheSettings CacheSettingsFor(const Scene& scene, const RenderSettings& setting
   cs.max_accuracy = std::min(1.0f, a * std::max({1.0f, settings.irrcache.relaxed_factor,
                                                  settings.irrcache.lookup_factor}));
   cs.neighbour_slope = settings.irrcache.neighbour_slope;
+  cs.linear_fit = settings.irrcache.linear_fit && !(settings.target_error > 0);
   return cs;
 }
 
@@ -197,6 +198,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   if (settings.target_error > 0) {
     settings.irrcache.spacing = RecordSpacing::kSplitSphere;
     settings.irrcache.environment_samples = 0;
+    settings.irrcache.linear_fit = false;  // Ward's weighted mean, as calibrated
   }
   std::unique_ptr<CausticMap> caustics;
   if (settings.irrcache.caustics == nullptr) {
@@ -402,6 +404,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
     st.max_spacing_px = settings.irrcache.max_spacing_px;
     st.lookup_factor = ic.lookup_factor;
     st.spacing = RecordSpacingName(ic.spacing);
+    st.interpolation = ic.linear_fit && !(settings.target_error > 0) ? "linear" : "ward";
     st.records_in_cache = cache->size();
   }
   double m[3] = {0, 0, 0};

@@ -372,6 +372,17 @@ std::vector<Result> RunScaled(const RandomScene& scene, float scale, bool brute_
   return RunQueries(cache, scene.queries, scale, brute_force);
 }
 
+TEST(IrradianceCacheTest, OctreeMatchesBruteForceWithLinearFit) {
+  const RandomScene scene(4000, 6000, 1234);
+  CacheSettings settings = UnitSettings(0.3f);
+  settings.linear_fit = true;
+  IrradianceCache cache(settings);
+  for (const IrradianceRecord& r : scene.records) cache.Insert(r);
+  const std::vector<Result> fast = RunQueries(cache, scene.queries, 1.0f, false);
+  const std::vector<Result> slow = RunQueries(cache, scene.queries, 1.0f, true);
+  ExpectSame(fast, slow, 1e-4f, 0, "octree vs brute force, linear fit");
+}
+
 TEST(IrradianceCacheTest, OctreeMatchesBruteForceAtEveryScale) {
   const RandomScene scene(4000, 6000, 1234);
   for (float scale : {1.0f, 1e-3f, 1e4f}) {
@@ -500,9 +511,10 @@ TEST(IrradianceCacheTest, NormalClassesNeverHideARecord) {
 // `full_rule`: also neighbour clamping (radii lowered by later inserts while regions hold the
 // records), occluder planes on a third of the records and records made by other processes, so
 // that every test of the rule that LookupNear weighs 4 at a time from its own copies is met.
-void CheckLookupNearMatchesLookup(bool full_rule) {
+void CheckLookupNearMatchesLookup(bool full_rule, bool linear_fit = false) {
   RandomScene scene(4000, 600, 77);
   CacheSettings settings = UnitSettings(0.3f);
+  settings.linear_fit = linear_fit;
   if (full_rule) {
     settings.neighbour_slope = 3.0f;  // the renderer's default
     std::mt19937 orng(9);
@@ -567,6 +579,112 @@ TEST(IrradianceCacheTest, LookupNearMatchesLookup) { CheckLookupNearMatchesLooku
 
 TEST(IrradianceCacheTest, LookupNearMatchesLookupWithClampingOccludersAndRemoteRecords) {
   CheckLookupNearMatchesLookup(true);
+}
+
+TEST(IrradianceCacheTest, LookupNearMatchesLookupWithLinearFit) {
+  CheckLookupNearMatchesLookup(true, true);
+}
+
+// ---- CacheSettings::linear_fit (cache/local_linear_fit.h) -----------------------------------
+
+// Irradiance that is linear along a plane: E(x, y) = (1 + 0.5 x + 0.25 y) (1, 2, 3).
+Vec3 PlaneIrradiance(float x, float y) { return Vec3(1, 2, 3) * (1 + 0.5f * x + 0.25f * y); }
+
+// Records scattered over the plane z = 0 (normal +z) with E linear in position: the fitted plane
+// is that plane, so a lookup anywhere, also past the records on one side (an edge, a crease),
+// returns E(x) up to rounding. Ward's weighted mean of the same records does not (it is checked
+// to miss by more than the tolerance: the test tells the two apart).
+TEST(IrradianceCacheTest, LinearFitReproducesIrradianceLinearInPosition) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<float> u(-0.5f, 0.5f);
+  std::vector<IrradianceRecord> records;
+  for (int i = 0; i < 200; ++i) {
+    const float x = u(rng), y = 0.5f * u(rng) + 0.25f;  // y in [0, 0.5]: none below y = 0
+    records.push_back(MakeRecord(Vec3(x, y, 0), Vec3(0, 0, 1), 2.0f, PlaneIrradiance(x, y)));
+  }
+  CacheSettings fit_settings = UnitSettings(0.3f), ward_settings = UnitSettings(0.3f);
+  fit_settings.linear_fit = true;
+  IrradianceCache fit(fit_settings), ward(ward_settings);
+  for (const IrradianceRecord& r : records) {
+    fit.Insert(r);
+    ward.Insert(r);
+  }
+  double ward_worst = 0;
+  int edge = 0;
+  for (int i = 0; i < 100; ++i) {
+    // Inside the records' strip, and on its edge and just past it (y in [-0.05, 0]).
+    const float x = 0.8f * u(rng), y = i % 2 == 0 ? 0.5f * u(rng) + 0.25f : 0.1f * u(rng) - 0.05f;
+    edge += y <= 0;
+    const Vec3 want = PlaneIrradiance(x, y);
+    Vec3 e_fit, e_ward;
+    LookupInfo info;
+    ASSERT_TRUE(fit.Lookup(Vec3(x, y, 0), Vec3(0, 0, 1), 0.3f, &e_fit, &info)) << i;
+    ASSERT_GE(info.records_used, 3) << i;
+    ASSERT_TRUE(ward.Lookup(Vec3(x, y, 0), Vec3(0, 0, 1), 0.3f, &e_ward, nullptr)) << i;
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(e_fit[k], want[k], 2e-4f * want[k]) << "query " << i << " at " << x << ", " << y;
+      ward_worst = std::max(ward_worst, double(std::abs(e_ward[k] - want[k]) / want[k]));
+    }
+  }
+  EXPECT_GT(edge, 20);
+  EXPECT_GT(ward_worst, 1e-2);  // the weighted mean misses where the records are one-sided
+}
+
+// The fit needs records that span the tangent plane: with two records, or with any number on one
+// line, a lookup returns Ward's weighted mean exactly as without the fit.
+TEST(IrradianceCacheTest, LinearFitFallsBackToWardWhereRecordsDoNotSpanThePlane) {
+  CacheSettings fit_settings = UnitSettings(0.3f), ward_settings = UnitSettings(0.3f);
+  fit_settings.linear_fit = true;
+  for (const int count : {2, 5}) {
+    IrradianceCache fit(fit_settings), ward(ward_settings);
+    for (int i = 0; i < count; ++i) {
+      const float x = 0.05f * float(i);  // on the line y = 0
+      const IrradianceRecord r =
+          MakeRecord(Vec3(x, 0, 0), Vec3(0, 0, 1), 1.0f, Vec3(1 + float(i), 2 + float(i * i), 3));
+      fit.Insert(r);
+      ward.Insert(r);
+    }
+    for (const Vec3& x : {Vec3(0.02f, 0.01f, 0), Vec3(0.11f, -0.02f, 0), Vec3(-0.03f, 0.03f, 0)}) {
+      Vec3 e_fit, e_ward;
+      LookupInfo info;
+      ASSERT_TRUE(fit.Lookup(x, Vec3(0, 0, 1), 0.3f, &e_fit, &info));
+      ASSERT_EQ(info.records_used, count);
+      ASSERT_TRUE(ward.Lookup(x, Vec3(0, 0, 1), 0.3f, &e_ward, nullptr));
+      for (int k = 0; k < 3; ++k) EXPECT_EQ(e_fit[k], e_ward[k]) << count << " records";
+    }
+  }
+}
+
+// A fit can extrapolate steeply; its value is kept within a factor LocalLinearFit::kMaxChange of
+// the weighted mean (never black, never a blotch).
+TEST(IrradianceCacheTest, LinearFitStaysWithinAFactorOfTheMean) {
+  CacheSettings settings = UnitSettings(0.3f);
+  settings.linear_fit = true;
+  IrradianceCache cache(settings);
+  // A steep ramp E = 1 + 900 x on a small square of records (exactly on it: nothing to shrink),
+  // looked up well outside it.
+  const float xs[5] = {0, 0.01f, 0, 0.01f, 0.005f}, ys[5] = {0, 0, 0.01f, 0.01f, 0.005f};
+  float es[5];
+  for (int i = 0; i < 5; ++i) {
+    es[i] = 1 + 900 * xs[i];
+    cache.Insert(MakeRecord(Vec3(xs[i], ys[i], 0), Vec3(0, 0, 1), 1.0f, Vec3(1, 1, 1) * es[i]));
+  }
+  for (const float x : {-0.2f, 0.2f}) {
+    Vec3 e;
+    LookupInfo info;
+    ASSERT_TRUE(cache.Lookup(Vec3(x, 0, 0), Vec3(0, 0, 1), 0.3f, &e, &info));
+    ASSERT_EQ(info.records_used, 5);
+    // The plane reads -179 and 181 there.
+    double wx = 0, w = 0;
+    for (int i = 0; i < 5; ++i) {
+      const float wi = WardWeight(std::hypot(x - xs[i], ys[i]));
+      w += wi;
+      wx += wi * es[i];
+    }
+    const float mean = float(wx / w);
+    const float bound = x < 0 ? mean / 2 : mean * 2;
+    EXPECT_NEAR(e.x, bound, 1e-4f * bound) << "at x = " << x;
+  }
 }
 
 // Scaling by a power of two is exact in float, so every quantity of the rule (eps, weights, the
