@@ -358,8 +358,10 @@ void ExpectSame(const std::vector<Result>& a, const std::vector<Result>& b, floa
 }
 
 // Builds the scene scaled by `scale` (positions, radii and bounds) and runs its queries.
-std::vector<Result> RunScaled(const RandomScene& scene, float scale, bool brute_force) {
+std::vector<Result> RunScaled(const RandomScene& scene, float scale, bool brute_force,
+                              bool linear_fit = false) {
   CacheSettings settings = UnitSettings(0.3f);
+  settings.linear_fit = linear_fit;
   settings.bounds.lo *= scale;
   settings.bounds.hi *= scale;
   IrradianceCache cache(settings);
@@ -691,10 +693,14 @@ TEST(IrradianceCacheTest, LinearFitStaysWithinAFactorOfTheMean) {
 // in-front tolerance) and the octree's grid mapping scale exactly: results must be bit-identical.
 TEST(IrradianceCacheTest, ScaleInvariantExactlyForPowerOfTwoScales) {
   const RandomScene scene(4000, 6000, 1234);
-  const std::vector<Result> reference = RunScaled(scene, 1.0f, false);
-  for (float scale : {std::ldexp(1.0f, -10), std::ldexp(1.0f, 13)}) {  // ~1e-3, ~1e4
-    SCOPED_TRACE(scale);
-    ExpectSame(RunScaled(scene, scale, false), reference, 0.0f, 0, "scaled vs unit scale");
+  for (const bool fit : {false, true}) {  // Ward's mean, and the linear fit (offsets, moments and
+                                          // slopes all scale by powers of two: exact too)
+    SCOPED_TRACE(fit ? "linear fit" : "weighted mean");
+    const std::vector<Result> reference = RunScaled(scene, 1.0f, false, fit);
+    for (float scale : {std::ldexp(1.0f, -10), std::ldexp(1.0f, 13)}) {  // ~1e-3, ~1e4
+      SCOPED_TRACE(scale);
+      ExpectSame(RunScaled(scene, scale, false, fit), reference, 0.0f, 0, "scaled vs unit scale");
+    }
   }
 }
 
