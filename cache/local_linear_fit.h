@@ -4,8 +4,8 @@
 //
 // Why: records lie where earlier lookups found none, so around a point they are rarely balanced.
 // The weighted mean then carries a first-order bias, g . (m - x) for an irradiance gradient g and
-// the records' weighted centre m: along a crease or an edge every record lies on one side, and a
-// surface brightening towards the wall is rendered too dark there at coarse accuracies. The fitted
+// the records' weighted centre m: along a crease or an edge every record lies on one side, and
+// the surface there gets the irradiance of a point a little way off. The fitted
 // plane takes that term off (what is left is second order) without a gradient per record (Ward
 // and Heckbert's, from the record's own noisy strata, made cornell-box worse when it was tried);
 // the slope comes from the records' values, each the mean of hundreds of rays.
@@ -13,7 +13,9 @@
 // Coordinates: the records' offsets from the lookup point in a tangent frame of its normal (u, v).
 // The fit is refused (the weighted mean stands) when the records do not span the plane (fewer than
 // three, or nearly on one line: the smaller eigenvalue of their weighted covariance below
-// kMinSpread of the larger); its value is kept within a factor kMaxChange of the weighted mean,
+// kMinSpread of the larger) or leave no residual to judge the slope by (Kish's effective number
+// of records n_eff = (sum w)^2 / sum w^2 at most 3); its value is kept within a factor kMaxChange
+// of the weighted mean,
 // per channel, so that a badly conditioned fit cannot make a pixel black or a blotch.
 #pragma once
 
@@ -62,11 +64,13 @@ class LocalLinearFit {
     // With eigenvalues l1 <= l2: det / tr^2 = r / (1 + r)^2 for r = l1 / l2, increasing in r.
     constexpr double kMinDet = kMinSpread / ((1 + kMinSpread) * (1 + kMinSpread));
     if (!(tr > 0) || !(det > kMinDet * tr * tr)) return false;
-    const double idet = 1 / det;
-    // Kish's effective number of records, and m^T C^-1 m for the records' centre m.
+    // Kish's effective number of records: the plane takes 3 of them, the residuals the rest.
     const double n_eff = w_ * w_ / ww_;
+    if (!(n_eff > 3)) return false;
+    const double idet = 1 / det;
+    // m^T C^-1 m for the records' centre m, the variance of the correction per unit residual.
     const double mcm = (cvv * mu * mu - 2 * cuv * mu * mv + cuu * mv * mv) * idet;
-    const double var_scale = n_eff > 3 ? mcm / (n_eff - 3) : INFINITY;
+    const double var_scale = mcm / (n_eff - 3);
     Vec3 v;
     for (int k = 0; k < 3; ++k) {
       const double me = se_[k] * iw;
