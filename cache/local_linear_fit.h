@@ -5,18 +5,18 @@
 // Why: records lie where earlier lookups found none, so around a point they are rarely balanced.
 // The weighted mean then carries a first-order bias, g . (m - x) for an irradiance gradient g and
 // the records' weighted centre m: along a crease or an edge every record lies on one side, and
-// the surface there gets the irradiance of a point a little way off. The fitted
-// plane takes that term off (what is left is second order) without a gradient per record (Ward
-// and Heckbert's, from the record's own noisy strata, made cornell-box worse when it was tried);
-// the slope comes from the records' values, each the mean of hundreds of rays.
+// the surface there gets the irradiance of a point a little way off. The fitted plane takes that
+// term off (what is left is second order) without a gradient per record (Ward and Heckbert's,
+// from the record's own noisy strata, made cornell-box worse when it was tried); the slope comes
+// from the records' values, each the mean of hundreds of rays.
 //
 // Coordinates: the records' offsets from the lookup point in a tangent frame of its normal (u, v).
 // The fit is refused (the weighted mean stands) when the records do not span the plane (fewer than
 // three, or nearly on one line: the smaller eigenvalue of their weighted covariance below
 // kMinSpread of the larger) or leave no residual to judge the slope by (Kish's effective number
-// of records n_eff = (sum w)^2 / sum w^2 at most 3); its value is kept within a factor kMaxChange
-// of the weighted mean,
-// per channel, so that a badly conditioned fit cannot make a pixel black or a blotch.
+// of records n_eff = (sum w)^2 / sum w^2 at most 3). Its value is kept within a factor kMaxChange
+// of the weighted mean, per channel, so that a badly conditioned fit cannot make a pixel black or
+// a blotch.
 #pragma once
 
 #include <algorithm>
