@@ -313,8 +313,9 @@ int main(int argc, char** argv) {
   render
       ->add_option("--cache-levels", ra.cache_levels,
                    "irrcache: 1 = records' rays are path traced; 2 = they use a second-level "
-                   "cache at the surfaces they reach (default: chosen per scene by the pilots)")
-      ->check(CLI::Range(1, 2));
+                   "cache at the surfaces they reach; 3 = that level's rays a third (default: "
+                   "chosen per scene by the pilots)")
+      ->check(CLI::Range(1, 3));
   render
       ->add_option("--light-sampling", ra.light_sampling,
                    "next-event estimation along paths: all (every light at each vertex, the "

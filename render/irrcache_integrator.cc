@@ -6,6 +6,7 @@
 #include <optional>
 
 #include "render/irradiance_hessian.h"
+#include "render/record_balance.h"
 #include "render/render_stats.h"
 
 namespace irfarm {
@@ -295,6 +296,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
     m_env = int(std::lround(settings_.environment_samples * n_strata * float(seen) /
                             float(IrrcacheSettings::kEnvironmentProbes)));
   }
+  float brightest = 0;  // the largest luminance one stratum's ray brought
   for (int i = 0; i < T; ++i)
     for (int j = 0; j < P; ++j) {
       const float u = rng.Next();
@@ -323,6 +325,7 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
       if (IsFinite(L)) {
         sum += L;
         half_sum[(i + j) & 1] += L;  // a checkerboard of strata: two interleaved halves
+        brightest = std::max(brightest, Luminance(L));
       } else {
         ++counters.nonfinite_samples;
       }
@@ -415,7 +418,10 @@ IrradianceRecord IrrcacheIntegrator::ComputeRecord(const SurfaceHit& hit, const 
     r.radius = std::max(1e-4f * std::max(hit.error_scale, MaxAbsComponent(hit.p)), 1e-30f);
   }
   ++counters.records_computed;
-  if (level > 0) ++counters.records_secondary;
+  if (level > 0) {
+    ++counters.records_secondary;
+    if (brightest > kHeavyRayShare * Luminance(sum)) ++counters.records_secondary_heavy;
+  }
   // A record made for another record's rays is part of that record's time.
   if (--counters.record_nesting == 0) {
     counters.record_seconds += ThreadCpuSeconds() - start;

@@ -124,8 +124,10 @@ struct IrrcacheSettings {
   // (choose_cache_levels; TwoLevelsPay in render/record_balance.h): two where the two pilots'
   // figures predict a lower error x time (veach-ajar 4.5x lower relMSE, sunlit-room 1.8x), one
   // where the camera samples' error dominates (living-room) or the secondary records cost more
-  // than they save (a cluttered still life). Off when the levels are given (scene,
-  // --cache-levels, the job's settings) and with --target-error.
+  // than they save (a cluttered still life). 3 = the secondary records' rays are shaded likewise
+  // from a third level's records; chosen after two where most of the two-level pilot's secondary
+  // records are one ray's light (ThreeLevelsPay: veach-ajar's door gap). Off when the levels are
+  // given (scene, --cache-levels, the job's settings); --target-error chooses one or two.
   int cache_levels = 1;
   bool choose_cache_levels = true;
   // With an environment map, a record also samples the map by its radiance (next-event samples,

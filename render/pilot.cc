@@ -165,13 +165,31 @@ BalanceResult PilotSettings(const Scene& scene, const RenderSettings& settings,
     return b;
   RenderSettings two = settings;
   two.irrcache.cache_levels = 2;
+  // The two-level pilot's secondary records, and those of them one ray made (ThreeLevelsPay).
+  const auto secondary = [&counters](uint64_t* heavy) {
+    uint64_t all = 0;
+    *heavy = 0;
+    for (const RenderCounters& c : counters) {
+      all += c.records_secondary;
+      *heavy += c.records_secondary_heavy;
+    }
+    return all;
+  };
+  uint64_t heavy_before, heavy_after;
+  const uint64_t secondary_before = secondary(&heavy_before);
   BalanceResult b2 = BalanceRecordRays(scene, two, rect, arena, counters);
+  const uint64_t made = secondary(&heavy_after) - secondary_before;
+  const uint64_t heavy = heavy_after - heavy_before;
+  b.secondary_heavy_share = made > 0 ? double(heavy) / double(made) : 0.0;
   if (!TwoLevelsPay(b, b2, settings.irrcache.record_rays)) return b;
   b2.cache_levels = 2;
   b2.one_level_record_noise = b.record_noise;
   b2.one_level_sampling_error = b.sampling_error;
+  b2.secondary_heavy_share = b.secondary_heavy_share;
   ic->cache_levels = 2;
   ic->record_rays = b2.record_rays;
+  // --target-error keeps at most two: its refinement was calibrated with them.
+  if (!target && ThreeLevelsPay(made, heavy)) b2.cache_levels = ic->cache_levels = 3;
   return b2;
 }
 

@@ -19,6 +19,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdint>
 #include <vector>
 
 namespace irfarm {
@@ -62,6 +63,9 @@ struct BalanceResult {
   // the levels chosen, and the one-level pilot's figures that decided it.
   int cache_levels = 0;
   double one_level_record_noise = 0, one_level_sampling_error = 0;
+  // The two-level pilot's share of secondary records with one ray bringing more than
+  // kHeavyRayShare of their sum (ThreeLevelsPay); -1 where no two-level pilot ran.
+  double secondary_heavy_share = -1;
 };
 
 // Records per pixel, as a factor on the plain tiling by the pilot records' validity areas
@@ -165,6 +169,27 @@ inline bool TwoLevelsPay(const BalanceResult& one_level, const BalanceResult& tw
   const double two = PredictedErrorTime(two_levels, settings_rays);
   if (!(one > 0) || !(two > 0) || !(two_levels.record_seconds > 0)) return false;
   return two < one;
+}
+
+// Three cache levels: the second level's records' rays shaded from a third level's records, as
+// RADIANCE caches every ambient bounce. Where light reaches the second level's records through a
+// narrow opening (veach-ajar: through the door gap, two or three bounces down their paths), each
+// of them is made of a few lucky rays, and the primary records that average them inherit that
+// noise as blotches a few hundred pixels wide, different in every render. A third level gives
+// their rays records to average in turn. It is chosen where the two-level pilot's secondary
+// records are mostly such: more than kThreeLevelsHeavyShare of them have one ray bringing more
+// than kHeavyRayShare of their sum. Measured at seed 7, seeds 7-9 for veach-ajar
+// (docs/bench/three-levels-2026-12-06/): veach-ajar 63-66% of them; room-242 (a photographed sky
+// through a window) 36%; living-room's pilot 27% (one level is chosen there); at most 6% on
+// cornell-box, room-a, room-b, room-d, sunlit-room, thin-panels and rooms 221-225, 241 and 244.
+// Three levels against two, forced, at the pilot's rays: veach-ajar (seeds 103-114) relMSE
+// 6.8e-3 against 1.03e-2 mean, 9.5e-3 against 2.4e-2 worst, for 13% more CPU; on the other
+// scenes above (seeds 7-9) error x time 0.97-1.07 (room-242 1.00).
+constexpr double kHeavyRayShare = 0.4;
+constexpr double kThreeLevelsHeavyShare = 0.25;
+inline bool ThreeLevelsPay(uint64_t secondary_records, uint64_t heavy_records) {
+  return secondary_records > 0 &&
+         double(heavy_records) > kThreeLevelsHeavyShare * double(secondary_records);
 }
 
 }  // namespace irfarm

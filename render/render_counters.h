@@ -15,7 +15,10 @@ struct RenderCounters {
   uint64_t record_rays = 0;        // first rays of irradiance-record hemispheres
   uint64_t glossy_bounces = 0;     // irrcache camera-path vertices shaded through a glossy lobe
   uint64_t records_computed = 0;
-  uint64_t records_secondary = 0;    // of records_computed, level 1 (see IrradianceRecord)
+  uint64_t records_secondary = 0;  // of records_computed, level 1 or deeper (IrradianceRecord)
+  // Of records_secondary, those with one ray bringing more than kHeavyRayShare of the record's
+  // sum (render/record_balance.h: what decides a third cache level).
+  uint64_t records_secondary_heavy = 0;
   uint64_t records_hessian = 0;      // of records_computed, spaced by their Hessian
   uint64_t lookups = 0;              // irradiance-cache queries
   uint64_t lookup_hits = 0;          // queries answered by interpolation
@@ -42,6 +45,7 @@ struct RenderCounters {
     glossy_bounces += o.glossy_bounces;
     records_computed += o.records_computed;
     records_secondary += o.records_secondary;
+    records_secondary_heavy += o.records_secondary_heavy;
     records_hessian += o.records_hessian;
     lookups += o.lookups;
     lookup_hits += o.lookup_hits;

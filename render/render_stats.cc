@@ -109,6 +109,7 @@ std::string RenderStats::ToJson() const {
                {"shadow_skipped_unreachable_light", c.lights_skipped}};
   j["records"] = {{"computed", c.records_computed},
                   {"computed_secondary", c.records_secondary},
+                  {"computed_secondary_heavy", c.records_secondary_heavy},
                   {"computed_hessian", c.records_hessian},
                   {"computed_overture", records_overture},
                   {"received", records_received},
@@ -163,6 +164,7 @@ std::string RenderStats::ToJson() const {
                            {"sampling_thread_seconds", balance.sampling_seconds},
                            {"pilot_records", balance.pilot_records},
                            {"cache_levels", balance.cache_levels},
+                           {"secondary_heavy_share", balance.secondary_heavy_share},
                            {"one_level_record_noise_relmse", balance.one_level_record_noise},
                            {"one_level_sampling_relmse", balance.one_level_sampling_error}};
   j["tiles"] = {{"count", tiles}, {"size", tile_size}};

@@ -63,11 +63,11 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
                                           "' (supported: accuracy, record_rays, light_samples, "
                                           "min_spacing_px, max_spacing_px, spp, cache_levels)");
       if (!absl::SimpleAtod(text, &v) || !std::isfinite(v) || v <= 0 ||
-          (name == "accuracy" && v > 1) || (name == "cache_levels" && v != 1 && v != 2))
+          (name == "accuracy" && v > 1) || (name == "cache_levels" && v != 1 && v != 2 && v != 3))
         return absl::InvalidArgumentError(
             desc.integrator.loc.ToString() + ": irrcache parameter '" + name +
             "' must be a positive number" + (name == "accuracy" ? " <= 1" : "") +
-            (name == "cache_levels" ? " (1 or 2)" : "") + ", got '" + text + "'");
+            (name == "cache_levels" ? " (1, 2 or 3)" : "") + ", got '" + text + "'");
       values[name] = v;
     }
     if (values.count("accuracy")) ic.accuracy = float(values["accuracy"]);
