@@ -234,7 +234,7 @@ def main():
     ap.add_argument("--ladder-pilot", action="store_true",
                     help="let every ladder run's pilot choose its own rays and levels (before "
                          "2026-12-05) instead of the default run's")
-    ap.add_argument("--same-rays-levels", type=int, choices=[1, 2], default=0,
+    ap.add_argument("--same-rays-levels", type=int, choices=[1, 2, 3], default=0,
                     help="cache levels of the ladder at the baseline's rays (default: the "
                          "default run's; 1: one level, as the baseline's cache)")
     ap.add_argument("--seeds", default="7",

@@ -189,7 +189,8 @@ BalanceResult PilotSettings(const Scene& scene, const RenderSettings& settings,
   ic->cache_levels = 2;
   ic->record_rays = b2.record_rays;
   // --target-error keeps at most two: its refinement was calibrated with them.
-  if (!target && ThreeLevelsPay(made, heavy)) b2.cache_levels = ic->cache_levels = 3;
+  if (!target && ThreeLevelsPay(made, heavy, settings.irrcache.accuracy))
+    b2.cache_levels = ic->cache_levels = 3;
   return b2;
 }
 

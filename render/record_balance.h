@@ -185,10 +185,16 @@ inline bool TwoLevelsPay(const BalanceResult& one_level, const BalanceResult& tw
 // Three levels against two, forced, at the pilot's rays: veach-ajar (seeds 103-114) relMSE
 // 6.8e-3 against 1.03e-2 mean, 9.5e-3 against 2.4e-2 worst, for 13% more CPU; on the other
 // scenes above (seeds 7-9) error x time 0.97-1.07 (room-242 1.00).
+// Only at the default accuracy or finer (kThreeLevelsMaxAccuracy): at coarse accuracies the
+// third level's records are few and wide, and on veach-ajar (indirect only, the default run's
+// rays, means of seeds 7-9) three levels then came out erratic, 7.5e-3 to 4.6e-2 at a = 0.2 and
+// 1.4e-2 to 5.4e-2 at a = 0.3 in two runs, where two levels gave 1.5e-2 and 1.4e-2; at a <= 0.1
+// three levels were the lower (4.3e-3 to 6.7e-3 against 4.9e-3 to 9.4e-3).
 constexpr double kHeavyRayShare = 0.4;
 constexpr double kThreeLevelsHeavyShare = 0.25;
-inline bool ThreeLevelsPay(uint64_t secondary_records, uint64_t heavy_records) {
-  return secondary_records > 0 &&
+constexpr float kThreeLevelsMaxAccuracy = 0.1f;  // as IrrcacheSettings::accuracy, a float
+inline bool ThreeLevelsPay(uint64_t secondary_records, uint64_t heavy_records, float accuracy) {
+  return secondary_records > 0 && accuracy <= kThreeLevelsMaxAccuracy &&
          double(heavy_records) > kThreeLevelsHeavyShare * double(secondary_records);
 }
 

@@ -238,6 +238,16 @@ TEST(RecordBalanceTest, ThePilotChoosesTheCacheLevels) {
   EXPECT_LT(room.stats.balance.secondary_heavy_share, kThreeLevelsHeavyShare);
 }
 
+// The rule itself: a quarter of the secondary records made of one ray's light, at the default
+// accuracy or finer.
+TEST(RecordBalanceTest, ThreeLevelsWhereSecondaryRecordsAreOneRaysLight) {
+  EXPECT_TRUE(ThreeLevelsPay(1000, 300, IrrcacheSettings{}.accuracy));  // the default, 0.1
+  EXPECT_TRUE(ThreeLevelsPay(1000, 300, 0.05f));
+  EXPECT_FALSE(ThreeLevelsPay(1000, 200, 0.1f));  // 20%: the secondary records are many rays'
+  EXPECT_FALSE(ThreeLevelsPay(1000, 600, 0.2f));  // coarse accuracy: two levels
+  EXPECT_FALSE(ThreeLevelsPay(0, 0, 0.1f));       // no two-level pilot records
+}
+
 // A third cache level on veach-ajar against two, at the settings' rays (quarter size, one thread,
 // seeds 1-3): the third level's records smooth the second level's, each of which is otherwise
 // the light of a few rays through the door gap. Measured when written, seeds 1-8: lower on 7 of
