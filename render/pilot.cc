@@ -166,20 +166,16 @@ BalanceResult PilotSettings(const Scene& scene, const RenderSettings& settings,
   RenderSettings two = settings;
   two.irrcache.cache_levels = 2;
   // The two-level pilot's secondary records, and those of them one ray made (ThreeLevelsPay).
-  const auto secondary = [&counters](uint64_t* heavy) {
-    uint64_t all = 0;
-    *heavy = 0;
-    for (const RenderCounters& c : counters) {
-      all += c.records_secondary;
-      *heavy += c.records_secondary_heavy;
-    }
-    return all;
+  const auto total = [&counters] {
+    RenderCounters t;
+    for (const RenderCounters& c : counters) t.Add(c);
+    return t;
   };
-  uint64_t heavy_before, heavy_after;
-  const uint64_t secondary_before = secondary(&heavy_before);
+  const RenderCounters before = total();
   BalanceResult b2 = BalanceRecordRays(scene, two, rect, arena, counters);
-  const uint64_t made = secondary(&heavy_after) - secondary_before;
-  const uint64_t heavy = heavy_after - heavy_before;
+  const RenderCounters after = total();
+  const uint64_t made = after.records_secondary - before.records_secondary;
+  const uint64_t heavy = after.records_secondary_heavy - before.records_secondary_heavy;
   b.secondary_heavy_share = made > 0 ? double(heavy) / double(made) : 0.0;
   if (!TwoLevelsPay(b, b2, settings.irrcache.record_rays)) return b;
   b2.cache_levels = 2;
