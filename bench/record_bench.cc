@@ -12,7 +12,8 @@
 // and shadow rays start at scattered points and cost Embree more than a hemisphere from one
 // point. Reported: the rates, the ratio against the hemisphere loop (`ratio`) and against the
 // replay of the same rays (`ratio_same_rays`; goal >= 0.8), and the hemisphere rays traced as
-// rtcIntersect8 packets (bare8), to see whether packets for a record's first hits would pay.
+// rtcIntersect8 and rtcIntersect16 packets (bare8, bare16), to see whether packets for a
+// record's first hits would pay.
 // Run: build/bench/bench_record (one thread; the two loops alternate within each iteration, timed
 // in thread CPU time).
 #include <benchmark/benchmark.h>
@@ -113,6 +114,44 @@ std::unique_ptr<Fixture> MakeFixture(const std::string& name, int grid) {
   return f;
 }
 
+// Traces `rays` as packets of N (RTCRayHit8 or RTCRayHit16) with closest-hit queries and nothing
+// else; the last packet's unused lanes are masked off. Returns the hits.
+template <typename Packet, int N>
+uint64_t TracePackets(RTCScene scene, const std::vector<RTCRayHit>& rays) {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  uint64_t hits = 0;
+  for (size_t i0 = 0; i0 < rays.size(); i0 += N) {
+    Packet packet;
+    alignas(64) int valid[N];
+    for (int k = 0; k < N; ++k) {
+      const bool on = i0 + k < rays.size();
+      valid[k] = on ? -1 : 0;
+      const RTCRayHit& rh = rays[on ? i0 + k : i0];
+      packet.ray.org_x[k] = rh.ray.org_x;
+      packet.ray.org_y[k] = rh.ray.org_y;
+      packet.ray.org_z[k] = rh.ray.org_z;
+      packet.ray.dir_x[k] = rh.ray.dir_x;
+      packet.ray.dir_y[k] = rh.ray.dir_y;
+      packet.ray.dir_z[k] = rh.ray.dir_z;
+      packet.ray.tnear[k] = rh.ray.tnear;
+      packet.ray.tfar[k] = rh.ray.tfar;
+      packet.ray.mask[k] = rh.ray.mask;
+      packet.ray.flags[k] = 0;
+      packet.ray.time[k] = 0;
+      packet.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+      packet.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+    }
+    if constexpr (N == 8) {
+      rtcIntersect8(valid, scene, &ctx, &packet);
+    } else {
+      rtcIntersect16(valid, scene, &ctx, &packet);
+    }
+    for (int k = 0; k < N; ++k) hits += valid[k] && packet.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
+  }
+  return hits;
+}
+
 void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
   const std::unique_ptr<Fixture> f = MakeFixture(name, 12);
   if (!f || f->points.empty()) return state.SkipWithError("cannot load the scene");
@@ -120,8 +159,8 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
   RenderCounters counters;
   Rng rng(1, 2);
   double record_seconds = 0, bare_seconds = 0;
-  uint64_t bare_rays = 0, bare_hits = 0, packet_hits = 0;
-  double packet_seconds = 0, replay_seconds = 0;
+  uint64_t bare_rays = 0, bare_hits = 0, packet_hits = 0, packet16_hits = 0;
+  double packet_seconds = 0, packet16_seconds = 0, replay_seconds = 0;
   uint64_t replay_rays = 0, replay_hits = 0;
   std::vector<RTCRayHit> rays = f->bare_rays;
   for (auto _ : state) {
@@ -139,33 +178,11 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
       bare_hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
     }
     const double t2 = ThreadSeconds();
-    // The same rays as packets of 8 (a record's hemisphere rays share their origin): does
-    // rtcIntersect8 pay for the first hits?
-    for (size_t i0 = 0; i0 < rays.size(); i0 += 8) {
-      RTCRayHit8 packet;
-      alignas(32) int valid[8];
-      for (int k = 0; k < 8; ++k) {
-        const bool on = i0 + k < rays.size();
-        valid[k] = on ? -1 : 0;
-        const RTCRayHit& rh = f->bare_rays[on ? i0 + k : i0];
-        packet.ray.org_x[k] = rh.ray.org_x;
-        packet.ray.org_y[k] = rh.ray.org_y;
-        packet.ray.org_z[k] = rh.ray.org_z;
-        packet.ray.dir_x[k] = rh.ray.dir_x;
-        packet.ray.dir_y[k] = rh.ray.dir_y;
-        packet.ray.dir_z[k] = rh.ray.dir_z;
-        packet.ray.tnear[k] = rh.ray.tnear;
-        packet.ray.tfar[k] = rh.ray.tfar;
-        packet.ray.mask[k] = rh.ray.mask;
-        packet.ray.flags[k] = 0;
-        packet.ray.time[k] = 0;
-        packet.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
-        packet.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
-      }
-      rtcIntersect8(valid, f->scene->embree_scene(), &ctx, &packet);
-      for (int k = 0; k < 8; ++k)
-        packet_hits += valid[k] && packet.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
-    }
+    // The same rays as packets of 8 and of 16 (a record's hemisphere rays share their origin):
+    // would rtcIntersect8 or rtcIntersect16 pay for the first hits?
+    packet_hits += TracePackets<RTCRayHit8, 8>(f->scene->embree_scene(), f->bare_rays);
+    const double t2b = ThreadSeconds();
+    packet16_hits += TracePackets<RTCRayHit16, 16>(f->scene->embree_scene(), f->bare_rays);
     const double t3 = ThreadSeconds();
     // The records' own rays, bare.
     for (const TracedRay& tr : f->replay) {
@@ -182,7 +199,8 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
     const double t4 = ThreadSeconds();
     replay_seconds += t4 - t3;
     replay_rays += f->replay.size();
-    packet_seconds += t3 - t2;
+    packet_seconds += t2b - t2;
+    packet16_seconds += t3 - t2b;
     bare_rays += rays.size();
     record_seconds += t1 - t0;
     bare_seconds += t2 - t1;
@@ -203,7 +221,9 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
   state.counters["replay_rays_per_record"] = double(f->replay.size()) / double(f->points.size());
   benchmark::DoNotOptimize(replay_hits);
   state.counters["bare8_Mrays_s"] = double(bare_rays) / packet_seconds * 1e-6;
+  state.counters["bare16_Mrays_s"] = double(bare_rays) / packet16_seconds * 1e-6;
   state.counters["hits_8_vs_1"] = double(packet_hits) / double(bare_hits);
+  state.counters["hits_16_vs_1"] = double(packet16_hits) / double(bare_hits);
   state.counters["rays_per_record"] = record_rays / double(counters.records_computed);
   state.counters["bare_hit_frac"] = double(bare_hits) / double(bare_rays);
   state.counters["us_per_record"] = record_seconds / double(counters.records_computed) * 1e6;
