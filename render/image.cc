@@ -160,10 +160,16 @@ absl::Status WritePng(const Image& image, const std::string& path, float exposur
   return absl::OkStatus();
 }
 
-absl::StatusOr<Image> ReadImageFile(const std::string& path, bool* linear) {
+absl::Status ReadTextureImage(const std::string& path, Image* floats, ByteImage* bytes) {
+  *floats = Image();
+  *bytes = ByteImage();
   const std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
-  if (linear) *linear = true;
-  if (ext == ".exr" || ext == ".EXR") return ReadExr(path);
+  if (ext == ".exr" || ext == ".EXR") {
+    absl::StatusOr<Image> exr = ReadExr(path);
+    if (!exr.ok()) return exr.status();
+    *floats = std::move(*exr);
+    return absl::OkStatus();
+  }
   int w = 0, h = 0, n = 0;
   if (stbi_is_hdr(path.c_str())) {
     // Radiance RGBE (.hdr): linear floats. stbi_load would tone-map it to 8 bits.
@@ -174,18 +180,17 @@ absl::StatusOr<Image> ReadImageFile(const std::string& path, bool* linear) {
     for (size_t i = 0; i < image.pixels.size(); ++i)
       image.pixels[i] = Vec3(hdr[3 * i], hdr[3 * i + 1], hdr[3 * i + 2]);
     stbi_image_free(hdr);
-    return image;
+    *floats = std::move(image);
+    return absl::OkStatus();
   }
-  if (linear) *linear = false;
   unsigned char* data = stbi_load(path.c_str(), &w, &h, &n, 3);
   if (!data)
     return absl::InvalidArgumentError(path + ": cannot read image: " + stbi_failure_reason());
-  Image image(w, h);
-  for (size_t i = 0; i < image.pixels.size(); ++i)
-    image.pixels[i] =
-        Vec3(data[3 * i] / 255.0f, data[3 * i + 1] / 255.0f, data[3 * i + 2] / 255.0f);
+  bytes->width = w;
+  bytes->height = h;
+  bytes->rgb.assign(data, data + 3 * size_t(w) * size_t(h));
   stbi_image_free(data);
-  return image;
+  return absl::OkStatus();
 }
 
 ImageError CompareImages(const Image& test, const Image& ref) {

@@ -2,6 +2,7 @@
 // 8-bit images in (stb_image) for textures, and the error metrics we compare images with.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -41,10 +42,16 @@ absl::StatusOr<Image> ReadExrLayer(const std::string& path, const std::string& l
 absl::Status WritePng(const Image& image, const std::string& path, float exposure = 0);
 // The same PNG as file bytes in memory (the coordinator's dashboard preview).
 absl::StatusOr<std::string> EncodePng(const Image& image, float exposure = 0);
-// Reads PNG/JPEG (8-bit, returned as values in [0,1], not decoded), EXR or Radiance .hdr.
-// *linear (if given): true for linear data (EXR, Radiance .hdr), false for 8-bit images (PNG,
-// JPEG, ...), which hold sRGB-encoded values scaled to [0, 1].
-absl::StatusOr<Image> ReadImageFile(const std::string& path, bool* linear = nullptr);
+// An 8-bit RGB image as a PNG, JPEG, BMP, TGA, ... file stores it: 3 bytes per pixel, row-major
+// from the top row, the values as stored (sRGB-encoded unless a texture says `raw`).
+struct ByteImage {
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgb;
+};
+// Reads a texture's image file: EXR and Radiance .hdr as linear floats into `*floats` (`*bytes`
+// left empty), any other format stb_image reads (PNG, JPEG, ...) as its bytes into `*bytes`
+// (`*floats` left empty), never widened to floats (a 6-megapixel JPEG would take 72 MB).
+absl::Status ReadTextureImage(const std::string& path, Image* floats, ByteImage* bytes);
 
 float SrgbToLinear(float v);
 float LinearToSrgb(float v);

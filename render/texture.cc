@@ -3,6 +3,15 @@
 #include <cmath>
 
 namespace irfarm {
+namespace {
+
+// The mean texel from per-channel sums over `texels` texels (0 for an empty image).
+Vec3 AverageOf(const double sum[3], size_t texels) {
+  const double n = double(std::max<size_t>(1, texels));
+  return Vec3(float(sum[0] / n), float(sum[1] / n), float(sum[2] / n));
+}
+
+}  // namespace
 
 absl::StatusOr<Texture> Texture::Load(const TextureDesc& desc) {
   if (desc.type == "checkerboard") {
@@ -14,32 +23,40 @@ absl::StatusOr<Texture> Texture::Load(const TextureDesc& desc) {
     t.average_ = (desc.color0 + desc.color1) * 0.5f;
     return t;
   }
-  bool linear = false;
-  absl::StatusOr<Image> image = ReadImageFile(desc.filename, &linear);
-  if (!image.ok())
-    return absl::InvalidArgumentError(desc.loc.ToString() + ": " +
-                                      std::string(image.status().message()));
+  Image floats;
+  ByteImage bytes;
+  const absl::Status read = ReadTextureImage(desc.filename, &floats, &bytes);
+  if (!read.ok())
+    return absl::InvalidArgumentError(desc.loc.ToString() + ": " + std::string(read.message()));
   Texture t;
-  t.width_ = image->width;
-  t.height_ = image->height;
   t.to_uv_ = desc.to_uv;
   t.bilinear_ = desc.filter_type != "nearest";
   t.wrap_ = desc.wrap_mode == "mirror" ? 1 : (desc.wrap_mode == "clamp" ? 2 : 0);
-  if (linear) {
-    t.image_ = std::move(*image);
-  } else {
-    // ReadImageFile gave byte / 255 exactly: keep the bytes and decode through the table.
-    for (int i = 0; i < 256; ++i)
-      t.decode_[size_t(i)] = desc.raw ? i / 255.0f : SrgbToLinear(i / 255.0f);
-    t.bytes_.resize(3 * image->pixels.size());
-    for (size_t i = 0; i < image->pixels.size(); ++i)
-      for (int c = 0; c < 3; ++c)
-        t.bytes_[3 * i + size_t(c)] = uint8_t(std::lround(image->pixels[i][c] * 255.0f));
+  if (bytes.rgb.empty()) {
+    t.width_ = floats.width;
+    t.height_ = floats.height;
+    t.image_ = std::move(floats);
+    double sum[3] = {0, 0, 0};
+    for (const Vec3& p : t.image_.pixels)
+      for (int c = 0; c < 3; ++c) sum[c] += double(p[c]);
+    t.average_ = AverageOf(sum, size_t(t.width_) * size_t(t.height_));
+    return t;
   }
-  Vec3 sum;
-  for (int y = 0; y < t.height_; ++y)
-    for (int x = 0; x < t.width_; ++x) sum += t.Texel(x, y);
-  t.average_ = sum / float(std::max(1, t.width_ * t.height_));
+  // 8-bit: the bytes as read, decoded through the table on lookup.
+  for (int i = 0; i < 256; ++i)
+    t.decode_[size_t(i)] = desc.raw ? i / 255.0f : SrgbToLinear(i / 255.0f);
+  t.width_ = bytes.width;
+  t.height_ = bytes.height;
+  t.bytes_ = std::move(bytes.rgb);
+  // The mean from each channel's histogram of bytes: one pass of counts, no decoding per texel.
+  std::array<std::array<uint64_t, 256>, 3> counts{};
+  for (size_t i = 0; i < t.bytes_.size(); i += 3)
+    for (int c = 0; c < 3; ++c) ++counts[size_t(c)][t.bytes_[i + size_t(c)]];
+  double sum[3] = {0, 0, 0};
+  for (int c = 0; c < 3; ++c)
+    for (int b = 0; b < 256; ++b)
+      sum[c] += double(counts[size_t(c)][size_t(b)]) * double(t.decode_[size_t(b)]);
+  t.average_ = AverageOf(sum, size_t(t.width_) * size_t(t.height_));
   return t;
 }
 

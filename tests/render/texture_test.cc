@@ -4,10 +4,14 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <memory>
 #include <string>
 
 #include "render/image.h"
+#include "render/scene.h"
 #include "render/scene_loader.h"
 
 namespace irfarm {
@@ -85,6 +89,84 @@ TEST(TextureTest, BitmapToUvMatchesMitsuba) {
                   filter + " (" + std::to_string(c.u) + ", " + std::to_string(c.v) + ")");
     }
   }
+}
+
+// 8-bit files are kept as their bytes: each texel is exactly the table's value for its byte
+// (sRGB decoded, or byte / 255 with `raw`), and the mean is the mean of those values.
+TEST(TextureTest, EightBitImagesAreReadAsTheirBytes) {
+  const std::string dir = ::testing::TempDir() + "/texture_bytes_test";
+  std::filesystem::create_directories(dir);
+  Image image(3, 2);
+  for (int i = 0; i < 6; ++i)
+    image.pixels[size_t(i)] = Vec3(0.02f * float(i), 0.1f + 0.15f * float(i), 1.0f - 0.13f * i);
+  absl::StatusOr<std::string> png = EncodePng(image, 1.0f);
+  ASSERT_TRUE(png.ok());
+  const std::string path = dir + "/t.png";
+  std::ofstream(path, std::ios::binary) << *png;
+
+  Image floats;
+  ByteImage bytes;
+  ASSERT_TRUE(ReadTextureImage(path, &floats, &bytes).ok());
+  EXPECT_TRUE(floats.pixels.empty());
+  ASSERT_EQ(bytes.width, 3);
+  ASSERT_EQ(bytes.height, 2);
+  ASSERT_EQ(bytes.rgb.size(), 18u);
+  for (size_t i = 0; i < 6; ++i)
+    for (int c = 0; c < 3; ++c)  // EncodePng's own rounding of the sRGB value
+      EXPECT_EQ(int(bytes.rgb[3 * i + size_t(c)]),
+                int(std::lround(LinearToSrgb(image.pixels[i][c]) * 255.0f)))
+          << i << " " << c;
+
+  for (const bool raw : {false, true}) {
+    TextureDesc desc;
+    desc.filename = path;
+    desc.filter_type = "nearest";
+    desc.raw = raw;
+    const absl::StatusOr<Texture> t = Texture::Load(desc);
+    ASSERT_TRUE(t.ok()) << t.status();
+    double sum[3] = {0, 0, 0};
+    for (int y = 0; y < 2; ++y)
+      for (int x = 0; x < 3; ++x) {
+        const uint8_t* b = &bytes.rgb[3 * size_t(y * 3 + x)];
+        Vec3 want;
+        for (int c = 0; c < 3; ++c) {
+          want[c] = raw ? b[c] / 255.0f : SrgbToLinear(b[c] / 255.0f);
+          sum[c] += double(want[c]);
+        }
+        const Vec3 got = t->Eval((x + 0.5f) / 3, (y + 0.5f) / 2);
+        for (int c = 0; c < 3; ++c) EXPECT_EQ(got[c], want[c]) << x << " " << y << " " << raw;
+      }
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(t->Average()[c], sum[c] / 6, 1e-7) << raw;
+  }
+}
+
+// Textures load in parallel; a file that cannot be read is still reported at its own line, the
+// first such texture in the file when there are several.
+TEST(TextureTest, AnUnreadableTextureIsReportedAtItsLine) {
+  const std::string dir = ::testing::TempDir() + "/texture_missing_test";
+  std::filesystem::create_directories(dir);
+  Image image(2, 2);
+  ASSERT_TRUE(WriteExr(image, dir + "/good.exr").ok());
+  // Present (the loader checks that) but not images.
+  for (const char* bad : {"/bad-1.png", "/bad-2.png"})
+    std::ofstream(dir + bad, std::ios::binary) << "not an image";
+  const auto texture = [](const std::string& file) {
+    return "<bsdf type=\"diffuse\"><texture type=\"bitmap\" name=\"reflectance\"><string "
+           "name=\"filename\" value=\"" +
+           file + "\"/></texture></bsdf>\n";
+  };
+  const std::string xml = "<scene version=\"3.0.0\">\n<sensor type=\"perspective\"/>\n" +
+                          texture("good.exr") + texture("bad-1.png") + texture("bad-2.png") +
+                          "</scene>\n";
+  const absl::StatusOr<SceneDesc> desc = LoadSceneString(xml, dir + "/s.xml", {});
+  ASSERT_TRUE(desc.ok()) << desc.status();
+  ASSERT_EQ(desc->textures.size(), 3u);
+  const absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
+  ASSERT_FALSE(scene.ok());
+  const std::string message(scene.status().message());
+  EXPECT_NE(message.find("s.xml:4"), std::string::npos) << message;
+  EXPECT_NE(message.find("bad-1.png"), std::string::npos) << message;
+  EXPECT_NE(message.find("cannot read image"), std::string::npos) << message;
 }
 
 }  // namespace

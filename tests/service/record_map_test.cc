@@ -70,14 +70,19 @@ TEST(RecordMapTest, DrawsEachRecordAtItsPixelInItsWorkersColour) {
   ASSERT_TRUE(png.ok());
   const std::string path = ::testing::TempDir() + "/record_map_test.png";
   std::ofstream(path, std::ios::binary) << *png;
-  absl::StatusOr<Image> back = ReadImageFile(path);  // 8-bit values / 255, not decoded
+  Image floats;
+  ByteImage back;  // the PNG's bytes, not decoded
+  ASSERT_TRUE(ReadTextureImage(path, &floats, &back).ok());
   std::remove(path.c_str());
-  ASSERT_TRUE(back.ok());
+  ASSERT_EQ(back.width, map.width);
+  const auto byte = [&](int x, int y, int k) {
+    return int(back.rgb[3 * (size_t(y) * size_t(back.width) + size_t(x)) + size_t(k)]);
+  };
   for (const auto& [x, y, origin] : {std::tuple{3, 4, 1u}, std::tuple{30, 20, 2u}}) {
     const auto c = RecordMapColor(origin);
-    for (int k = 0; k < 3; ++k) EXPECT_EQ(std::lround(back->at(x, y)[k] * 255), c[k]) << origin;
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(byte(x, y, k), int(c[k])) << origin;
   }
-  EXPECT_EQ(back->at(0, 0).x, 0.0f);
+  EXPECT_EQ(byte(0, 0, 0), 0);
 }
 
 TEST(RecordMapTest, LargeFilmIsScaledDownToTheMaximumSide) {
