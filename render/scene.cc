@@ -183,9 +183,9 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc,
   if (!s->device_) return absl::InternalError("cannot create the Embree device");
   rtcSetDeviceErrorFunction(s->device_, EmbreeError, &embree_error);
 
-  // Textures decode in parallel (a real interior's JPEGs took most of Scene::Build, one after
-  // another); the first failing one in file order is reported, as a serial load would. On one
-  // thread under ThreadSanitizer, as Embree's builds above.
+  // Textures decode in parallel (veach-ajar's four JPEG/PNG files took most of its Scene::Build,
+  // one after another); the first failing one in file order is reported, as a serial load would. On
+  // one thread under ThreadSanitizer, as Embree's builds above.
   std::vector<absl::StatusOr<Texture>> loaded(desc.textures.size(),
                                               absl::UnknownError("texture not loaded"));
   const auto load = [&](size_t i) { loaded[i] = Texture::Load(desc.textures[i]); };

@@ -1,5 +1,7 @@
 #include "render/texture.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace irfarm {
