@@ -143,6 +143,17 @@ bool RectBySolidAngle(const Light& l, const Vec3& p) {
   return LengthSquared(l.edge_u) + LengthSquared(l.edge_v) >=
          kSphericalRectSize * kSphericalRectSize * LengthSquared(c - p);
 }
+
+// The same rule for a mesh's triangles, by their longest edge: spherical-triangle sampling (three
+// acos and two normalisations in double to set up) only where the triangle is large as seen from
+// p. Measured on make_room 905 (a tube and a disk lamp, 1206 triangles): it was 14% of a default
+// render's CPU.
+bool TriangleBySolidAngle(const LightTriangle& t, const Vec3& p) {
+  const float longest = std::max(
+      {LengthSquared(t.p1 - t.p0), LengthSquared(t.p2 - t.p1), LengthSquared(t.p0 - t.p2)});
+  const Vec3 c = (t.p0 + t.p1 + t.p2) * (1.0f / 3.0f);
+  return longest >= kSphericalRectSize * kSphericalRectSize * LengthSquared(c - p);
+}
 }  // namespace
 
 bool LightSampler::SampleOne(int i, const Vec3& p, const Vec3& n, float u1, float u2, float u3,
@@ -207,7 +218,7 @@ bool LightSampler::SampleOne(int i, const Vec3& p, const Vec3& n, float u1, floa
         if (t.area <= 0 || Dot(p - t.p0, t.ng) <= 0) return false;
         SphericalTriangle st;
         float b1, b2;
-        if (st.Init(p, t.p0, t.p1, t.p2)) {
+        if (TriangleBySolidAngle(t, p) && st.Init(p, t.p0, t.p1, t.p2)) {
           const Vec3 dir = st.Sample(u2, u3);
           const float dn = Dot(dir, t.ng);
           if (!(dn < 0)) return false;
@@ -309,7 +320,8 @@ float LightSampler::PdfOne(int i, const Vec3& p, const Vec3& n, const Vec3& q, c
   const float pick = l.tree.Pmf(p, n, prim);
   if (!(pick > 0)) return 0;
   SphericalTriangle st;
-  if (st.Init(p, t.p0, t.p1, t.p2)) return pick * float(1 / st.solid_angle());
+  if (TriangleBySolidAngle(t, p) && st.Init(p, t.p0, t.p1, t.p2))
+    return pick * float(1 / st.solid_angle());
   return pick * AreaToSolidAngle(dist2, cos_l, t.area);
 }
 

@@ -82,6 +82,11 @@ int BucketOf(float centroid, float lo, float span) {
   return std::min(kBuckets - 1, int(kBuckets * (centroid - lo) / span));
 }
 
+// A bucket leaf's triangles have normals within this cone (cosine of its half-angle, ~26 degrees):
+// picked by power among those facing p, they are within a few times of what the walk below would
+// have given them.
+constexpr float kBucketCosCone = 0.9f;
+
 }  // namespace
 
 struct LightTree::Prim {
@@ -94,6 +99,7 @@ struct LightTree::Prim {
 
 void LightTree::Build(const std::vector<LightTriangle>& triangles, float luminance) {
   nodes_.clear();
+  buckets_.clear();
   path_.assign(triangles.size(), 0);
   leaf_.assign(triangles.size(), -1);
   depth_ = 0;
@@ -149,6 +155,18 @@ int LightTree::BuildRange(std::vector<Prim>& prims, size_t begin, size_t end, in
     chi = Max(chi, prims[i].centroid);
     cone = Union(cone, prims[i].cone);
     power += prims[i].power;
+  }
+  if (end - begin <= size_t(kBucketTriangles) && cone.cos_half >= kBucketCosCone) {
+    Node& n = nodes_[size_t(me)];
+    SetBounds(&n, lo, hi, cone.axis, cone.cos_half, power);
+    n.bucket = int(buckets_.size());
+    n.bucket_count = int(end - begin);
+    for (size_t i = begin; i < end; ++i) {
+      buckets_.push_back(
+          BucketEntry{prims[i].p0, prims[i].cone.axis, prims[i].power, prims[i].index});
+      leaf_[size_t(prims[i].index)] = me;
+    }
+    return me;
   }
   // The split: the bucket boundary of least surface-area-orientation cost over the three axes;
   // the middle element along the widest axis when the centroids coincide.
@@ -307,13 +325,43 @@ bool LightTree::ChildProbabilities(int at, const Vec3& p, const Vec3& n, float* 
   return true;
 }
 
+int LightTree::PickInBucket(const Node& node, const Vec3& p, float u, int wanted,
+                            float* prob) const {
+  *prob = 0;
+  const BucketEntry* e = &buckets_[size_t(node.bucket)];
+  float w[kBucketTriangles], total = 0;
+  for (int k = 0; k < node.bucket_count; ++k) {
+    w[k] = Dot(p - e[k].p0, e[k].ng) > 0 ? e[k].power : 0.0f;
+    total += w[k];
+  }
+  if (!(total > 0)) return -1;
+  if (wanted >= 0) {
+    for (int k = 0; k < node.bucket_count; ++k)
+      if (e[k].triangle == wanted) *prob = w[k] / total;
+    return -1;
+  }
+  // The first facing entry whose running sum passes u x total (the last facing one when
+  // rounding leaves u x total past the sum).
+  const float target = u * total;
+  float run = 0;
+  int pick = -1;
+  for (int k = 0; k < node.bucket_count; ++k) {
+    if (!(w[k] > 0)) continue;
+    pick = k;
+    run += w[k];
+    if (target < run) break;
+  }
+  *prob = w[pick] / total;
+  return e[pick].triangle;
+}
+
 int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf) const {
   *pmf = 0;
   // No test of the root here (the callers have made it: LightSampler::Weight), nor in Pmf.
   if (nodes_.empty()) return -1;
   int at = 0;
   float prob = 1;
-  while (nodes_[size_t(at)].triangle < 0) {
+  while (!IsLeaf(nodes_[size_t(at)])) {
     float pa, pb;
     if (!ChildProbabilities(at, p, n, &pa, &pb)) return -1;
     if (u < pa) {
@@ -326,9 +374,16 @@ int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf) const {
       at = nodes_[size_t(at)].second;
     }
   }
-  if (!(prob > 0)) return -1;
+  const Node& leaf = nodes_[size_t(at)];
+  int triangle = leaf.triangle;
+  if (leaf.bucket >= 0) {
+    float in_bucket = 0;
+    triangle = PickInBucket(leaf, p, u, -1, &in_bucket);
+    prob *= in_bucket;
+  }
+  if (triangle < 0 || !(prob > 0)) return -1;
   *pmf = prob;
-  return nodes_[size_t(at)].triangle;
+  return triangle;
 }
 
 float LightTree::Pmf(const Vec3& p, const Vec3& n, unsigned index) const {
@@ -336,7 +391,7 @@ float LightTree::Pmf(const Vec3& p, const Vec3& n, unsigned index) const {
   const uint64_t path = path_[index];
   int at = 0, depth = 0;
   float prob = 1;
-  while (nodes_[size_t(at)].triangle < 0) {
+  while (!IsLeaf(nodes_[size_t(at)])) {
     float pa, pb;
     if (!ChildProbabilities(at, p, n, &pa, &pb)) return 0;
     if ((path >> depth) & 1) {
@@ -347,6 +402,12 @@ float LightTree::Pmf(const Vec3& p, const Vec3& n, unsigned index) const {
       at = at + 1;
     }
     ++depth;
+  }
+  const Node& leaf = nodes_[size_t(at)];
+  if (leaf.bucket >= 0) {
+    float in_bucket = 0;
+    PickInBucket(leaf, p, 0, int(index), &in_bucket);
+    prob *= in_bucket;
   }
   return prob;
 }

@@ -17,7 +17,11 @@
 // probabilities, so that the two agree exactly (MIS). Both allocate nothing.
 //
 // The tree is built by splitting at the bucket boundary with the lowest surface-area-orientation
-// cost (box area x orientation measure x power, Conty Estevez and Kulla), along each axis.
+// cost (box area x orientation measure x power, Conty Estevez and Kulla), along each axis. A range
+// of at most kBucketTriangles triangles whose normals lie within a narrow cone becomes one leaf
+// (a bucket) instead of a subtree: the walk stops there and picks one of its triangles that faces
+// p, by power. A lamp tessellated into hundreds of triangles (a tube, a disk) is three levels
+// shallower that way, and each level costs two importances per sample.
 #pragma once
 
 #include <cstdint>
@@ -45,6 +49,8 @@ class LightTree {
   float Pmf(const Vec3& p, const Vec3& n, unsigned index) const;
 
   int depth() const { return depth_; }
+  // Leaves holding several triangles (see kBucketTriangles).
+  static constexpr int kBucketTriangles = 8;
   size_t node_count() const { return nodes_.size(); }
 
  private:
@@ -58,7 +64,9 @@ class LightTree {
     float cos_cone = 1, sin_cone = 0, spread = 0;
     float power = 0;    // luminance x area, summed
     int second = -1;    // interior: index of the second child (the first is the next node)
-    int triangle = -1;  // leaf: the triangle
+    int triangle = -1;  // leaf of one triangle: the triangle
+    int bucket = -1;    // leaf of several: the first of its bucket_count entries in buckets_
+    int bucket_count = 0;
     // Leaf: the triangle's corners and plane, for the exact tests.
     Vec3 p0, p1, p2, ng;
   };
@@ -71,7 +79,21 @@ class LightTree {
   // The probabilities of interior node `at`'s two children; false when neither can light p.
   bool ChildProbabilities(int at, const Vec3& p, const Vec3& n, float* pa, float* pb) const;
 
+  // A bucket leaf's triangle: what the pick within the bucket reads (a point in its plane, its
+  // normal, its power) and its index.
+  struct BucketEntry {
+    Vec3 p0, ng;
+    float power = 0;
+    int triangle = -1;
+  };
+  bool IsLeaf(const Node& node) const { return node.triangle >= 0 || node.bucket >= 0; }
+  // Picks a triangle of bucket leaf `node` among those p lies in front of, by power: returns the
+  // entry and its probability, or -1 when p is behind them all. With `wanted` >= 0, the
+  // probability of that triangle instead (0 when it is not picked from p).
+  int PickInBucket(const Node& node, const Vec3& p, float u, int wanted, float* prob) const;
+
   std::vector<Node> nodes_;
+  std::vector<BucketEntry> buckets_;
   std::vector<uint64_t> path_;  // per triangle: the child taken at each depth (bit d)
   std::vector<int> leaf_;       // per triangle: its leaf node, -1 when left out
   int depth_ = 0;

@@ -147,29 +147,35 @@ TEST(LightTreeTest, ProbabilitiesSumToAtMostOneAgreeAndAreNonZeroWhereATriangleC
   }
 }
 
+// Also on a tube, whose narrow strips the tree keeps in buckets of several triangles (a leaf
+// that picks among them by power).
 TEST(LightTreeTest, SamplesFollowTheirProbabilities) {
   Rng rng(8, 1);
-  const std::vector<LightTriangle> tris = Soup(rng, 40);
-  LightTree tree;
-  tree.Build(tris, 1.0f);
-  const Vec3 p(0.3f, -0.2f, 0.4f), n = Normalize(Vec3(0.2f, 0.1f, 1));
-  // One cell per triangle and one for a failed walk.
-  std::vector<double> observed(tris.size() + 1, 0), expected(tris.size() + 1, 0);
-  constexpr int kN = 400000;
-  double sum = 0;
-  for (size_t i = 0; i < tris.size(); ++i) {
-    expected[i] = kN * double(tree.Pmf(p, n, unsigned(i)));
-    sum += double(tree.Pmf(p, n, unsigned(i)));
+  const std::vector<std::vector<LightTriangle>> meshes = {Soup(rng, 40),
+                                                          Tube(Vec3(0, 0, 0), 0.05f, 1, 12, 3)};
+  for (const std::vector<LightTriangle>& tris : meshes) {
+    LightTree tree;
+    tree.Build(tris, 1.0f);
+    const Vec3 p(0.3f, -0.2f, 0.4f), n = Normalize(Vec3(0.2f, 0.1f, 1));
+    // One cell per triangle and one for a failed walk.
+    std::vector<double> observed(tris.size() + 1, 0), expected(tris.size() + 1, 0);
+    constexpr int kN = 400000;
+    double sum = 0;
+    for (size_t i = 0; i < tris.size(); ++i) {
+      expected[i] = kN * double(tree.Pmf(p, n, unsigned(i)));
+      sum += double(tree.Pmf(p, n, unsigned(i)));
+    }
+    expected[tris.size()] = kN * std::max(0.0, 1 - sum);
+    for (int s = 0; s < kN; ++s) {
+      float pmf = 0;
+      const int i = tree.Sample(p, n, rng.Next(), &pmf);
+      observed[i < 0 ? tris.size() : size_t(i)] += 1;
+    }
+    int dof = 0;
+    const double chi2 = ChiSquareStatistic(observed, expected, &dof);
+    EXPECT_LT(chi2, ChiSquareCritical(dof, 1e-3)) << "dof " << dof << ", " << tris.size();
+    EXPECT_GT(dof, 5);
   }
-  expected[tris.size()] = kN * std::max(0.0, 1 - sum);
-  for (int s = 0; s < kN; ++s) {
-    float pmf = 0;
-    const int i = tree.Sample(p, n, rng.Next(), &pmf);
-    observed[i < 0 ? tris.size() : size_t(i)] += 1;
-  }
-  int dof = 0;
-  const double chi2 = ChiSquareStatistic(observed, expected, &dof);
-  EXPECT_LT(chi2, ChiSquareCritical(dof, 1e-3)) << "dof " << dof;
 }
 
 TEST(LightTreeTest, NothingWhereNoTriangleCanLight) {
@@ -263,6 +269,51 @@ TEST(LightTreeTest, TubeLampIsUnbiasedAndLessNoisyThanPickingByArea) {
     EXPECT_NEAR(area_mean, exact, 4 * area_se + 1e-6) << c.what << " (the baseline itself)";
     EXPECT_LT(var, 0.5 * area_var) << c.what;
   }
+}
+
+// The triangle of `tris` that point q lies on (within a relative tolerance), or -1.
+int TriangleAt(const std::vector<LightTriangle>& tris, const Vec3& q) {
+  for (size_t i = 0; i < tris.size(); ++i) {
+    const LightTriangle& t = tris[i];
+    const Vec3 e1 = t.p1 - t.p0, e2 = t.p2 - t.p0, d = q - t.p0;
+    const Vec3 c = Cross(e1, e2);
+    const float c2 = LengthSquared(c);
+    if (!(c2 > 0) || std::abs(Dot(d, c)) > 1e-4f * std::sqrt(c2) * (Length(e1) + Length(e2)))
+      continue;
+    const float b1 = Dot(Cross(d, e2), c) / c2, b2 = Dot(Cross(e1, d), c) / c2;
+    if (b1 >= -1e-4f && b2 >= -1e-4f && b1 + b2 <= 1 + 1e-4f) return int(i);
+  }
+  return -1;
+}
+
+// SampleOne's pdf for a mesh lamp is PdfOne's for the direction it gave (what MIS weighs paths
+// that hit the lamp with), at points near the lamp, where its triangles are sampled by solid
+// angle, and farther away, where the small ones are sampled by area: the two must make the same
+// choice per triangle.
+TEST(LightTreeTest, MeshSamplePdfIsWhatPdfOneGives) {
+  const std::vector<LightTriangle> tris = Tube(Vec3(0, 0, 0), 0.03f, 1.0f, 32, 4);
+  const LightSampler sampler = MeshLightSampler(tris, Vec3(1));
+  Rng rng(5, 9);
+  int checked = 0, near = 0, far = 0;
+  for (int k = 0; k < 400; ++k) {
+    // Distances from 0.05 to 3 from the tube's axis (its triangles are 0.25 long).
+    const float r = 0.05f * std::pow(60.0f, rng.Next()), a = 2 * kPi * rng.Next();
+    const Vec3 p(r * std::cos(a), r * std::sin(a), 1.4f * rng.Next() - 0.2f);
+    const Vec3 n = k % 4 == 0 ? Vec3() : RandomDirection(rng);
+    const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+    LightSample s;
+    if (!sampler.SampleOne(0, p, n, u1, u2, u3, &s)) continue;
+    const int prim = TriangleAt(tris, s.light_point);
+    ASSERT_GE(prim, 0) << "sample off the lamp at point " << k;
+    const float pdf = sampler.PdfOne(0, p, n, s.light_point, s.light_normal, unsigned(prim), s.wi);
+    EXPECT_NEAR(pdf, s.pdf, 1e-3f * s.pdf) << "point " << k << " at " << r << " from the axis";
+    ++checked;
+    (r < 0.25f ? near : far) += 1;
+  }
+  EXPECT_GT(near, 50);
+  EXPECT_GT(far, 50);
+  std::printf("MEASURED %d samples checked (%d within 0.25 of the axis, %d farther)\n", checked,
+              near, far);
 }
 
 }  // namespace
