@@ -520,7 +520,7 @@ Vec3 LightSampler::EvalEnvironment(const Vec3& d) const {
     } else {
       float u, v;
       EnvmapUv(Normalize(l.world_to_env.ApplyVector(d)), &u, &v);
-      L += l.envmap->Eval(u, v) * l.scale;
+      L += l.envmap->EvalLatLong(u, v) * l.scale;
     }
   }
   return L;

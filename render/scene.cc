@@ -153,7 +153,7 @@ Vec3 AverageRadiance(const Light& l) {
     const float theta = (j + 0.5f) * kPi / kN;
     const float w = std::sin(theta);
     for (int i = 0; i < 2 * kN; ++i) {
-      sum += l.envmap->Eval((i + 0.5f) / (2 * kN), (j + 0.5f) / kN) * (w * l.scale);
+      sum += l.envmap->EvalLatLong((i + 0.5f) / (2 * kN), (j + 0.5f) / kN) * (w * l.scale);
       wsum += w;
     }
   }

@@ -104,6 +104,22 @@ Vec3 Texture::EvalBitmap(float u, float v) const {
          (Texel(x0, y1) * (1 - tx) + Texel(x1, y1) * tx) * ty;
 }
 
+Vec3 Texture::EvalLatLong(float u, float v) const {
+  const int w = width_, h = height_;
+  if (!std::isfinite(u) || !std::isfinite(v) || checkerboard_ || w <= 0 || h <= 0) return average_;
+  const float fx = u * float(w) - 0.5f, fy = std::clamp(v, 0.0f, 1.0f) * float(h - 1);
+  const float x0f = std::floor(fx), y0f = std::floor(fy);
+  const float tx = fx - x0f, ty = fy - y0f;
+  const auto wrap = [w](int i) {
+    const int m = i % w;
+    return m < 0 ? m + w : m;
+  };
+  const int x0 = wrap(int(x0f)), x1 = wrap(int(x0f) + 1);
+  const int y0 = std::clamp(int(y0f), 0, h - 1), y1 = std::min(y0 + 1, h - 1);
+  return (Texel(x0, y0) * (1 - tx) + Texel(x1, y0) * tx) * (1 - ty) +
+         (Texel(x0, y1) * (1 - tx) + Texel(x1, y1) * tx) * ty;
+}
+
 void Texture::Gradient(float u, float v, float* d_du, float* d_dv) const {
   *d_du = *d_dv = 0;
   ToUv(&u, &v);

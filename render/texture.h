@@ -22,6 +22,15 @@ class Texture {
  public:
   static absl::StatusOr<Texture> Load(const TextureDesc& desc);
   Vec3 Eval(float u, float v) const;
+  // An environment map's radiance at (u, v) (u = phi / 2 pi, v = theta / pi), as Mitsuba 3's
+  // envmap emitter looks it up: bilinear, column u*w - 0.5 wrapping around, but row v*(h-1)
+  // clamped, so row 0 lies at the pole v = 0 and row h-1 at v = 1 (not at half-integers as a
+  // bitmap's rows). Measured with mitsuba 3.9.1 (scalar_rgb) on a map with one lit texel: its
+  // radiance peaks at u = (i + 0.5) / w and v = j / (h - 1). For a 1.5-degree sun drawn into a
+  // 512 x 256 map 40 degrees up, the bitmap convention put the sun 0.16 degrees low, and its
+  // shadows' edges a third of a pixel off the reference's (make_room 907). The transform to_uv is
+  // not applied (an envmap has none).
+  Vec3 EvalLatLong(float u, float v) const;
   // Derivatives of the luminance of Eval with respect to u and v (bilinear filtering; 0 with
   // nearest), as Mitsuba's eval_1_grad (bump mapping).
   void Gradient(float u, float v, float* d_du, float* d_dv) const;
