@@ -350,8 +350,9 @@ int main(int argc, char** argv) {
       "irrcache: caustics (light through mirrors, smooth glass and sharp metals) from a photon map "
       "instead of the records (the default; --no-caustics leaves them to the records)");
   render->add_flag("--direct-sun,!--no-direct-sun", ra.direct_sun,
-                   "irrcache: an environment map's sun sampled as direct light, not left to the "
-                   "records (the default where the map has a compact sun)");
+                   "an environment map's sun sampled as direct light at every diffuse or glossy "
+                   "vertex, not left to the records (irrcache) or to the environment's own samples "
+                   "(path); the default where the map has a compact sun");
   render->add_flag("--env-guide,!--no-env-guide", ra.env_guide,
                    "environment samples drawn partly towards where the environment was seen from "
                    "nearby (windows; the default where the scene has an environment light)");

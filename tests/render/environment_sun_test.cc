@@ -260,5 +260,42 @@ TEST(EnvironmentSunTest, CameraSamplesAgreeWithAndWithoutTheSplit) {
   EXPECT_NEAR(mean[1], mean[0], 4 * std::sqrt((var[0] + var[1]) / kSamples));
 }
 
+// The path integrator samples the sun as direct light too (PathSettings::direct_sun, set by the
+// final pass where IrrcacheSettings::direct_sun is on): the image is the same as with the sun left
+// to the environment's own samples (means within their noise), and much less noisy. Noise per
+// render from two seeds: mean over pixels of (a - b)^2 / 2.
+TEST(EnvironmentSunTest, PathIntegratorSamplesTheSunAsDirectLight) {
+  LoadedScene built = Load(WriteSky("sun-sky.exr", 2, 5));
+  double mean[2], noise[2];
+  for (const bool sun : {false, true}) {
+    Image img[2];
+    for (int k = 0; k < 2; ++k) {
+      RenderSettings settings = *SettingsForScene(built.desc, "path");
+      settings.spp = 64;
+      settings.seed = uint64_t(11 + k);
+      settings.irrcache.direct_sun = sun;
+      const RenderOutput out = Render(*built.scene, settings);
+      EXPECT_EQ(out.stats.counters.nonfinite_samples, 0u);
+      img[k] = out.image;
+    }
+    double sum = 0, diff2 = 0;
+    const size_t n = img[0].pixels.size();
+    for (size_t i = 0; i < n; ++i) {
+      const double a = Luminance(img[0].pixels[i]), b = Luminance(img[1].pixels[i]);
+      sum += a + b;
+      diff2 += (a - b) * (a - b);
+    }
+    mean[sun] = sum / double(2 * n);
+    noise[sun] = diff2 / double(2 * n);  // per pixel, one render
+  }
+  std::printf(
+      "MEASURED image mean %.4f / %.4f (environment's samples / sun as direct light), "
+      "pixel variance %.3g / %.3g\n",
+      mean[0], mean[1], noise[0], noise[1]);
+  // The mean of 256 pixels of two renders: its variance is the pixels' over 512.
+  EXPECT_NEAR(mean[1], mean[0], 4 * std::sqrt((noise[0] + noise[1]) / 512));
+  EXPECT_LT(noise[1], noise[0] / 4);
+}
+
 }  // namespace
 }  // namespace irfarm
