@@ -52,6 +52,20 @@ std::vector<LightTriangle> Tube(const Vec3& base, float radius, float length, in
   return tris;
 }
 
+// A flat disk of `segments` triangles around `centre` in the plane y = centre.y, emitting down
+// (-y): a ceiling lamp.
+std::vector<LightTriangle> DiskDown(const Vec3& centre, float radius, int segments) {
+  std::vector<LightTriangle> tris;
+  for (int s = 0; s < segments; ++s) {
+    const float a0 = 2 * kPi * float(s) / float(segments);
+    const float a1 = 2 * kPi * float(s + 1) / float(segments);
+    const Vec3 p0 = centre + Vec3(radius * std::cos(a0), 0, radius * std::sin(a0));
+    const Vec3 p1 = centre + Vec3(radius * std::cos(a1), 0, radius * std::sin(a1));
+    tris.push_back(Tri(centre, p0, p1));  // counter-clockwise seen from below
+  }
+  return tris;
+}
+
 // A soup: triangles scattered in a box with random orientations and sizes, and a zero-area one.
 std::vector<LightTriangle> Soup(Rng& rng, int n) {
   std::vector<LightTriangle> tris;
@@ -148,11 +162,12 @@ TEST(LightTreeTest, ProbabilitiesSumToAtMostOneAgreeAndAreNonZeroWhereATriangleC
 }
 
 // Also on a tube, whose narrow strips the tree keeps in buckets of several triangles (a leaf
-// that picks among them by power).
+// that picks among them by power), and on a ceiling disk far from the point (flat: its buckets
+// hold neighbouring slices).
 TEST(LightTreeTest, SamplesFollowTheirProbabilities) {
   Rng rng(8, 1);
-  const std::vector<std::vector<LightTriangle>> meshes = {Soup(rng, 40),
-                                                          Tube(Vec3(0, 0, 0), 0.05f, 1, 12, 3)};
+  const std::vector<std::vector<LightTriangle>> meshes = {
+      Soup(rng, 40), Tube(Vec3(0, 0, 0), 0.05f, 1, 12, 3), DiskDown(Vec3(0.5f, 3, 0.6f), 0.5f, 24)};
   for (const std::vector<LightTriangle>& tris : meshes) {
     LightTree tree;
     tree.Build(tris, 1.0f);
