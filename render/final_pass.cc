@@ -63,6 +63,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   PathSettings path = settings.irrcache.path;
   if (!irrcache && settings.irrcache.direct_sun && !scene.environment_sun().empty())
     path.direct_sun = &scene.environment_sun();
+  path.coarse_light_tree = !irrcache;
 
   // The pixels whose samples reach `rect` (src), and where a pixel of each is.
   const int g = settings.splat ? filter.SplatReach() : 0;

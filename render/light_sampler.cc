@@ -157,7 +157,7 @@ bool TriangleBySolidAngle(const LightTriangle& t, const Vec3& p) {
 }  // namespace
 
 bool LightSampler::SampleOne(int i, const Vec3& p, const Vec3& n, float u1, float u2, float u3,
-                             LightSample* s) const {
+                             LightSample* s, bool coarse) const {
   const Light& l = lights_[i];
   s->light = i;
   switch (l.type) {
@@ -212,7 +212,7 @@ bool LightSampler::SampleOne(int i, const Vec3& p, const Vec3& n, float u1, floa
         }
       } else {
         float pick = 0;
-        const int k = l.tree.Sample(p, n, u1, &pick);
+        const int k = l.tree.Sample(p, n, u1, &pick, coarse);
         if (k < 0) return false;
         const LightTriangle& t = l.triangles[size_t(k)];
         if (t.area <= 0 || Dot(p - t.p0, t.ng) <= 0) return false;
@@ -290,7 +290,7 @@ bool LightSampler::SampleOne(int i, const Vec3& p, const Vec3& n, float u1, floa
 }
 
 float LightSampler::PdfOne(int i, const Vec3& p, const Vec3& n, const Vec3& q, const Vec3& nq,
-                           unsigned prim, const Vec3& wi) const {
+                           unsigned prim, const Vec3& wi, bool coarse) const {
   const Light& l = lights_[i];
   if (l.type != LightType::kArea) return 0;
   const float cos_l = -Dot(wi, nq);
@@ -317,7 +317,7 @@ float LightSampler::PdfOne(int i, const Vec3& p, const Vec3& n, const Vec3& q, c
   if (prim >= l.triangles.size()) return 0;
   const LightTriangle& t = l.triangles[prim];
   if (t.area <= 0 || Dot(p - t.p0, t.ng) <= 0) return 0;
-  const float pick = l.tree.Pmf(p, n, prim);
+  const float pick = l.tree.Pmf(p, n, prim, coarse);
   if (!(pick > 0)) return 0;
   SphericalTriangle st;
   if (TriangleBySolidAngle(t, p) && st.Init(p, t.p0, t.p1, t.p2))
@@ -490,12 +490,12 @@ float LightSampler::PdfArea(const Vec3& p, const Vec3& n, int light, const Vec3&
 }
 
 float LightSampler::NeePdfArea(bool all, const Vec3& p, const Vec3& n, int light, const Vec3& q,
-                               const Vec3& nq, unsigned prim, const Vec3& wi) const {
+                               const Vec3& nq, unsigned prim, const Vec3& wi, bool coarse) const {
   if (!SamplesEveryLight(all)) return PdfArea(p, n, light, q, nq, prim, wi);
   // A light that got weight 0 at p (e.g. behind the horizon of a transmitter) was not sampled:
   // what reaches it through the BSDF counts in full.
   if (light < 0 || light >= num_local_ || Weight(light, p, n) <= 0) return 0;
-  return PdfOne(light, p, n, q, nq, prim, wi);
+  return PdfOne(light, p, n, q, nq, prim, wi, coarse);
 }
 
 float LightSampler::NeePdfEnvironment(bool all, const Vec3& p, const Vec3& n, const Vec3& wi,

@@ -63,12 +63,13 @@ class LightSampler {
   // Samples local light i alone from (p, n): s->pdf is the solid-angle pdf of this light alone
   // (0 for delta lights), s->value = Le / pdf (delta lights: I / d^2, or E). False: nothing
   // reaches p. n (which may be zero) guides the choice of a mesh's triangle.
-  bool SampleOne(int i, const Vec3& p, const Vec3& n, float u1, float u2, float u3,
-                 LightSample* s) const;
+  // `coarse`: a mesh's light tree walks with stop_far (LightTree::Sample).
+  bool SampleOne(int i, const Vec3& p, const Vec3& n, float u1, float u2, float u3, LightSample* s,
+                 bool coarse = false) const;
   // Solid-angle pdf of SampleOne(i, p, n, ...) giving direction wi that reaches point q
   // (shading normal nq, triangle prim) of area light i.
   float PdfOne(int i, const Vec3& p, const Vec3& n, const Vec3& q, const Vec3& nq, unsigned prim,
-               const Vec3& wi) const;
+               const Vec3& wi, bool coarse = false) const;
 
   // Samples the environment alone from (p, n): cosine-weighted around n (uniform over the sphere
   // when n is zero), and with `importance` and an envmap the mixture with its radiance
@@ -113,8 +114,10 @@ class LightSampler {
   // Random numbers: three per light (two for the environment), or three in all.
   bool SamplesEveryLight(bool all) const { return all && num_local_ <= kAllLightsMax; }
   template <typename F>
+  // `coarse` (PathSettings::coarse_light_tree) applies to the every-light samples only, as in
+  // NeePdfArea.
   void SampleForNee(bool all, bool env_importance, const Vec3& p, const Vec3& n, Rng& rng,
-                    uint64_t* skipped, F&& f) const {
+                    uint64_t* skipped, F&& f, bool coarse = false) const {
     if (!SamplesEveryLight(all)) {
       LightSample s;
       const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
@@ -131,7 +134,7 @@ class LightSampler {
       }
       LightSample s;
       const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
-      if (SampleOne(i, p, n, u1, u2, u3, &s)) f(s);
+      if (SampleOne(i, p, n, u1, u2, u3, &s, coarse)) f(s);
     }
     if (has_environment()) {
       LightSample s;
@@ -143,7 +146,7 @@ class LightSampler {
   // area light `light` (0 when it never does), and towards the environment: what MIS weighs a
   // BSDF sample from p against.
   float NeePdfArea(bool all, const Vec3& p, const Vec3& n, int light, const Vec3& q, const Vec3& nq,
-                   unsigned prim, const Vec3& wi) const;
+                   unsigned prim, const Vec3& wi, bool coarse = false) const;
   float NeePdfEnvironment(bool all, const Vec3& p, const Vec3& n, const Vec3& wi,
                           bool env_importance = false) const;
 

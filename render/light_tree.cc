@@ -86,6 +86,12 @@ int BucketOf(float centroid, float lo, float span) {
 // picked by power among those facing p, they are within a few times of what the walk below would
 // have given them.
 constexpr float kBucketCosCone = 0.9f;
+// With `stop_far` (Sample, Pmf), the walk stops at an interior node whose normals lie within this
+// cone (as a bucket's) and whose bounding sphere's radius is under kStopRadius times p's distance
+// to its centre: the node's triangles are then picked by power, with one search of the leaves'
+// cumulative powers instead of two node importances per level below.
+constexpr float kStopCosCone = 0.9f;
+constexpr float kStopRadius = 0.5f;
 
 }  // namespace
 
@@ -126,12 +132,33 @@ void LightTree::Build(const std::vector<LightTriangle>& triangles, float luminan
   if (prims.empty()) return;
   nodes_.reserve(2 * prims.size());
   BuildRange(prims, 0, prims.size(), 0);
+  // BuildRange leaves each node's triangles contiguous in prims, in the order of the leaves.
+  power_of_.assign(triangles.size(), 0.0f);
+  order_.clear();
+  cum_.assign(1, 0.0);
+  for (const Prim& p : prims) {
+    order_.push_back(p.index);
+    cum_.push_back(cum_.back() + double(p.power));
+    power_of_[size_t(p.index)] = p.power;
+  }
+}
+
+bool LightTree::StopsAt(const Node& node, const Vec3& p) const {
+  return node.cos_cone >= kStopCosCone &&
+         node.r2 < kStopRadius * kStopRadius * LengthSquared(p - node.centre);
+}
+
+float LightTree::RangeProbability(const Node& node, int triangle) const {
+  const double total = cum_[size_t(node.first + node.count)] - cum_[size_t(node.first)];
+  return total > 0 ? float(double(power_of_[size_t(triangle)]) / total) : 0.0f;
 }
 
 int LightTree::BuildRange(std::vector<Prim>& prims, size_t begin, size_t end, int depth) {
   depth_ = std::max(depth_, depth);
   const int me = int(nodes_.size());
   nodes_.push_back(Node{});
+  nodes_.back().first = int(begin);
+  nodes_.back().count = int(end - begin);
   if (end - begin == 1) {
     const Prim& p = prims[begin];
     Node& n = nodes_[size_t(me)];
@@ -359,13 +386,26 @@ int LightTree::PickInBucket(const Node& node, const Vec3& p, float u, int wanted
   return e[pick].triangle;
 }
 
-int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf) const {
+int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool stop_far) const {
   *pmf = 0;
   // No test of the root here (the callers have made it: LightSampler::Weight), nor in Pmf.
   if (nodes_.empty()) return -1;
   int at = 0;
   float prob = 1;
   while (!IsLeaf(nodes_[size_t(at)])) {
+    const Node& node = nodes_[size_t(at)];
+    if (stop_far && StopsAt(node, p)) {  // pick among the node's triangles by power
+      const double lo = cum_[size_t(node.first)], hi = cum_[size_t(node.first + node.count)];
+      const double target = lo + double(u) * (hi - lo);
+      const auto begin = cum_.begin() + node.first + 1,
+                 end = cum_.begin() + node.first + node.count;
+      const int k = int(std::upper_bound(begin, end, target) - cum_.begin()) - 1;
+      const int triangle = order_[size_t(k)];
+      prob *= RangeProbability(node, triangle);
+      if (!(prob > 0)) return -1;
+      *pmf = prob;
+      return triangle;
+    }
     float pa, pb;
     if (!ChildProbabilities(at, p, n, &pa, &pb)) return -1;
     if (u < pa) {
@@ -390,12 +430,14 @@ int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf) const {
   return triangle;
 }
 
-float LightTree::Pmf(const Vec3& p, const Vec3& n, unsigned index) const {
+float LightTree::Pmf(const Vec3& p, const Vec3& n, unsigned index, bool stop_far) const {
   if (index >= leaf_.size() || leaf_[index] < 0) return 0;
   const uint64_t path = path_[index];
   int at = 0, depth = 0;
   float prob = 1;
   while (!IsLeaf(nodes_[size_t(at)])) {
+    if (stop_far && StopsAt(nodes_[size_t(at)], p))
+      return prob * RangeProbability(nodes_[size_t(at)], int(index));
     float pa, pb;
     if (!ChildProbabilities(at, p, n, &pa, &pb)) return 0;
     if ((path >> depth) & 1) {

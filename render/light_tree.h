@@ -43,10 +43,12 @@ class LightTree {
   // point that takes light from all directions: no horizon test).
   float Importance(const Vec3& p, const Vec3& n) const;
   // Picks a triangle with probability *pmf, or returns -1 (no triangle reached; always when
-  // Importance(p, n) is 0, which the caller tests first).
-  int Sample(const Vec3& p, const Vec3& n, float u, float* pmf) const;
-  // The probability that Sample(p, n, ...) picks triangle `index`.
-  float Pmf(const Vec3& p, const Vec3& n, unsigned index) const;
+  // Importance(p, n) is 0, which the caller tests first). `stop_far`: the walk stops at nodes far
+  // from p whose normals lie in a narrow cone and picks among their triangles by power (cheaper;
+  // `path`'s camera paths use it, irrcache's direct light does not: its noise is the image's).
+  int Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool stop_far = false) const;
+  // The probability that Sample(p, n, ..., stop_far) picks triangle `index`.
+  float Pmf(const Vec3& p, const Vec3& n, unsigned index, bool stop_far = false) const;
 
   int depth() const { return depth_; }
   // Leaves holding several triangles (see kBucketTriangles).
@@ -67,6 +69,7 @@ class LightTree {
     int triangle = -1;  // leaf of one triangle: the triangle
     int bucket = -1;    // leaf of several: the first of its bucket_count entries in buckets_
     int bucket_count = 0;
+    int first = 0, count = 0;  // its triangles: order_[first, first + count)
     // Leaf: the triangle's corners and plane, for the exact tests.
     Vec3 p0, p1, p2, ng;
   };
@@ -87,6 +90,10 @@ class LightTree {
     int triangle = -1;
   };
   bool IsLeaf(const Node& node) const { return node.triangle >= 0 || node.bucket >= 0; }
+  // Whether a walk with stop_far stops at interior node `node` (see kStopCosCone).
+  bool StopsAt(const Node& node, const Vec3& p) const;
+  // The probability of triangle `triangle` when node's triangles are picked by power.
+  float RangeProbability(const Node& node, int triangle) const;
   // Picks a triangle of bucket leaf `node` among those p lies in front of, by power: returns the
   // entry and its probability, or -1 when p is behind them all. With `wanted` >= 0, the
   // probability of that triangle instead (0 when it is not picked from p).
@@ -94,8 +101,11 @@ class LightTree {
 
   std::vector<Node> nodes_;
   std::vector<BucketEntry> buckets_;
-  std::vector<uint64_t> path_;  // per triangle: the child taken at each depth (bit d)
-  std::vector<int> leaf_;       // per triangle: its leaf node, -1 when left out
+  std::vector<int> order_;       // the triangles in the order of the tree's leaves
+  std::vector<double> cum_;      // cum_[k]: the power of order_[0, k)
+  std::vector<float> power_of_;  // per triangle
+  std::vector<uint64_t> path_;   // per triangle: the child taken at each depth (bit d)
+  std::vector<int> leaf_;        // per triangle: its leaf node, -1 when left out
   int depth_ = 0;
 };
 

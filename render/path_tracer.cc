@@ -66,10 +66,11 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
       const Vec3 throughput = mapped(hit.light) ? beta - beta_caustic_next : beta;
       if (!IsBlack(le) && !IsBlack(throughput)) {
         const float w =
-            prev_pdf == 0 ? 1.0f
-                          : PowerHeuristic(prev_pdf, lights.NeePdfArea(settings.all_lights, prev_p,
-                                                                       prev_n, hit.light, hit.p,
-                                                                       hit.ns, hit.prim, ray.dir));
+            prev_pdf == 0
+                ? 1.0f
+                : PowerHeuristic(prev_pdf, lights.NeePdfArea(settings.all_lights, prev_p, prev_n,
+                                                             hit.light, hit.p, hit.ns, hit.prim,
+                                                             ray.dir, settings.coarse_light_tree));
         add(throughput * le * w, depth);
       }
     }
@@ -119,7 +120,7 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     };
     if (bsdf.HasSmooth()) {  // next-event estimation, MIS against BSDF sampling
       lights.SampleForNee(settings.all_lights, settings.env_importance, hit.p, n_select, rng,
-                          &counters.lights_skipped, shade_light);
+                          &counters.lights_skipped, shade_light, settings.coarse_light_tree);
       if (sun != nullptr) {  // the environment's sun: one sample, the only estimate of its light
         LightSample ls;
         float pdf;

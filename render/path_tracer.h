@@ -56,6 +56,10 @@ struct PathSettings {
   // samples) and on the first segment when skip_first_local_emission (the record point's direct
   // light, DirectLight's).
   const EnvironmentSun* direct_sun = nullptr;
+  // Mesh lamps' light trees walk with stop_far (LightTree::Sample): cheaper samples where a lamp
+  // is far against its size. On for the path integrator's camera paths (the final pass), off in
+  // irrcache, whose image noise is its direct light's.
+  bool coarse_light_tree = false;
 };
 
 // Radiance arriving at the ray's origin along `ray`, whose first hit is path vertex `depth`.

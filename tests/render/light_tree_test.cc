@@ -101,96 +101,100 @@ TEST(LightTreeTest, ProbabilitiesSumToAtMostOneAgreeAndAreNonZeroWhereATriangleC
       Tube(Vec3(0, 0, 1), 0.05f, 1.2f, 16, 8),
       Soup(rng, 300),
       {Tri(Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0))}};
-  for (size_t m = 0; m < meshes.size(); ++m) {
-    const std::vector<LightTriangle>& tris = meshes[m];
-    LightTree tree;
-    tree.Build(tris, 2.0f);
-    ASSERT_FALSE(tree.empty());
-    EXPECT_LE(tree.depth(), 63);
-    int lit_points = 0;
-    double min_sum = 1;
-    for (int k = 0; k < 200; ++k) {
-      const Vec3 p(rng.Next() * 6 - 3, rng.Next() * 6 - 3, rng.Next() * 4 - 1);
-      const Vec3 n = k % 5 == 0 ? Vec3() : RandomDirection(rng);
-      double sum = 0, reachable = 0;
-      for (size_t i = 0; i < tris.size(); ++i) {
-        const double pmf = tree.Pmf(p, n, unsigned(i));
-        EXPECT_GE(pmf, 0);
-        sum += pmf;
-        const double c = Contribution(tris[i], p, n);
-        reachable += c;
-        if (c > 1e-7) {
-          EXPECT_GT(pmf, 0) << "mesh " << m << " triangle " << i << " lights the point";
+  // Both walks: the full one, and the one that stops at far narrow nodes (stop_far).
+  for (const bool stop_far : {false, true})
+    for (size_t m = 0; m < meshes.size(); ++m) {
+      const std::vector<LightTriangle>& tris = meshes[m];
+      LightTree tree;
+      tree.Build(tris, 2.0f);
+      ASSERT_FALSE(tree.empty());
+      EXPECT_LE(tree.depth(), 63);
+      int lit_points = 0;
+      double min_sum = 1;
+      for (int k = 0; k < 200; ++k) {
+        const Vec3 p(rng.Next() * 6 - 3, rng.Next() * 6 - 3, rng.Next() * 4 - 1);
+        const Vec3 n = k % 5 == 0 ? Vec3() : RandomDirection(rng);
+        double sum = 0, reachable = 0;
+        for (size_t i = 0; i < tris.size(); ++i) {
+          const double pmf = tree.Pmf(p, n, unsigned(i), stop_far);
+          EXPECT_GE(pmf, 0);
+          sum += pmf;
+          const double c = Contribution(tris[i], p, n);
+          reachable += c;
+          if (c > 1e-7) {
+            EXPECT_GT(pmf, 0) << "mesh " << m << " triangle " << i << " lights the point";
+          }
+          if (tris[i].area <= 0) {
+            EXPECT_EQ(pmf, 0) << "zero-area triangle";
+          }
         }
-        if (tris[i].area <= 0) {
-          EXPECT_EQ(pmf, 0) << "zero-area triangle";
+        // The bounds are conservative: a node may pass its test while neither child does, and
+        // then the walk ends without a triangle. So the probabilities sum to at most 1, and the
+        // rest is the chance that Sample fails.
+        EXPECT_LE(sum, 1.0 + 1e-5) << "mesh " << m << " point " << k;
+        if (tree.Importance(p, n) > 0) {
+          ++lit_points;
+          min_sum = std::min(min_sum, sum);
+        } else {
+          EXPECT_EQ(reachable, 0) << "root importance 0 where a triangle can light the point";
+          continue;  // the light sampler gives such a light no sample
         }
-      }
-      // The bounds are conservative: a node may pass its test while neither child does, and
-      // then the walk ends without a triangle. So the probabilities sum to at most 1, and the
-      // rest is the chance that Sample fails.
-      EXPECT_LE(sum, 1.0 + 1e-5) << "mesh " << m << " point " << k;
-      if (tree.Importance(p, n) > 0) {
-        ++lit_points;
-        min_sum = std::min(min_sum, sum);
-      } else {
-        EXPECT_EQ(reachable, 0) << "root importance 0 where a triangle can light the point";
-        continue;  // the light sampler gives such a light no sample
-      }
-      // Sample's own probability is Pmf's, exactly; it fails as often as the sum says.
-      constexpr int kTries = 200;
-      int failed = 0;
-      for (int s = 0; s < kTries; ++s) {
-        float pmf = 0;
-        const int i = tree.Sample(p, n, rng.Next(), &pmf);
-        if (i < 0) {
-          ++failed;
-          continue;
+        // Sample's own probability is Pmf's, exactly; it fails as often as the sum says.
+        constexpr int kTries = 200;
+        int failed = 0;
+        for (int s = 0; s < kTries; ++s) {
+          float pmf = 0;
+          const int i = tree.Sample(p, n, rng.Next(), &pmf, stop_far);
+          if (i < 0) {
+            ++failed;
+            continue;
+          }
+          EXPECT_EQ(pmf, tree.Pmf(p, n, unsigned(i), stop_far));
         }
-        EXPECT_EQ(pmf, tree.Pmf(p, n, unsigned(i)));
+        // Binomial: 5 standard deviations (and one sample) of slack.
+        const double q = std::clamp(1 - sum, 0.0, 1.0);
+        EXPECT_NEAR(failed, kTries * q, 5 * std::sqrt(kTries * q * (1 - q)) + 1) << "point " << k;
       }
-      // Binomial: 5 standard deviations (and one sample) of slack.
-      const double q = std::clamp(1 - sum, 0.0, 1.0);
-      EXPECT_NEAR(failed, kTries * q, 5 * std::sqrt(kTries * q * (1 - q)) + 1) << "point " << k;
+      EXPECT_GT(lit_points, 20) << "mesh " << m;
+      std::printf(
+          "MEASURED mesh %zu%s: %d of 200 points lit, least chance that a walk ends at a triangle "
+          "%.3f\n",
+          m, stop_far ? " (stop_far)" : "", lit_points, min_sum);
     }
-    EXPECT_GT(lit_points, 20) << "mesh " << m;
-    std::printf(
-        "MEASURED mesh %zu: %d of 200 points lit, least chance that a walk ends at a triangle "
-        "%.3f\n",
-        m, lit_points, min_sum);
-  }
 }
 
 // Also on a tube, whose narrow strips the tree keeps in buckets of several triangles (a leaf
-// that picks among them by power), and on a ceiling disk far from the point (flat: its buckets
-// hold neighbouring slices).
+// that picks among them by power), and on a ceiling disk far from the point, where a walk with
+// stop_far stops at the root and picks among all its triangles by power.
 TEST(LightTreeTest, SamplesFollowTheirProbabilities) {
   Rng rng(8, 1);
   const std::vector<std::vector<LightTriangle>> meshes = {
       Soup(rng, 40), Tube(Vec3(0, 0, 0), 0.05f, 1, 12, 3), DiskDown(Vec3(0.5f, 3, 0.6f), 0.5f, 24)};
-  for (const std::vector<LightTriangle>& tris : meshes) {
-    LightTree tree;
-    tree.Build(tris, 1.0f);
-    const Vec3 p(0.3f, -0.2f, 0.4f), n = Normalize(Vec3(0.2f, 0.1f, 1));
-    // One cell per triangle and one for a failed walk.
-    std::vector<double> observed(tris.size() + 1, 0), expected(tris.size() + 1, 0);
-    constexpr int kN = 400000;
-    double sum = 0;
-    for (size_t i = 0; i < tris.size(); ++i) {
-      expected[i] = kN * double(tree.Pmf(p, n, unsigned(i)));
-      sum += double(tree.Pmf(p, n, unsigned(i)));
+  for (const bool stop_far : {false, true})
+    for (const std::vector<LightTriangle>& tris : meshes) {
+      LightTree tree;
+      tree.Build(tris, 1.0f);
+      const Vec3 p(0.3f, -0.2f, 0.4f), n = Normalize(Vec3(0.2f, 0.1f, 1));
+      // One cell per triangle and one for a failed walk.
+      std::vector<double> observed(tris.size() + 1, 0), expected(tris.size() + 1, 0);
+      constexpr int kN = 400000;
+      double sum = 0;
+      for (size_t i = 0; i < tris.size(); ++i) {
+        expected[i] = kN * double(tree.Pmf(p, n, unsigned(i), stop_far));
+        sum += double(tree.Pmf(p, n, unsigned(i), stop_far));
+      }
+      expected[tris.size()] = kN * std::max(0.0, 1 - sum);
+      for (int s = 0; s < kN; ++s) {
+        float pmf = 0;
+        const int i = tree.Sample(p, n, rng.Next(), &pmf, stop_far);
+        observed[i < 0 ? tris.size() : size_t(i)] += 1;
+      }
+      int dof = 0;
+      const double chi2 = ChiSquareStatistic(observed, expected, &dof);
+      EXPECT_LT(chi2, ChiSquareCritical(dof, 1e-3))
+          << "dof " << dof << ", " << tris.size() << (stop_far ? ", stop_far" : "");
+      EXPECT_GT(dof, 5);
     }
-    expected[tris.size()] = kN * std::max(0.0, 1 - sum);
-    for (int s = 0; s < kN; ++s) {
-      float pmf = 0;
-      const int i = tree.Sample(p, n, rng.Next(), &pmf);
-      observed[i < 0 ? tris.size() : size_t(i)] += 1;
-    }
-    int dof = 0;
-    const double chi2 = ChiSquareStatistic(observed, expected, &dof);
-    EXPECT_LT(chi2, ChiSquareCritical(dof, 1e-3)) << "dof " << dof << ", " << tris.size();
-    EXPECT_GT(dof, 5);
-  }
 }
 
 TEST(LightTreeTest, NothingWhereNoTriangleCanLight) {
@@ -310,23 +314,26 @@ TEST(LightTreeTest, MeshSamplePdfIsWhatPdfOneGives) {
   const LightSampler sampler = MeshLightSampler(tris, Vec3(1));
   Rng rng(5, 9);
   int checked = 0, near = 0, far = 0;
-  for (int k = 0; k < 400; ++k) {
+  for (int k = 0; k < 800; ++k) {
+    const bool coarse =
+        k % 2 == 1;  // the tree's walk with stop_far (PathSettings::coarse_light_tree)
     // Distances from 0.05 to 3 from the tube's axis (its triangles are 0.25 long).
     const float r = 0.05f * std::pow(60.0f, rng.Next()), a = 2 * kPi * rng.Next();
     const Vec3 p(r * std::cos(a), r * std::sin(a), 1.4f * rng.Next() - 0.2f);
     const Vec3 n = k % 4 == 0 ? Vec3() : RandomDirection(rng);
     const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
     LightSample s;
-    if (!sampler.SampleOne(0, p, n, u1, u2, u3, &s)) continue;
+    if (!sampler.SampleOne(0, p, n, u1, u2, u3, &s, coarse)) continue;
     const int prim = TriangleAt(tris, s.light_point);
     ASSERT_GE(prim, 0) << "sample off the lamp at point " << k;
-    const float pdf = sampler.PdfOne(0, p, n, s.light_point, s.light_normal, unsigned(prim), s.wi);
+    const float pdf =
+        sampler.PdfOne(0, p, n, s.light_point, s.light_normal, unsigned(prim), s.wi, coarse);
     EXPECT_NEAR(pdf, s.pdf, 1e-3f * s.pdf) << "point " << k << " at " << r << " from the axis";
     ++checked;
     (r < 0.25f ? near : far) += 1;
   }
-  EXPECT_GT(near, 50);
-  EXPECT_GT(far, 50);
+  EXPECT_GT(near, 100);
+  EXPECT_GT(far, 100);
   std::printf("MEASURED %d samples checked (%d within 0.25 of the axis, %d farther)\n", checked,
               near, far);
 }
