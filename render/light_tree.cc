@@ -187,7 +187,6 @@ int LightTree::BuildRange(std::vector<Prim>& prims, size_t begin, size_t end, in
     Node& n = nodes_[size_t(me)];
     SetBounds(&n, lo, hi, cone.axis, cone.cos_half, power);
     n.bucket = int(buckets_.size());
-    n.bucket_count = int(end - begin);
     for (size_t i = begin; i < end; ++i) {
       buckets_.push_back(
           BucketEntry{prims[i].p0, prims[i].cone.axis, prims[i].power, prims[i].index});
@@ -361,13 +360,13 @@ int LightTree::PickInBucket(const Node& node, const Vec3& p, float u, int wanted
   *prob = 0;
   const BucketEntry* e = &buckets_[size_t(node.bucket)];
   float w[kBucketTriangles], total = 0;
-  for (int k = 0; k < node.bucket_count; ++k) {
+  for (int k = 0; k < node.count; ++k) {
     w[k] = Dot(p - e[k].p0, e[k].ng) > 0 ? e[k].power : 0.0f;
     total += w[k];
   }
   if (!(total > 0)) return -1;
   if (wanted >= 0) {
-    for (int k = 0; k < node.bucket_count; ++k)
+    for (int k = 0; k < node.count; ++k)
       if (e[k].triangle == wanted) *prob = w[k] / total;
     return -1;
   }
@@ -376,7 +375,7 @@ int LightTree::PickInBucket(const Node& node, const Vec3& p, float u, int wanted
   const float target = u * total;
   float run = 0;
   int pick = -1;
-  for (int k = 0; k < node.bucket_count; ++k) {
+  for (int k = 0; k < node.count; ++k) {
     if (!(w[k] > 0)) continue;
     pick = k;
     run += w[k];

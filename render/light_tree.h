@@ -64,11 +64,10 @@ class LightTree {
     // a point of the box can lie beyond the centre along such a normal (see NodeImportance).
     Vec3 axis;
     float cos_cone = 1, sin_cone = 0, spread = 0;
-    float power = 0;    // luminance x area, summed
-    int second = -1;    // interior: index of the second child (the first is the next node)
-    int triangle = -1;  // leaf of one triangle: the triangle
-    int bucket = -1;    // leaf of several: the first of its bucket_count entries in buckets_
-    int bucket_count = 0;
+    float power = 0;           // luminance x area, summed
+    int second = -1;           // interior: index of the second child (the first is the next node)
+    int triangle = -1;         // leaf of one triangle: the triangle
+    int bucket = -1;           // leaf of several: the first of its `count` entries in buckets_
     int first = 0, count = 0;  // its triangles: order_[first, first + count)
     // Leaf: the triangle's corners and plane, for the exact tests.
     Vec3 p0, p1, p2, ng;

@@ -73,11 +73,19 @@ int Texture::Wrap(int i, int n) const {
     }
     case 2:
       return std::clamp(i, 0, n - 1);
-    default: {
-      int m = i % n;
-      return m < 0 ? m + n : m;
-    }
+    default:
+      return WrapRepeat(i, n);
   }
+}
+
+int Texture::WrapRepeat(int i, int n) {
+  const int m = i % n;
+  return m < 0 ? m + n : m;
+}
+
+Vec3 Texture::Bilinear(int x0, int x1, int y0, int y1, float tx, float ty) const {
+  return (Texel(x0, y0) * (1 - tx) + Texel(x1, y0) * tx) * (1 - ty) +
+         (Texel(x0, y1) * (1 - tx) + Texel(x1, y1) * tx) * ty;
 }
 
 Vec3 Texture::Eval(float u, float v) const {
@@ -100,8 +108,7 @@ Vec3 Texture::EvalBitmap(float u, float v) const {
   const float tx = fx - x0f, ty = fy - y0f;
   const int x0 = Wrap(int(x0f), w), x1 = Wrap(int(x0f) + 1, w);
   const int y0 = Wrap(int(y0f), h), y1 = Wrap(int(y0f) + 1, h);
-  return (Texel(x0, y0) * (1 - tx) + Texel(x1, y0) * tx) * (1 - ty) +
-         (Texel(x0, y1) * (1 - tx) + Texel(x1, y1) * tx) * ty;
+  return Bilinear(x0, x1, y0, y1, tx, ty);
 }
 
 Vec3 Texture::EvalLatLong(float u, float v) const {
@@ -110,14 +117,9 @@ Vec3 Texture::EvalLatLong(float u, float v) const {
   const float fx = u * float(w) - 0.5f, fy = std::clamp(v, 0.0f, 1.0f) * float(h - 1);
   const float x0f = std::floor(fx), y0f = std::floor(fy);
   const float tx = fx - x0f, ty = fy - y0f;
-  const auto wrap = [w](int i) {
-    const int m = i % w;
-    return m < 0 ? m + w : m;
-  };
-  const int x0 = wrap(int(x0f)), x1 = wrap(int(x0f) + 1);
+  const int x0 = WrapRepeat(int(x0f), w), x1 = WrapRepeat(int(x0f) + 1, w);
   const int y0 = std::clamp(int(y0f), 0, h - 1), y1 = std::min(y0 + 1, h - 1);
-  return (Texel(x0, y0) * (1 - tx) + Texel(x1, y0) * tx) * (1 - ty) +
-         (Texel(x0, y1) * (1 - tx) + Texel(x1, y1) * tx) * ty;
+  return Bilinear(x0, x1, y0, y1, tx, ty);
 }
 
 void Texture::Gradient(float u, float v, float* d_du, float* d_dv) const {

@@ -52,6 +52,9 @@ class Texture {
     return image_.at(x, y);
   }
   int Wrap(int i, int n) const;
+  static int WrapRepeat(int i, int n);  // i modulo n, in [0, n)
+  // The bilinear blend of texels (x0 | x1, y0 | y1) with weights tx, ty towards x1, y1.
+  Vec3 Bilinear(int x0, int x1, int y0, int y1, float tx, float ty) const;
   bool checkerboard_ = false;
   Vec3 color0_, color1_;
   std::array<float, 6> to_uv_{1, 0, 0, 0, 1, 0};
