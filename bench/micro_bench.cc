@@ -1,8 +1,10 @@
 // Micro-benchmarks (Google Benchmark) of the hot paths: irradiance-cache lookups, Embree ray casts
-// (closest hit and occlusion) in the Cornell box, a record's derivatives and Beckmann sampling.
+// (closest hit and occlusion) in the Cornell box, a record's derivatives, Beckmann sampling and a
+// mesh lamp's light-tree walk.
 // Run: build/bench/bench_micro.
 #include <benchmark/benchmark.h>
 
+#include <array>
 #include <cmath>
 #include <memory>
 #include <vector>
@@ -10,6 +12,7 @@
 #include "cache/irradiance_cache.h"
 #include "render/bsdfs/microfacet.h"
 #include "render/irradiance_hessian.h"
+#include "render/light_tree.h"
 #include "render/sampling.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
@@ -156,6 +159,58 @@ void BM_BeckmannSample(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_BeckmannSample);
+
+// A tube lamp as a cylinder shape is tessellated (256 segments, 1.5 m long, 5 cm radius, emitting
+// outwards) under a 6 x 3 x 6 m room's ceiling: one light-tree pick (Sample) per iteration, at
+// shading points spread through the room with random normals facing up or sideways (those the
+// lamp can light); with argument 1 also the Pmf of the pick (what MIS asks of a triangle a BSDF
+// ray found).
+std::vector<LightTriangle> TubeLamp() {
+  std::vector<LightTriangle> tris;
+  constexpr int kSegments = 256;
+  const Vec3 base(2, 2.6f, 3);
+  for (int s = 0; s < kSegments; ++s) {
+    const float a0 = 2 * kPi * float(s) / kSegments, a1 = 2 * kPi * float(s + 1) / kSegments;
+    const auto at = [&](float a, float x) {
+      return base + Vec3(x, 0.05f * std::cos(a), 0.05f * std::sin(a));
+    };
+    const Vec3 q[4] = {at(a0, 0), at(a1, 0), at(a1, 1.5f), at(a0, 1.5f)};
+    for (const auto& [i, j, k] : {std::array<int, 3>{0, 2, 1}, std::array<int, 3>{0, 3, 2}}) {
+      LightTriangle t;
+      t.p0 = q[i];
+      t.p1 = q[j];
+      t.p2 = q[k];
+      const Vec3 c = Cross(t.p1 - t.p0, t.p2 - t.p0);
+      t.area = 0.5f * Length(c);
+      t.ng = Normalize(c);
+      t.n0 = t.n1 = t.n2 = t.ng;
+      tris.push_back(t);
+    }
+  }
+  return tris;
+}
+void BM_LightTreeSample(benchmark::State& state) {
+  LightTree tree;
+  tree.Build(TubeLamp(), 1.0f);
+  Rng rng(5, 6);
+  std::vector<std::pair<Vec3, Vec3>> points;
+  while (points.size() < 1024) {  // where the lamp can light (the light sampler tests the root)
+    const Vec3 p(6 * rng.Next(), 2.5f * rng.Next(), 6 * rng.Next());
+    const Vec3 n = Normalize(Vec3(rng.Next() - 0.5f, rng.Next(), rng.Next() - 0.5f));
+    if (tree.Importance(p, n) > 0) points.emplace_back(p, n);
+  }
+  size_t i = 0;
+  int found = 0;
+  for (auto _ : state) {
+    const auto& [p, n] = points[i++ & 1023];
+    float pmf;
+    const int t = tree.Sample(p, n, rng.Next(), &pmf);
+    found += t >= 0;
+    if (state.range(0) != 0 && t >= 0) benchmark::DoNotOptimize(tree.Pmf(p, n, unsigned(t)));
+  }
+  state.counters["found"] = double(found) / double(state.iterations());
+}
+BENCHMARK(BM_LightTreeSample)->Arg(0)->Arg(1);
 
 }  // namespace
 }  // namespace irfarm

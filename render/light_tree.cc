@@ -106,7 +106,7 @@ struct LightTree::Prim {
 void LightTree::Build(const std::vector<LightTriangle>& triangles, float luminance) {
   nodes_.clear();
   buckets_.clear();
-  path_.assign(triangles.size(), 0);
+  wide_.clear();
   leaf_.assign(triangles.size(), -1);
   depth_ = 0;
   std::vector<Prim> prims;
@@ -136,11 +136,60 @@ void LightTree::Build(const std::vector<LightTriangle>& triangles, float luminan
   power_of_.assign(triangles.size(), 0.0f);
   order_.clear();
   cum_.assign(1, 0.0);
+  position_.assign(triangles.size(), -1);
   for (const Prim& p : prims) {
+    position_[size_t(p.index)] = int(order_.size());
     order_.push_back(p.index);
     cum_.push_back(cum_.back() + double(p.power));
     power_of_[size_t(p.index)] = p.power;
   }
+  if (!IsLeaf(nodes_[0])) BuildWide(0);
+}
+
+int LightTree::BuildWide(int binary) {
+  const Node& b = nodes_[size_t(binary)];
+  int lanes[4], count = 0;
+  for (const int c : {binary + 1, b.second}) {
+    const Node& child = nodes_[size_t(c)];
+    if (IsLeaf(child)) {
+      lanes[count++] = c;
+    } else {
+      lanes[count++] = c + 1;
+      lanes[count++] = child.second;
+    }
+  }
+  const int me = int(wide_.size());
+  wide_.emplace_back();
+  WideNode w;
+  w.binary = binary;
+  w.count = count;
+  for (int k = 0; k < 4; ++k) {
+    // Unused lanes: no power, and bounds that keep their arithmetic finite.
+    const Node& l = nodes_[size_t(lanes[std::min(k, count - 1)])];
+    const bool used = k < count;
+    w.cx[k] = l.centre.x;
+    w.cy[k] = l.centre.y;
+    w.cz[k] = l.centre.z;
+    w.hx[k] = l.half.x;
+    w.hy[k] = l.half.y;
+    w.hz[k] = l.half.z;
+    w.r2[k] = l.r2;
+    w.radius[k] = l.radius;
+    w.ax[k] = l.axis.x;
+    w.ay[k] = l.axis.y;
+    w.az[k] = l.axis.z;
+    w.cos_cone[k] = l.cos_cone;
+    w.sin_cone[k] = l.sin_cone;
+    w.spread[k] = l.spread;
+    w.power[k] = used ? l.power : 0.0f;
+    w.node[k] = used ? lanes[k] : -1;
+    w.child[k] = -1;
+    if (used && l.triangle >= 0) w.triangle_lanes |= 1u << k;
+  }
+  for (int k = 0; k < count; ++k)
+    w.child[k] = IsLeaf(nodes_[size_t(lanes[k])]) ? -1 - lanes[k] : BuildWide(lanes[k]);
+  wide_[size_t(me)] = w;
+  return me;
 }
 
 bool LightTree::StopsAt(const Node& node, const Vec3& p) const {
@@ -242,7 +291,7 @@ int LightTree::BuildRange(std::vector<Prim>& prims, size_t begin, size_t end, in
     }
   }
   size_t mid;
-  // Past kMaxCostDepth the range is halved, so that a path fits its 64 bits.
+  // Past kMaxCostDepth the range is halved (the depth stays bounded).
   constexpr int kMaxCostDepth = 30;
   if (best_axis >= 0 && depth < kMaxCostDepth) {
     const int axis = best_axis;
@@ -266,7 +315,6 @@ int LightTree::BuildRange(std::vector<Prim>& prims, size_t begin, size_t end, in
   }
   BuildRange(prims, begin, mid, depth + 1);
   const int second = BuildRange(prims, mid, end, depth + 1);
-  for (size_t i = mid; i < end; ++i) path_[size_t(prims[i].index)] |= uint64_t(1) << depth;
   Node& n = nodes_[size_t(me)];
   SetBounds(&n, lo, hi, cone.axis, cone.cos_half, power);
   n.second = second;
@@ -290,13 +338,7 @@ void LightTree::SetBounds(Node* node, const Vec3& lo, const Vec3& hi, const Vec3
 
 inline float LightTree::NodeImportance(const Node& node, const Vec3& p, const Vec3& n) const {
   const bool has_normal = !IsBlack(n);
-  if (node.triangle >= 0) {
-    // Exact for one triangle: p behind its emitting side, or all its corners below p's horizon.
-    if (Dot(p - node.p0, node.ng) <= 0) return 0;
-    if (has_normal && Dot(node.p0 - p, n) <= 0 && Dot(node.p1 - p, n) <= 0 &&
-        Dot(node.p2 - p, n) <= 0)
-      return 0;
-  }
+  if (node.triangle >= 0 && !TriangleCanLight(node, p, n)) return 0;
   const Vec3& h = node.half;
   const float r2 = node.r2;
   const Vec3 d = p - node.centre;  // from the box towards p
@@ -344,15 +386,66 @@ float LightTree::Importance(const Vec3& p, const Vec3& n) const {
   return nodes_.empty() ? 0.0f : NodeImportance(nodes_[0], p, n);
 }
 
-bool LightTree::ChildProbabilities(int at, const Vec3& p, const Vec3& n, float* pa,
-                                   float* pb) const {
-  const float ia = NodeImportance(nodes_[size_t(at + 1)], p, n);
-  const float ib = NodeImportance(nodes_[size_t(nodes_[size_t(at)].second)], p, n);
-  const float total = ia + ib;
-  if (!(total > 0)) return false;
-  *pa = ia / total;
-  *pb = ib / total;
-  return true;
+bool LightTree::TriangleCanLight(const Node& node, const Vec3& p, const Vec3& n) const {
+  // Exact for one triangle: p behind its emitting side, or all its corners below p's horizon.
+  if (Dot(p - node.p0, node.ng) <= 0) return false;
+  return IsBlack(n) || Dot(node.p0 - p, n) > 0 || Dot(node.p1 - p, n) > 0 ||
+         Dot(node.p2 - p, n) > 0;
+}
+
+void LightTree::LaneImportances(const WideNode& w, const Vec3& p, const Vec3& n,
+                                float out[4]) const {
+  // NodeImportance's steps for four nodes at once (see there); a lane failing a test is 0.
+  const bool has_normal = !IsBlack(n);
+  const Float4 zero(0.0f), one(1.0f);
+  const Float4 dx = Float4(p.x) - Float4::Load(w.cx);
+  const Float4 dy = Float4(p.y) - Float4::Load(w.cy);
+  const Float4 dz = Float4(p.z) - Float4::Load(w.cz);
+  const Float4 d2 = dx * dx + dy * dy + dz * dz;
+  const Float4 r2 = Float4::Load(w.r2);
+  const Float4 dist2 = Max(d2, r2);
+  Float4 ok = dist2 > zero;
+  const Float4 nx(n.x), ny(n.y), nz(n.z);
+  const Float4 n_dot_d = nx * dx + ny * dy + nz * dz;
+  if (has_normal) {  // the box below p's horizon
+    const Float4 top = zero - n_dot_d + Float4(std::abs(n.x)) * Float4::Load(w.hx) +
+                       Float4(std::abs(n.y)) * Float4::Load(w.hy) +
+                       Float4(std::abs(n.z)) * Float4::Load(w.hz);
+    ok = ok & (top > zero);
+  }
+  const Float4 dist = Sqrt(d2);
+  const Float4 positive = dist > zero;
+  const Float4 inv_dist = Select(positive, one / dist, zero);
+  const Float4 ax = Float4::Load(w.ax), ay = Float4::Load(w.ay), az = Float4::Load(w.az);
+  const Float4 kx = ay * dz - az * dy, ky = az * dx - ax * dz, kz = ax * dy - ay * dx;
+  const Float4 cos_w = Select(positive, (ax * dx + ay * dy + az * dz) * inv_dist, one);
+  const Float4 sin_w = Select(positive, Sqrt(kx * kx + ky * ky + kz * kz) * inv_dist, zero);
+  const Float4 cos_o = Float4::Load(w.cos_cone), sin_o = Float4::Load(w.sin_cone);
+  const Float4 within = cos_w >= cos_o;
+  const Float4 cos_x = Select(within, one, cos_w * cos_o + sin_w * sin_o);
+  const Float4 sin_x = Select(within, zero, sin_w * cos_o - cos_w * sin_o);
+  ok = ok & (dist * cos_x + Float4::Load(w.spread) > zero);  // behind every emitting side
+  const Float4 power = Float4::Load(w.power);
+  const Float4 inside = d2 <= r2;  // p inside the bounding sphere: any direction
+  const Float4 sin_b = Float4::Load(w.radius) * inv_dist;
+  const Float4 cos_b = Sqrt(Max(d2 - r2, zero)) * inv_dist;
+  const Float4 cos_e = Select(cos_x >= cos_b, one, cos_x * cos_b + sin_x * sin_b);
+  Float4 seen = cos_e > zero;
+  Float4 cos_i = one;
+  if (has_normal) {
+    const Float4 c_i = (zero - n_dot_d) * inv_dist;
+    const Float4 mx = ny * dz - nz * dy, my = nz * dx - nx * dz, mz = nx * dy - ny * dx;
+    const Float4 s_i = Sqrt(mx * mx + my * my + mz * mz) * inv_dist;
+    cos_i = Select(c_i >= cos_b, one, c_i * cos_b + s_i * sin_b);
+    seen = seen & (cos_i > zero);
+  }
+  const Float4 value = Select(inside, power / dist2, power * cos_e * cos_i * (inv_dist * inv_dist));
+  Select(ok & (inside | seen), value, zero).Store(out);
+  for (int k = w.count; k < 4; ++k) out[k] = 0;
+  for (unsigned bits = w.triangle_lanes; bits != 0; bits &= bits - 1) {
+    const int k = __builtin_ctz(bits);
+    if (out[k] > 0 && !TriangleCanLight(nodes_[size_t(w.node[k])], p, n)) out[k] = 0;
+  }
 }
 
 int LightTree::PickInBucket(const Node& node, const Vec3& p, float u, int wanted,
@@ -389,10 +482,11 @@ int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool st
   *pmf = 0;
   // No test of the root here (the callers have made it: LightSampler::Weight), nor in Pmf.
   if (nodes_.empty()) return -1;
-  int at = 0;
+  int at = 0;  // the binary leaf reached
   float prob = 1;
-  while (!IsLeaf(nodes_[size_t(at)])) {
-    const Node& node = nodes_[size_t(at)];
+  for (int wi = wide_.empty() ? -1 : 0; wi >= 0;) {
+    const WideNode& w = wide_[size_t(wi)];
+    const Node& node = nodes_[size_t(w.binary)];
     if (stop_far && StopsAt(node, p)) {  // pick among the node's triangles by power
       const double lo = cum_[size_t(node.first)], hi = cum_[size_t(node.first + node.count)];
       const double target = lo + double(u) * (hi - lo);
@@ -405,17 +499,25 @@ int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool st
       *pmf = prob;
       return triangle;
     }
-    float pa, pb;
-    if (!ChildProbabilities(at, p, n, &pa, &pb)) return -1;
-    if (u < pa) {
-      u = std::min(u / pa, 0x1.fffffep-1f);
-      prob *= pa;
-      at = at + 1;
-    } else {
-      u = std::min((u - pa) / (1 - pa), 0x1.fffffep-1f);
-      prob *= pb;
-      at = nodes_[size_t(at)].second;
+    float imp[4];
+    LaneImportances(w, p, n, imp);
+    const float total = imp[0] + imp[1] + imp[2] + imp[3];
+    if (!(total > 0)) return -1;
+    // The first lane with importance whose running sum passes u x total (the last such lane when
+    // rounding leaves u x total past the sum).
+    const float target = u * total;
+    float run = 0;
+    int lane = -1;
+    for (int k = 0; k < w.count; ++k) {
+      if (!(imp[k] > 0)) continue;
+      lane = k;
+      if (target < run + imp[k]) break;
+      run += imp[k];
     }
+    u = std::clamp((target - run) / imp[lane], 0.0f, 0x1.fffffep-1f);
+    prob *= imp[lane] / total;
+    wi = w.child[lane];
+    if (wi < 0) at = -1 - wi;
   }
   const Node& leaf = nodes_[size_t(at)];
   int triangle = leaf.triangle;
@@ -431,22 +533,27 @@ int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool st
 
 float LightTree::Pmf(const Vec3& p, const Vec3& n, unsigned index, bool stop_far) const {
   if (index >= leaf_.size() || leaf_[index] < 0) return 0;
-  const uint64_t path = path_[index];
-  int at = 0, depth = 0;
+  const int position = position_[index];
+  int at = 0;
   float prob = 1;
-  while (!IsLeaf(nodes_[size_t(at)])) {
-    if (stop_far && StopsAt(nodes_[size_t(at)], p))
-      return prob * RangeProbability(nodes_[size_t(at)], int(index));
-    float pa, pb;
-    if (!ChildProbabilities(at, p, n, &pa, &pb)) return 0;
-    if ((path >> depth) & 1) {
-      prob *= pb;
-      at = nodes_[size_t(at)].second;
-    } else {
-      prob *= pa;
-      at = at + 1;
+  for (int wi = wide_.empty() ? -1 : 0; wi >= 0;) {
+    const WideNode& w = wide_[size_t(wi)];
+    if (stop_far && StopsAt(nodes_[size_t(w.binary)], p))
+      return prob * RangeProbability(nodes_[size_t(w.binary)], int(index));
+    float imp[4];
+    LaneImportances(w, p, n, imp);
+    const float total = imp[0] + imp[1] + imp[2] + imp[3];
+    if (!(total > 0)) return 0;
+    int lane = 0;
+    while (lane + 1 < w.count) {
+      const Node& l = nodes_[size_t(w.node[lane])];
+      if (position < l.first + l.count) break;
+      ++lane;
     }
-    ++depth;
+    if (!(imp[lane] > 0)) return 0;
+    prob *= imp[lane] / total;
+    wi = w.child[lane];
+    if (wi < 0) at = -1 - wi;
   }
   const Node& leaf = nodes_[size_t(at)];
   if (leaf.bucket >= 0) {
