@@ -160,11 +160,10 @@ Vec3 IrrcacheIntegrator::DirectLight(const SurfaceHit& hit, const Vec3& nf, cons
     const int n = delta ? 1 : k;  // a delta light's one sample is exact
     Vec3 shadowed, unshadowed;
     for (int j = 0; j < n; ++j) {
-      const float u1 = rng.Next();
       float u2, u3;
       uv(j, &u2, &u3);
       LightSample s;
-      if (!ls.SampleOne(i, hit.p, nf, u1, u2, u3, &s)) continue;
+      if (!ls.SampleOne(i, hit.p, nf, u2, u3, &s)) continue;
       const float cos_i = Dot(s.wi, nf);
       if (cos_i <= 0) continue;
       const Vec3 c = weight * s.value * (cos_i / float(n));

@@ -62,9 +62,11 @@ class LightSampler {
 
   // Samples local light i alone from (p, n): s->pdf is the solid-angle pdf of this light alone
   // (0 for delta lights), s->value = Le / pdf (delta lights: I / d^2, or E). False: nothing
-  // reaches p. n (which may be zero) guides the choice of a mesh's triangle.
-  // `coarse`: a mesh's light tree walks with stop_far (LightTree::Sample).
-  bool SampleOne(int i, const Vec3& p, const Vec3& n, float u1, float u2, float u3, LightSample* s,
+  // reaches p. n (which may be zero) guides the choice of a mesh's triangle, which takes u2 (and
+  // leaves what remains of it to the point on the triangle), so that stratified (u2, u3) spread
+  // over a mesh's triangles too. `coarse`: a mesh's light tree walks with stop_far
+  // (LightTree::Sample).
+  bool SampleOne(int i, const Vec3& p, const Vec3& n, float u2, float u3, LightSample* s,
                  bool coarse = false) const;
   // Solid-angle pdf of SampleOne(i, p, n, ...) giving direction wi that reaches point q
   // (shading normal nq, triangle prim) of area light i.
@@ -133,8 +135,8 @@ class LightSampler {
         continue;
       }
       LightSample s;
-      const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
-      if (SampleOne(i, p, n, u1, u2, u3, &s, coarse)) f(s);
+      const float u2 = rng.Next(), u3 = rng.Next();
+      if (SampleOne(i, p, n, u2, u3, &s, coarse)) f(s);
     }
     if (has_environment()) {
       LightSample s;

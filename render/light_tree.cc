@@ -448,8 +448,8 @@ void LightTree::LaneImportances(const WideNode& w, const Vec3& p, const Vec3& n,
   }
 }
 
-int LightTree::PickInBucket(const Node& node, const Vec3& p, float u, int wanted,
-                            float* prob) const {
+int LightTree::PickInBucket(const Node& node, const Vec3& p, float u, int wanted, float* prob,
+                            float* u_rest) const {
   *prob = 0;
   const BucketEntry* e = &buckets_[size_t(node.bucket)];
   float w[kBucketTriangles], total = 0;
@@ -468,17 +468,21 @@ int LightTree::PickInBucket(const Node& node, const Vec3& p, float u, int wanted
   const float target = u * total;
   float run = 0;
   int pick = -1;
+  float before = 0;
   for (int k = 0; k < node.count; ++k) {
     if (!(w[k] > 0)) continue;
     pick = k;
+    before = run;
     run += w[k];
     if (target < run) break;
   }
   *prob = w[pick] / total;
+  if (u_rest) *u_rest = std::clamp((target - before) / w[pick], 0.0f, 0x1.fffffep-1f);
   return e[pick].triangle;
 }
 
-int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool stop_far) const {
+int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool stop_far,
+                      float* u_rest) const {
   *pmf = 0;
   // No test of the root here (the callers have made it: LightSampler::Weight), nor in Pmf.
   if (nodes_.empty()) return -1;
@@ -497,6 +501,10 @@ int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool st
       prob *= RangeProbability(node, triangle);
       if (!(prob > 0)) return -1;
       *pmf = prob;
+      if (u_rest) {
+        const double width = cum_[size_t(k + 1)] - cum_[size_t(k)];
+        *u_rest = std::clamp(float((target - cum_[size_t(k)]) / width), 0.0f, 0x1.fffffep-1f);
+      }
       return triangle;
     }
     float imp[4];
@@ -523,8 +531,10 @@ int LightTree::Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool st
   int triangle = leaf.triangle;
   if (leaf.bucket >= 0) {
     float in_bucket = 0;
-    triangle = PickInBucket(leaf, p, u, -1, &in_bucket);
+    triangle = PickInBucket(leaf, p, u, -1, &in_bucket, u_rest);
     prob *= in_bucket;
+  } else if (u_rest) {
+    *u_rest = u;
   }
   if (triangle < 0 || !(prob > 0)) return -1;
   *pmf = prob;

@@ -49,7 +49,10 @@ class LightTree {
   // Importance(p, n) is 0, which the caller tests first). `stop_far`: the walk stops at nodes far
   // from p whose normals lie in a narrow cone and picks among their triangles by power (cheaper;
   // `path`'s camera paths use it, irrcache's direct light does not: its noise is the image's).
-  int Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool stop_far = false) const;
+  // `u_rest` (optional) receives what is left of u after the pick: uniform in [0, 1) given the
+  // pick, and stratified where u was (the walk's rescaling of u within each choice).
+  int Sample(const Vec3& p, const Vec3& n, float u, float* pmf, bool stop_far = false,
+             float* u_rest = nullptr) const;
   // The probability that Sample(p, n, ..., stop_far) picks triangle `index`.
   float Pmf(const Vec3& p, const Vec3& n, unsigned index, bool stop_far = false) const;
 
@@ -119,7 +122,8 @@ class LightTree {
   // Picks a triangle of bucket leaf `node` among those p lies in front of, by power: returns the
   // entry and its probability, or -1 when p is behind them all. With `wanted` >= 0, the
   // probability of that triangle instead (0 when it is not picked from p).
-  int PickInBucket(const Node& node, const Vec3& p, float u, int wanted, float* prob) const;
+  int PickInBucket(const Node& node, const Vec3& p, float u, int wanted, float* prob,
+                   float* u_rest = nullptr) const;
 
   std::vector<Node> nodes_;
   std::vector<WideNode> wide_;  // wide_[0] stands for nodes_[0] (when that is not a leaf)

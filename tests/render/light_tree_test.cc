@@ -197,6 +197,45 @@ TEST(LightTreeTest, SamplesFollowTheirProbabilities) {
     }
 }
 
+// What Sample leaves of u after its pick (u_rest, the first coordinate of the point on the
+// triangle) is uniform given the pick, and evenly spread where u was: with u on an even grid,
+// every triangle picked often enough gets u_rest in ten equal bins as evenly as chance allows
+// (the pick's u unchanged would put them all in the sub-interval that chose it).
+TEST(LightTreeTest, WhatRemainsOfUIsUniformGivenThePick) {
+  Rng rng(4, 9);
+  const std::vector<std::vector<LightTriangle>> meshes = {
+      Soup(rng, 40), Tube(Vec3(0, 0, 0), 0.05f, 1, 12, 3), DiskDown(Vec3(0.5f, 3, 0.6f), 0.5f, 24)};
+  for (const bool stop_far : {false, true})
+    for (const std::vector<LightTriangle>& tris : meshes) {
+      LightTree tree;
+      tree.Build(tris, 1.0f);
+      const Vec3 p(0.3f, -0.2f, 0.4f), n = Normalize(Vec3(0.2f, 0.1f, 1));
+      constexpr int kN = 200000, kBins = 10;
+      std::vector<std::vector<double>> bins(tris.size(), std::vector<double>(kBins, 0));
+      for (int i = 0; i < kN; ++i) {
+        float pmf = 0, rest = -1;
+        const int t = tree.Sample(p, n, (float(i) + 0.5f) / kN, &pmf, stop_far, &rest);
+        if (t < 0) continue;
+        ASSERT_GE(rest, 0);
+        ASSERT_LT(rest, 1);
+        bins[size_t(t)][size_t(std::min(kBins - 1, int(rest * kBins)))] += 1;
+      }
+      int tested = 0;
+      for (const std::vector<double>& b : bins) {
+        double count = 0;
+        for (const double c : b) count += c;
+        if (count < 50 * kBins) continue;
+        const std::vector<double> expected(kBins, count / kBins);
+        int dof = 0;
+        const double chi2 = ChiSquareStatistic(b, expected, &dof);
+        EXPECT_LT(chi2, ChiSquareCritical(dof, 1e-3))
+            << tris.size() << " triangles" << (stop_far ? ", stop_far" : "");
+        ++tested;
+      }
+      EXPECT_GT(tested, 3);
+    }
+}
+
 TEST(LightTreeTest, NothingWhereNoTriangleCanLight) {
   // A flat square emitting up (+z), in two triangles and subdivided: points below it, and points
   // above it whose horizon it lies under, get nothing.
@@ -264,7 +303,7 @@ TEST(LightTreeTest, TubeLampIsUnbiasedAndLessNoisyThanPickingByArea) {
       const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
       LightSample s;
       double v = 0;
-      if (sampler.SampleOne(0, c.p, c.n, u1, u2, u3, &s))
+      if (sampler.SampleOne(0, c.p, c.n, u2, u3, &s))
         v = s.value.x * std::max(0.0f, Dot(s.wi, c.n));
       sum += v;
       sum2 += v * v;
@@ -321,9 +360,9 @@ TEST(LightTreeTest, MeshSamplePdfIsWhatPdfOneGives) {
     const float r = 0.05f * std::pow(60.0f, rng.Next()), a = 2 * kPi * rng.Next();
     const Vec3 p(r * std::cos(a), r * std::sin(a), 1.4f * rng.Next() - 0.2f);
     const Vec3 n = k % 4 == 0 ? Vec3() : RandomDirection(rng);
-    const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
+    const float u2 = rng.Next(), u3 = rng.Next();
     LightSample s;
-    if (!sampler.SampleOne(0, p, n, u1, u2, u3, &s, coarse)) continue;
+    if (!sampler.SampleOne(0, p, n, u2, u3, &s, coarse)) continue;
     const int prim = TriangleAt(tris, s.light_point);
     ASSERT_GE(prim, 0) << "sample off the lamp at point " << k;
     const float pdf =

@@ -6,7 +6,11 @@
 #    mitsuba-x4-noise.json: a bound that does not come from irfarm; irrcache at its defaults is
 #    claimed to beat Mitsuba at 256 spp);
 #  - each worker received the other's records, and they were used in lookups;
-#  - records computed by both workers <= 1.15x the single-process render's;
+#  - records computed by both workers <= 1.2x the single-process render's (its mean over seeds 0-2:
+#    one render's count moves with the seed by +-2.3%). The job's count moves with the seed and
+#    with the timing of the exchange (+-3.5% at one seed): over 8-15 runs each at seeds 0, 3 and
+#    5, the mean ratio was 1.07 to 1.14, and a bound of 1.15 failed in up to 30% of the runs at a
+#    seed (2026-12-06, before and after a change of the light samples' random numbers only);
 #  - with sharing off, prints how many more records are computed;
 #  - snapshot export then import: the warm job computes <= 5% of the first job's records (its
 #    tiles wait for their regions' records, RegionReady; before they did, the snapshot's records
@@ -24,6 +28,12 @@ TOL=$(mitsuba_x4_error cornell-box "64x64 256spp")
 L0=$(relmse "$WORK/local0.exr" "$REF")
 LOCAL_REC=$(computed "$WORK/local0.json")
 echo "single-process relMSE vs reference: $L0; records $LOCAL_REC; tolerance (Mitsuba 256 spp) $TOL"
+LOCAL_SUM=$LOCAL_REC
+for seed in 1 2; do
+  "$BIN/irfarm" render "$SCENE" "${OPTS[@]}" --seed $seed --threads 2 -q -o "$WORK/local$seed.exr" --stats "$WORK/local$seed.json"
+  LOCAL_SUM=$((LOCAL_SUM + $(computed "$WORK/local$seed.json")))
+done
+LOCAL_MEAN=$(python3 -c "print($LOCAL_SUM / 3)")
 
 start_cluster "w1 w2"
 
@@ -31,9 +41,9 @@ start_cluster "w1 w2"
 render_job "$WORK/dist.exr" "$SCENE" "${OPTS[@]}" --tile-size 16
 within_tolerance "two-worker image" "$WORK/dist.exr"
 "$BIN/irfarm" status --coordinator "$ADDR" "$JOB" --json > "$WORK/job.json"
-python3 - "$WORK/job.json" "$LOCAL_REC" <<'PY' || fail "worker stats"
+python3 - "$WORK/job.json" "$LOCAL_MEAN" <<'PY' || fail "worker stats"
 import json, sys
-j = json.load(open(sys.argv[1])); local = int(sys.argv[2])
+j = json.load(open(sys.argv[1])); local = float(sys.argv[2])
 ws = j["workers"]
 assert len(ws) == 2, ws
 total = sum(int(w["recordsComputed"]) for w in ws)
@@ -45,8 +55,8 @@ for w in ws:
 # Received records were used in lookups. Not necessarily by both: a worker that started late and
 # rendered 3 of the 16 tiles left the other nothing near its own tiles in time (1 run in about 60).
 assert sum(int(w["remoteRecordsUsed"]) for w in ws) > 0, "no worker used a received record"
-print("MEASURED records computed: two workers %d, single process %d, ratio %.3f" % (total, local, total / local))
-assert total <= 1.15 * local, "too many records computed"
+print("MEASURED records computed: two workers %d, single process %.1f (seeds 0-2), ratio %.3f" % (total, local, total / local))
+assert total <= 1.2 * local, "too many records computed"
 print("ok: worker stats")
 PY
 SHARED_TOTAL=$(job_field "$ADDR" "$JOB" "sum(int(w['recordsComputed']) for w in j['workers'])")
