@@ -166,15 +166,29 @@ TEST(LightTreeTest, ProbabilitiesSumToAtMostOneAgreeAndAreNonZeroWhereATriangleC
 // Also on a tube, whose narrow strips the tree keeps in buckets of several triangles (a leaf
 // that picks among them by power), and on a ceiling disk far from the point, where a walk with
 // stop_far stops at the root and picks among all its triangles by power.
+// A soup, a bucketed tube and a ceiling disk, each with its tree, seen from one point (p, n).
+struct PickCase {
+  std::vector<LightTriangle> tris;
+  LightTree tree;
+};
+std::vector<PickCase> PickCases(Rng& rng) {
+  std::vector<PickCase> cases(3);
+  cases[0].tris = Soup(rng, 40);
+  cases[1].tris = Tube(Vec3(0, 0, 0), 0.05f, 1, 12, 3);
+  cases[2].tris = DiskDown(Vec3(0.5f, 3, 0.6f), 0.5f, 24);
+  for (PickCase& c : cases) c.tree.Build(c.tris, 1.0f);
+  return cases;
+}
+const Vec3 kPickPoint(0.3f, -0.2f, 0.4f);
+const Vec3 kPickNormal = Normalize(Vec3(0.2f, 0.1f, 1));
+
 TEST(LightTreeTest, SamplesFollowTheirProbabilities) {
   Rng rng(8, 1);
-  const std::vector<std::vector<LightTriangle>> meshes = {
-      Soup(rng, 40), Tube(Vec3(0, 0, 0), 0.05f, 1, 12, 3), DiskDown(Vec3(0.5f, 3, 0.6f), 0.5f, 24)};
   for (const bool stop_far : {false, true})
-    for (const std::vector<LightTriangle>& tris : meshes) {
-      LightTree tree;
-      tree.Build(tris, 1.0f);
-      const Vec3 p(0.3f, -0.2f, 0.4f), n = Normalize(Vec3(0.2f, 0.1f, 1));
+    for (const PickCase& c : PickCases(rng)) {
+      const std::vector<LightTriangle>& tris = c.tris;
+      const LightTree& tree = c.tree;
+      const Vec3 &p = kPickPoint, &n = kPickNormal;
       // One cell per triangle and one for a failed walk.
       std::vector<double> observed(tris.size() + 1, 0), expected(tris.size() + 1, 0);
       constexpr int kN = 400000;
@@ -203,13 +217,11 @@ TEST(LightTreeTest, SamplesFollowTheirProbabilities) {
 // (the pick's u unchanged would put them all in the sub-interval that chose it).
 TEST(LightTreeTest, WhatRemainsOfUIsUniformGivenThePick) {
   Rng rng(4, 9);
-  const std::vector<std::vector<LightTriangle>> meshes = {
-      Soup(rng, 40), Tube(Vec3(0, 0, 0), 0.05f, 1, 12, 3), DiskDown(Vec3(0.5f, 3, 0.6f), 0.5f, 24)};
   for (const bool stop_far : {false, true})
-    for (const std::vector<LightTriangle>& tris : meshes) {
-      LightTree tree;
-      tree.Build(tris, 1.0f);
-      const Vec3 p(0.3f, -0.2f, 0.4f), n = Normalize(Vec3(0.2f, 0.1f, 1));
+    for (const PickCase& c : PickCases(rng)) {
+      const std::vector<LightTriangle>& tris = c.tris;
+      const LightTree& tree = c.tree;
+      const Vec3 &p = kPickPoint, &n = kPickNormal;
       constexpr int kN = 200000, kBins = 10;
       std::vector<std::vector<double>> bins(tris.size(), std::vector<double>(kBins, 0));
       for (int i = 0; i < kN; ++i) {
