@@ -117,6 +117,9 @@ class LightTree {
   bool IsLeaf(const Node& node) const { return node.triangle >= 0 || node.bucket >= 0; }
   // Whether a walk with stop_far stops at interior node `node` (see kStopCosCone).
   bool StopsAt(const Node& node, const Vec3& p) const;
+  // The last k in [0, count) with cum[k] <= target (cum[0] <= target, cum nondecreasing), for
+  // target = cum[0] + u (cum[count] - cum[0]).
+  static int LastAtOrBelow(const double* cum, int count, float u, double target);
   // The probability of triangle `triangle` when node's triangles are picked by power.
   float RangeProbability(const Node& node, int triangle) const;
   // Picks a triangle of bucket leaf `node` among those p lies in front of, by power: returns the
