@@ -4,6 +4,7 @@
 
 #include "render/mesh_loader.h"
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -506,19 +507,30 @@ TriangleMesh MakeDiskMesh(int segments) {
   return mesh;
 }
 
-TriangleMesh MakeCylinderMesh(int segments) {
+int CylinderRings(float length, float radius) {
+  const float rings = std::ceil(length / (kCylinderRingRadii * radius));
+  return rings >= 1 ? int(std::min(rings, float(kMaxCylinderRings))) : 1;
+}
+
+TriangleMesh MakeCylinderMesh(int segments, int rings) {
   TriangleMesh mesh;
+  const int columns = rings + 1;
   for (int i = 0; i <= segments; ++i) {
     const double a = 2 * 3.14159265358979323846 * i / segments;
     const float c = float(std::cos(a)), s = float(std::sin(a)), u = float(i) / float(segments);
-    mesh.positions.insert(mesh.positions.end(), {Vec3(c, s, 0.0f), Vec3(c, s, 1.0f)});
-    mesh.normals.insert(mesh.normals.end(), {Vec3(c, s, 0.0f), Vec3(c, s, 0.0f)});
-    mesh.uvs.insert(mesh.uvs.end(), {u, 0.0f, u, 1.0f});
+    for (int r = 0; r <= rings; ++r) {
+      const float z = float(r) / float(rings);
+      mesh.positions.push_back(Vec3(c, s, z));
+      mesh.normals.push_back(Vec3(c, s, 0.0f));
+      mesh.uvs.insert(mesh.uvs.end(), {u, z});
+    }
   }
-  for (int i = 0; i < segments; ++i) {
-    const auto b0 = uint32_t(2 * i), t0 = b0 + 1, b1 = b0 + 2, t1 = b0 + 3;
-    mesh.indices.insert(mesh.indices.end(), {b0, b1, t1, b0, t1, t0});
-  }
+  for (int i = 0; i < segments; ++i)
+    for (int r = 0; r < rings; ++r) {
+      const auto b0 = uint32_t(columns * i + r), t0 = b0 + 1, b1 = b0 + uint32_t(columns),
+                 t1 = b1 + 1;
+      mesh.indices.insert(mesh.indices.end(), {b0, b1, t1, b0, t1, t0});
+    }
   return mesh;
 }
 

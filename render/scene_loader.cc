@@ -1295,6 +1295,7 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     // origin, the axis p1 - p0 along z in Mitsuba's frame of it (which fixes where u = 0 is), and
     // scaled by the radius and length.
     Mat4 mesh_to_world = to_world;
+    int rings = 1;
     if (type == "cylinder") {
       const Vec3 axis(float(p1[0] - p0[0]), float(p1[1] - p0[1]), float(p1[2] - p0[2]));
       const float length = Length(axis);
@@ -1302,6 +1303,7 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
         return Error(n, absl::StrCat("cylinder needs a positive radius and p0 != p1 (radius ",
                                      radius, ", length ", length, ")"));
       }
+      rings = CylinderRings(length, float(radius));
       Vec3 sx, sy;
       const Vec3 sz = axis / length;
       MakeFrame(sz, &sx, &sy);
@@ -1318,7 +1320,7 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     if (type == "obj") mesh = LoadObjMesh(filename, flip_tex_coords);
     if (type == "ply") mesh = LoadPlyMesh(filename);
     if (type == "serialized") mesh = LoadSerializedMesh(filename, shape_index);
-    if (type == "cylinder") mesh = MakeCylinderMesh(kCylinderSegments);
+    if (type == "cylinder") mesh = MakeCylinderMesh(kCylinderSegments, rings);
     if (type == "rectangle") mesh = MakeRectangleMesh();
     if (type == "cube") mesh = MakeCubeMesh();
     if (type == "disk") mesh = MakeDiskMesh(128);

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "render/mesh_loader.h"
 #include "render/serialized_mesh.h"
 #include "render_test_util.h"
 
@@ -165,6 +166,37 @@ TEST(SerializedMeshTest, SceneErrorsNameTheShapesLine) {
   d = LoadSceneString(cyl, path, {});
   ASSERT_FALSE(d.ok());
   EXPECT_NE(d.status().message().find("bad-index.xml:2:"), std::string::npos) << d.status();
+}
+
+// A tube split into rings is the same surface as one ring: the same area, every vertex on the
+// unit cylinder, v = z, and 2 x segments x rings triangles; the ring count follows the tube's
+// length in radii (CylinderRings).
+TEST(CylinderMeshTest, RingsKeepTheSurface) {
+  const auto area = [](const TriangleMesh& m) {
+    double a = 0;
+    for (size_t i = 0; i + 2 < m.indices.size(); i += 3) {
+      const Vec3 &p0 = m.positions[m.indices[i]], &p1 = m.positions[m.indices[i + 1]],
+                 &p2 = m.positions[m.indices[i + 2]];
+      a += 0.5 * Length(Cross(p1 - p0, p2 - p0));
+    }
+    return a;
+  };
+  const TriangleMesh one = MakeCylinderMesh(kCylinderSegments, 1);
+  for (const int rings : {1, 3, 8}) {
+    const TriangleMesh m = MakeCylinderMesh(kCylinderSegments, rings);
+    EXPECT_EQ(m.indices.size(), size_t(3 * 2 * kCylinderSegments * rings));
+    EXPECT_NEAR(area(m), area(one), 1e-5 * area(one)) << rings << " rings";
+    for (size_t v = 0; v < m.positions.size(); ++v) {
+      const Vec3& p = m.positions[v];
+      EXPECT_NEAR(p.x * p.x + p.y * p.y, 1.0f, 1e-5f);
+      EXPECT_GE(p.z, 0.0f);
+      EXPECT_LE(p.z, 1.0f);
+      EXPECT_FLOAT_EQ(m.uvs[2 * v + 1], p.z);
+    }
+  }
+  EXPECT_EQ(CylinderRings(1.4f, 0.03f), 12);  // tests/data mesh-lamps' tube
+  EXPECT_EQ(CylinderRings(0.1f, 0.05f), 1);   // a short fat tube
+  EXPECT_EQ(CylinderRings(1e3f, 1e-3f), kMaxCylinderRings);
 }
 
 }  // namespace
