@@ -507,6 +507,144 @@ TriangleMesh MakeDiskMesh(int segments) {
   return mesh;
 }
 
+int SliceAlongPrincipalAxis(TriangleMesh* mesh, size_t max_triangles) {
+  const std::vector<Vec3>& v = mesh->positions;
+  if (v.empty() || mesh->indices.empty()) return 0;
+  // Centroid and covariance of the surface (triangle centroids by area), not of the vertices: a
+  // seam's repeated vertices would pull them aside.
+  double c[3] = {0, 0, 0}, total = 0;
+  const auto for_triangles = [&](const auto& f) {
+    for (size_t i = 0; i + 2 < mesh->indices.size(); i += 3) {
+      const Vec3 &a = v[mesh->indices[i]], &b = v[mesh->indices[i + 1]],
+                 &e = v[mesh->indices[i + 2]];
+      f((a + b + e) / 3.0f, 0.5 * double(Length(Cross(b - a, e - a))));
+    }
+  };
+  for_triangles([&](const Vec3& p, double w) {
+    for (int k = 0; k < 3; ++k) c[k] += w * p[k];
+    total += w;
+  });
+  if (!(total > 0)) return 0;
+  for (double& x : c) x /= total;
+  double cov[3][3] = {};
+  for_triangles([&](const Vec3& p, double w) {
+    const double d[3] = {p.x - c[0], p.y - c[1], p.z - c[2]};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) cov[i][j] += w * d[i] * d[j];
+  });
+  // The leading eigenvector by power iteration, from the direction of the farthest vertex.
+  double axis[3] = {1, 0, 0}, far = 0;
+  for (const Vec3& p : v) {
+    const double d[3] = {p.x - c[0], p.y - c[1], p.z - c[2]};
+    const double d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    if (d2 > far) {
+      far = d2;
+      for (int k = 0; k < 3; ++k) axis[k] = d[k];
+    }
+  }
+  for (int it = 0; it < 64; ++it) {
+    double next[3] = {0, 0, 0};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) next[i] += cov[i][j] * axis[j];
+    const double len = std::sqrt(next[0] * next[0] + next[1] * next[1] + next[2] * next[2]);
+    if (!(len > 0)) break;
+    for (int k = 0; k < 3; ++k) axis[k] = next[k] / len;
+  }
+  const double alen = std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+  if (!(alen > 0)) return 0;
+  for (double& x : axis) x /= alen;
+  std::vector<double> t(v.size());  // each vertex's coordinate along the axis
+  double widest = 0, lo = INFINITY, hi = -INFINITY;
+  for (size_t i = 0; i < v.size(); ++i) {
+    const double d[3] = {v[i].x - c[0], v[i].y - c[1], v[i].z - c[2]};
+    t[i] = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
+    widest = std::max(widest, d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - t[i] * t[i]);
+    lo = std::min(lo, t[i]);
+    hi = std::max(hi, t[i]);
+  }
+  const double spacing = kCylinderRingRadii * std::sqrt(widest);
+  if (!(spacing > 0) || (hi - lo) <= spacing) return 0;
+  // Planes at t = j spacing. A triangle's slabs run from floor(min t / s) to floor(max t / s).
+  size_t estimate = 0;
+  for (size_t i = 0; i + 2 < mesh->indices.size(); i += 3) {
+    const double a = t[mesh->indices[i]], b = t[mesh->indices[i + 1]], e = t[mesh->indices[i + 2]];
+    estimate += 3 * size_t(std::floor(std::max({a, b, e}) / spacing) -
+                           std::floor(std::min({a, b, e}) / spacing) + 1);
+  }
+  if (estimate > max_triangles) return 0;
+  TriangleMesh& m = *mesh;
+  const bool normals = !m.normals.empty(), uvs = !m.uvs.empty();
+  std::unordered_map<uint64_t, uint32_t> cuts;  // (edge, plane) -> vertex
+  std::unordered_map<uint64_t, int64_t> edge_ids;
+  const auto cut = [&](uint32_t a, uint32_t b, int64_t plane) {
+    const uint64_t edge = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
+    auto [it, fresh] = edge_ids.emplace(edge, int64_t(edge_ids.size()));
+    const uint64_t key = (uint64_t(it->second) << 24) ^ uint64_t(plane & 0xffffff);
+    const auto found = cuts.find(key);
+    if (found != cuts.end()) return found->second;
+    (void)fresh;
+    // From the lower-numbered vertex, so both triangles compute the same point.
+    const uint32_t p = std::min(a, b), q = std::max(a, b);
+    const float f = float((double(plane) * spacing - t[p]) / (t[q] - t[p]));
+    const auto id = uint32_t(m.positions.size());
+    m.positions.push_back(m.positions[p] + (m.positions[q] - m.positions[p]) * f);
+    if (normals) m.normals.push_back(m.normals[p] + (m.normals[q] - m.normals[p]) * f);
+    if (uvs) {
+      const float u = m.uvs[2 * p] + (m.uvs[2 * q] - m.uvs[2 * p]) * f;
+      const float w = m.uvs[2 * p + 1] + (m.uvs[2 * q + 1] - m.uvs[2 * p + 1]) * f;
+      m.uvs.insert(m.uvs.end(), {u, w});
+    }
+    t.push_back(double(plane) * spacing);
+    cuts.emplace(key, id);
+    return id;
+  };
+  const size_t before = m.indices.size() / 3;
+  std::vector<uint32_t> out;
+  struct Point {
+    uint32_t vertex;
+    int64_t first, last;  // the slabs it bounds
+  };
+  std::vector<Point> ring;
+  std::vector<uint32_t> piece;
+  const std::vector<uint32_t> in = m.indices;
+  for (size_t i = 0; i + 2 < in.size(); i += 3) {
+    ring.clear();
+    int64_t kmin = INT64_MAX, kmax = INT64_MIN;
+    for (int e = 0; e < 3; ++e) {
+      const uint32_t a = in[i + size_t(e)], b = in[i + size_t((e + 1) % 3)];
+      const double ta = t[a], tb = t[b];
+      // The vertex: on plane j it bounds slabs j - 1 and j.
+      const double qa = ta / spacing;
+      const auto below = int64_t(std::floor(qa));
+      ring.push_back({a, qa == double(below) ? below - 1 : below, below});
+      kmin = std::min(kmin, below);
+      kmax = std::max(kmax, below);
+      // The planes strictly between a and b, in order from a.
+      if (tb > ta) {
+        for (int64_t j = below + 1; double(j) * spacing < tb; ++j)
+          ring.push_back({cut(a, b, j), j - 1, j});
+      } else if (tb < ta) {
+        const auto top = int64_t(std::ceil(qa)) - 1;
+        for (int64_t j = top; double(j) * spacing > tb; --j)
+          ring.push_back({cut(a, b, j), j - 1, j});
+      }
+    }
+    if (kmin == kmax) {  // within one slab: unchanged
+      out.insert(out.end(), {in[i], in[i + 1], in[i + 2]});
+      continue;
+    }
+    for (int64_t k = kmin - 1; k <= kmax; ++k) {
+      piece.clear();
+      for (const Point& p : ring)
+        if (p.first <= k && k <= p.last) piece.push_back(p.vertex);
+      for (size_t j = 1; j + 1 < piece.size(); ++j)
+        out.insert(out.end(), {piece[0], piece[j], piece[j + 1]});
+    }
+  }
+  m.indices = std::move(out);
+  return int(m.indices.size() / 3 - before);
+}
+
 int CylinderRings(float length, float radius) {
   const float rings = std::ceil(length / (kCylinderRingRadii * radius));
   return rings >= 1 ? int(std::min(rings, float(kMaxCylinderRings))) : 1;

@@ -1338,6 +1338,12 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
       ReverseWinding(&s.mesh);
     s.degenerate_dropped = DropDegenerateTriangles(&s.mesh);
     if (!face_normals && s.mesh.normals.empty()) ComputeSmoothNormals(&s.mesh);
+    // An emitting mesh from a file is sliced across its length as a cylinder is cut into rings
+    // (kCylinderRingRadii), so a tube's full-length slivers become short pieces.
+    if (!emitters.empty() && (type == "obj" || type == "ply" || type == "serialized")) {
+      SliceAlongPrincipalAxis(&s.mesh, std::max<size_t>(16 * (s.mesh.indices.size() / 3), 4096));
+      DropDegenerateTriangles(&s.mesh);
+    }
     if (s.flip_normals) FlipNormals(&s.mesh);
     if (face_normals) s.mesh.normals.clear();
     if (s.degenerate_dropped > 0) {

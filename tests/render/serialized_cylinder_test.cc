@@ -15,8 +15,10 @@
 
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "render/mesh_loader.h"
@@ -197,6 +199,79 @@ TEST(CylinderMeshTest, RingsKeepTheSurface) {
   EXPECT_EQ(CylinderRings(1.4f, 0.03f), 12);  // tests/data mesh-lamps' tube
   EXPECT_EQ(CylinderRings(0.1f, 0.05f), 1);   // a short fat tube
   EXPECT_EQ(CylinderRings(1e3f, 1e-3f), kMaxCylinderRings);
+}
+
+// An emitting mesh from a file (a tube of 32 full-length slivers, tilted) sliced across its
+// principal axis: the same area, every piece within one slab along the axis, each piece facing
+// the way its vertex normals do, and watertight: every edge shared by two pieces except on the
+// tube's two open ends.
+TEST(CylinderMeshTest, SlicingAnEmitterFromAFileKeepsItsSurface) {
+  TriangleMesh m = MakeCylinderMesh(32, 1);
+  const Vec3 axis = Normalize(Vec3(1, 2, 0.5f));
+  Vec3 sx, sy;
+  MakeFrame(axis, &sx, &sy);
+  const float radius = 0.03f, length = 1.4f;
+  for (Vec3& p : m.positions)
+    p = Vec3(1, 2, 3) + sx * (radius * p.x) + sy * (radius * p.y) + axis * (length * p.z);
+  for (Vec3& n : m.normals) n = sx * n.x + sy * n.y;
+  const auto area = [](const TriangleMesh& t) {
+    double a = 0;
+    for (size_t i = 0; i + 2 < t.indices.size(); i += 3)
+      a += 0.5 * Length(Cross(t.positions[t.indices[i + 1]] - t.positions[t.indices[i]],
+                              t.positions[t.indices[i + 2]] - t.positions[t.indices[i]]));
+    return a;
+  };
+  const double before = area(m);
+  const int added = SliceAlongPrincipalAxis(&m, 100000);
+  EXPECT_GT(added, 64 * 10);  // 1.4 m in slabs of 4 radii (12 cm): 12 slabs per sliver
+  EXPECT_NEAR(area(m), before, 1e-5 * before);
+  const float spacing = kCylinderRingRadii * radius;
+  // Edges by their ends' positions (to 1e-6): the tube's seam repeats its column of vertices.
+  std::map<std::tuple<long, long, long>, uint32_t> welded;
+  const auto weld = [&](uint32_t i) {
+    const Vec3& p = m.positions[i];
+    return welded
+        .emplace(
+            std::make_tuple(std::lround(p.x * 1e6), std::lround(p.y * 1e6), std::lround(p.z * 1e6)),
+            i)
+        .first->second;
+  };
+  std::map<std::pair<uint32_t, uint32_t>, int> uses;
+  for (size_t i = 0; i + 2 < m.indices.size(); i += 3) {
+    float lo = INFINITY, hi = -INFINITY;
+    Vec3 n;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t a = weld(m.indices[i + size_t(k)]),
+                     b = weld(m.indices[i + size_t((k + 1) % 3)]);
+      const float along = Dot(m.positions[a] - Vec3(1, 2, 3), axis);
+      lo = std::min(lo, along);
+      hi = std::max(hi, along);
+      n += m.normals[a];
+      ++uses[{std::min(a, b), std::max(a, b)}];
+    }
+    EXPECT_LE(hi - lo, spacing * 1.001f) << "triangle " << i / 3;
+    const Vec3 face = Cross(m.positions[m.indices[i + 1]] - m.positions[m.indices[i]],
+                            m.positions[m.indices[i + 2]] - m.positions[m.indices[i]]);
+    if (LengthSquared(face) > 0) {
+      EXPECT_GT(Dot(face, n), 0) << "triangle " << i / 3;
+    }
+  }
+  int open = 0;
+  for (const auto& [edge, count] : uses) {
+    EXPECT_LE(count, 2);
+    if (count == 1) {
+      const float a = Dot(m.positions[edge.first] - Vec3(1, 2, 3), axis);
+      const float b = Dot(m.positions[edge.second] - Vec3(1, 2, 3), axis);
+      const bool at_end = (std::abs(a) < 1e-4f && std::abs(b) < 1e-4f) ||
+                          (std::abs(a - length) < 1e-4f && std::abs(b - length) < 1e-4f);
+      EXPECT_TRUE(at_end) << "open edge at " << a << ", " << b;
+      ++open;
+    }
+  }
+  EXPECT_EQ(open, 2 * 32);
+  // A mesh already short against its width is left as it is.
+  TriangleMesh disk = MakeDiskMesh(16);
+  EXPECT_EQ(SliceAlongPrincipalAxis(&disk, 100000), 0);
 }
 
 }  // namespace
