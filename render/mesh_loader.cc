@@ -508,81 +508,111 @@ TriangleMesh MakeDiskMesh(int segments) {
 }
 
 int SliceAlongPrincipalAxis(TriangleMesh* mesh, size_t max_triangles) {
-  const std::vector<Vec3>& v = mesh->positions;
-  if (v.empty() || mesh->indices.empty()) return 0;
-  // Centroid and covariance of the surface (triangle centroids by area), not of the vertices: a
-  // seam's repeated vertices would pull them aside.
-  double c[3] = {0, 0, 0}, total = 0;
+  TriangleMesh& m = *mesh;
+  const std::vector<Vec3>& v = m.positions;
+  if (v.empty() || m.indices.empty()) return 0;
+  // Connected parts (by shared vertices), each with its own axis: a fixture's two tubes in one
+  // file are two parts.
+  std::vector<uint32_t> root(v.size());
+  for (size_t i = 0; i < root.size(); ++i) root[i] = uint32_t(i);
+  const auto find = [&](uint32_t x) {
+    while (root[x] != x) x = root[x] = root[root[x]];
+    return x;
+  };
+  for (size_t i = 0; i + 2 < m.indices.size(); i += 3) {
+    const uint32_t a = find(m.indices[i]);
+    for (int k = 1; k < 3; ++k) root[find(m.indices[i + size_t(k)])] = a;
+  }
+  std::vector<int> part(v.size(), -1);
+  std::unordered_map<uint32_t, int> part_of_root;
+  for (size_t i = 0; i < v.size(); ++i)
+    part[i] = part_of_root.emplace(find(uint32_t(i)), int(part_of_root.size())).first->second;
+  struct Part {
+    double c[3] = {0, 0, 0}, total = 0, cov[3][3] = {}, axis[3] = {1, 0, 0}, far = 0;
+    double widest = 0, lo = INFINITY, hi = -INFINITY, spacing = 0;
+  };
+  std::vector<Part> parts(part_of_root.size());
+  // Centroid and covariance of each part's surface (triangle centroids by area), not of its
+  // vertices: a seam's repeated vertices would pull them aside.
   const auto for_triangles = [&](const auto& f) {
-    for (size_t i = 0; i + 2 < mesh->indices.size(); i += 3) {
-      const Vec3 &a = v[mesh->indices[i]], &b = v[mesh->indices[i + 1]],
-                 &e = v[mesh->indices[i + 2]];
-      f((a + b + e) / 3.0f, 0.5 * double(Length(Cross(b - a, e - a))));
+    for (size_t i = 0; i + 2 < m.indices.size(); i += 3) {
+      const Vec3 &a = v[m.indices[i]], &b = v[m.indices[i + 1]], &e = v[m.indices[i + 2]];
+      f(parts[size_t(part[m.indices[i]])], (a + b + e) / 3.0f,
+        0.5 * double(Length(Cross(b - a, e - a))));
     }
   };
-  for_triangles([&](const Vec3& p, double w) {
-    for (int k = 0; k < 3; ++k) c[k] += w * p[k];
-    total += w;
+  for_triangles([](Part& q, const Vec3& p, double w) {
+    for (int k = 0; k < 3; ++k) q.c[k] += w * p[k];
+    q.total += w;
   });
-  if (!(total > 0)) return 0;
-  for (double& x : c) x /= total;
-  double cov[3][3] = {};
-  for_triangles([&](const Vec3& p, double w) {
-    const double d[3] = {p.x - c[0], p.y - c[1], p.z - c[2]};
+  for (Part& q : parts)
+    for (double& x : q.c) x = q.total > 0 ? x / q.total : 0.0;
+  for_triangles([](Part& q, const Vec3& p, double w) {
+    const double d[3] = {p.x - q.c[0], p.y - q.c[1], p.z - q.c[2]};
     for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) cov[i][j] += w * d[i] * d[j];
+      for (int j = 0; j < 3; ++j) q.cov[i][j] += w * d[i] * d[j];
   });
-  // The leading eigenvector by power iteration, from the direction of the farthest vertex.
-  double axis[3] = {1, 0, 0}, far = 0;
-  for (const Vec3& p : v) {
-    const double d[3] = {p.x - c[0], p.y - c[1], p.z - c[2]};
+  // Each part's leading eigenvector by power iteration, from the direction of its farthest vertex.
+  for (size_t i = 0; i < v.size(); ++i) {
+    Part& q = parts[size_t(part[i])];
+    const double d[3] = {v[i].x - q.c[0], v[i].y - q.c[1], v[i].z - q.c[2]};
     const double d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    if (d2 > far) {
-      far = d2;
-      for (int k = 0; k < 3; ++k) axis[k] = d[k];
+    if (d2 > q.far) {
+      q.far = d2;
+      for (int k = 0; k < 3; ++k) q.axis[k] = d[k];
     }
   }
-  for (int it = 0; it < 64; ++it) {
-    double next[3] = {0, 0, 0};
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) next[i] += cov[i][j] * axis[j];
-    const double len = std::sqrt(next[0] * next[0] + next[1] * next[1] + next[2] * next[2]);
-    if (!(len > 0)) break;
-    for (int k = 0; k < 3; ++k) axis[k] = next[k] / len;
+  for (Part& q : parts) {
+    for (int it = 0; it < 64; ++it) {
+      double next[3] = {0, 0, 0};
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) next[i] += q.cov[i][j] * q.axis[j];
+      const double len = std::sqrt(next[0] * next[0] + next[1] * next[1] + next[2] * next[2]);
+      if (!(len > 0)) break;
+      for (int k = 0; k < 3; ++k) q.axis[k] = next[k] / len;
+    }
+    const double len =
+        std::sqrt(q.axis[0] * q.axis[0] + q.axis[1] * q.axis[1] + q.axis[2] * q.axis[2]);
+    for (double& x : q.axis) x = len > 0 ? x / len : 0.0;
   }
-  const double alen = std::sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
-  if (!(alen > 0)) return 0;
-  for (double& x : axis) x /= alen;
-  std::vector<double> t(v.size());  // each vertex's coordinate along the axis
-  double widest = 0, lo = INFINITY, hi = -INFINITY;
+  std::vector<double> t(v.size());  // each vertex's coordinate along its part's axis
   for (size_t i = 0; i < v.size(); ++i) {
-    const double d[3] = {v[i].x - c[0], v[i].y - c[1], v[i].z - c[2]};
-    t[i] = d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2];
-    widest = std::max(widest, d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - t[i] * t[i]);
-    lo = std::min(lo, t[i]);
-    hi = std::max(hi, t[i]);
+    Part& q = parts[size_t(part[i])];
+    const double d[3] = {v[i].x - q.c[0], v[i].y - q.c[1], v[i].z - q.c[2]};
+    t[i] = d[0] * q.axis[0] + d[1] * q.axis[1] + d[2] * q.axis[2];
+    q.widest = std::max(q.widest, d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - t[i] * t[i]);
+    q.lo = std::min(q.lo, t[i]);
+    q.hi = std::max(q.hi, t[i]);
   }
-  const double spacing = kCylinderRingRadii * std::sqrt(widest);
-  if (!(spacing > 0) || (hi - lo) <= spacing) return 0;
+  bool any = false;
+  for (Part& q : parts) {
+    const double spacing = kCylinderRingRadii * std::sqrt(q.widest);
+    q.spacing = q.total > 0 && spacing > 0 && q.hi - q.lo > spacing ? spacing : 0.0;
+    any = any || q.spacing > 0;
+  }
+  if (!any) return 0;
   // Planes at t = j spacing. A triangle's slabs run from floor(min t / s) to floor(max t / s).
   size_t estimate = 0;
-  for (size_t i = 0; i + 2 < mesh->indices.size(); i += 3) {
-    const double a = t[mesh->indices[i]], b = t[mesh->indices[i + 1]], e = t[mesh->indices[i + 2]];
+  for (size_t i = 0; i + 2 < m.indices.size(); i += 3) {
+    const double spacing = parts[size_t(part[m.indices[i]])].spacing;
+    if (!(spacing > 0)) {
+      ++estimate;
+      continue;
+    }
+    const double a = t[m.indices[i]], b = t[m.indices[i + 1]], e = t[m.indices[i + 2]];
     estimate += 3 * size_t(std::floor(std::max({a, b, e}) / spacing) -
                            std::floor(std::min({a, b, e}) / spacing) + 1);
   }
   if (estimate > max_triangles) return 0;
-  TriangleMesh& m = *mesh;
   const bool normals = !m.normals.empty(), uvs = !m.uvs.empty();
   std::unordered_map<uint64_t, uint32_t> cuts;  // (edge, plane) -> vertex
   std::unordered_map<uint64_t, int64_t> edge_ids;
-  const auto cut = [&](uint32_t a, uint32_t b, int64_t plane) {
+  const auto cut = [&](uint32_t a, uint32_t b, int64_t plane, double spacing) {
     const uint64_t edge = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
-    auto [it, fresh] = edge_ids.emplace(edge, int64_t(edge_ids.size()));
-    const uint64_t key = (uint64_t(it->second) << 24) ^ uint64_t(plane & 0xffffff);
+    const int64_t edge_id = edge_ids.emplace(edge, int64_t(edge_ids.size())).first->second;
+    const uint64_t key = (uint64_t(edge_id) << 24) ^ uint64_t(plane & 0xffffff);
     const auto found = cuts.find(key);
     if (found != cuts.end()) return found->second;
-    (void)fresh;
     // From the lower-numbered vertex, so both triangles compute the same point.
     const uint32_t p = std::min(a, b), q = std::max(a, b);
     const float f = float((double(plane) * spacing - t[p]) / (t[q] - t[p]));
@@ -594,7 +624,6 @@ int SliceAlongPrincipalAxis(TriangleMesh* mesh, size_t max_triangles) {
       const float w = m.uvs[2 * p + 1] + (m.uvs[2 * q + 1] - m.uvs[2 * p + 1]) * f;
       m.uvs.insert(m.uvs.end(), {u, w});
     }
-    t.push_back(double(plane) * spacing);
     cuts.emplace(key, id);
     return id;
   };
@@ -608,9 +637,10 @@ int SliceAlongPrincipalAxis(TriangleMesh* mesh, size_t max_triangles) {
   std::vector<uint32_t> piece;
   const std::vector<uint32_t> in = m.indices;
   for (size_t i = 0; i + 2 < in.size(); i += 3) {
+    const double spacing = parts[size_t(part[in[i]])].spacing;
     ring.clear();
     int64_t kmin = INT64_MAX, kmax = INT64_MIN;
-    for (int e = 0; e < 3; ++e) {
+    for (int e = 0; e < 3 && spacing > 0; ++e) {
       const uint32_t a = in[i + size_t(e)], b = in[i + size_t((e + 1) % 3)];
       const double ta = t[a], tb = t[b];
       // The vertex: on plane j it bounds slabs j - 1 and j.
@@ -622,14 +652,13 @@ int SliceAlongPrincipalAxis(TriangleMesh* mesh, size_t max_triangles) {
       // The planes strictly between a and b, in order from a.
       if (tb > ta) {
         for (int64_t j = below + 1; double(j) * spacing < tb; ++j)
-          ring.push_back({cut(a, b, j), j - 1, j});
+          ring.push_back({cut(a, b, j, spacing), j - 1, j});
       } else if (tb < ta) {
-        const auto top = int64_t(std::ceil(qa)) - 1;
-        for (int64_t j = top; double(j) * spacing > tb; --j)
-          ring.push_back({cut(a, b, j), j - 1, j});
+        for (int64_t j = int64_t(std::ceil(qa)) - 1; double(j) * spacing > tb; --j)
+          ring.push_back({cut(a, b, j, spacing), j - 1, j});
       }
     }
-    if (kmin == kmax) {  // within one slab: unchanged
+    if (!(spacing > 0) || kmin == kmax) {  // not sliced, or within one slab: unchanged
       out.insert(out.end(), {in[i], in[i + 1], in[i + 2]});
       continue;
     }

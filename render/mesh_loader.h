@@ -58,13 +58,14 @@ TriangleMesh MakeCylinderMesh(int segments = kCylinderSegments, int rings = 1);
 // CPU for 20-45% less error.
 constexpr float kCylinderRingRadii = 4.0f;
 // The same for emitting meshes read from files (obj, ply, serialized): a tube modelled in Blender
-// has one ring too. SliceAlongPrincipalAxis cuts the mesh by planes across its principal axis (the
-// line through the vertices' centroid along the leading eigenvector of their covariance), spaced
-// kCylinderRingRadii times the largest distance of a vertex from that axis (a tube's radius, a
-// strip's half width). Each triangle becomes the convex pieces the slabs cut from it, fanned into
-// triangles; a cut point on an edge two triangles share is one vertex, so the mesh stays
-// watertight where it was, and its normals and uvs interpolate as before. Stops (leaving the mesh
-// as it was) where the slices would make more than max_triangles. Returns the triangles added.
+// has one ring too. SliceAlongPrincipalAxis cuts each connected part of the mesh by planes across
+// the part's principal axis (the line through its surface's centroid along the leading
+// eigenvector of its covariance), spaced kCylinderRingRadii times the largest distance of a
+// vertex from that axis (a tube's radius, a strip's half width). Each triangle becomes the convex
+// pieces the slabs cut from it, fanned into triangles; a cut point on an edge two triangles share
+// is one vertex, so the mesh stays watertight where it was, and its normals and uvs interpolate as
+// before. Stops (leaving the mesh as it was) where the slices would make more than max_triangles.
+// Returns the triangles added.
 int SliceAlongPrincipalAxis(TriangleMesh* mesh, size_t max_triangles);
 constexpr int kMaxCylinderRings = 64;
 int CylinderRings(float length, float radius);

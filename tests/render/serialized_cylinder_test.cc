@@ -269,6 +269,27 @@ TEST(CylinderMeshTest, SlicingAnEmitterFromAFileKeepsItsSurface) {
     }
   }
   EXPECT_EQ(open, 2 * 32);
+  // Two such tubes in one mesh (a fixture's pair, 0.5 apart): each is sliced as if alone, in
+  // slabs of four of its own radii (one axis for both would sit between them, 0.25 from each).
+  TriangleMesh pair = MakeCylinderMesh(32, 1);
+  const size_t half = pair.positions.size();
+  pair.positions.insert(pair.positions.end(), pair.positions.begin(), pair.positions.end());
+  pair.normals.insert(pair.normals.end(), pair.normals.begin(), pair.normals.end());
+  const size_t tris = pair.indices.size();
+  for (size_t i = 0; i < tris; ++i) pair.indices.push_back(pair.indices[i] + uint32_t(half));
+  for (size_t i = 0; i < pair.positions.size(); ++i) {
+    const Vec3 p = pair.positions[i];
+    pair.positions[i] = Vec3(radius * p.x + (i < half ? 0.0f : 0.5f), radius * p.y, length * p.z);
+  }
+  EXPECT_GT(SliceAlongPrincipalAxis(&pair, 100000), 2 * 64 * 10);
+  for (size_t i = 0; i + 2 < pair.indices.size(); i += 3) {
+    float lo = INFINITY, hi = -INFINITY;
+    for (int k = 0; k < 3; ++k) {
+      lo = std::min(lo, pair.positions[pair.indices[i + size_t(k)]].z);
+      hi = std::max(hi, pair.positions[pair.indices[i + size_t(k)]].z);
+    }
+    EXPECT_LE(hi - lo, spacing * 1.001f) << "triangle " << i / 3 << " of the pair";
+  }
   // A mesh already short against its width is left as it is.
   TriangleMesh disk = MakeDiskMesh(16);
   EXPECT_EQ(SliceAlongPrincipalAxis(&disk, 100000), 0);
