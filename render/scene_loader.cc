@@ -1341,7 +1341,7 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     // An emitting mesh from a file is sliced across its length as a cylinder is cut into rings
     // (kCylinderRingRadii), so a tube's full-length slivers become short pieces.
     if (!emitters.empty() && (type == "obj" || type == "ply" || type == "serialized")) {
-      SliceAlongPrincipalAxis(&s.mesh, std::max<size_t>(16 * (s.mesh.indices.size() / 3), 4096));
+      SliceAlongPrincipalAxis(&s.mesh, std::max<size_t>(64 * (s.mesh.indices.size() / 3), 65536));
       DropDegenerateTriangles(&s.mesh);
     }
     if (s.flip_normals) FlipNormals(&s.mesh);
