@@ -115,9 +115,9 @@ class LightSampler {
   // f(const LightSample&) for each sample; lights that cannot reach p are counted in *skipped.
   // Random numbers: three per light (two for the environment), or three in all.
   bool SamplesEveryLight(bool all) const { return all && num_local_ <= kAllLightsMax; }
-  template <typename F>
   // `coarse` (PathSettings::coarse_light_tree) applies to the every-light samples only, as in
   // NeePdfArea.
+  template <typename F>
   void SampleForNee(bool all, bool env_importance, const Vec3& p, const Vec3& n, Rng& rng,
                     uint64_t* skipped, F&& f, bool coarse = false) const {
     if (!SamplesEveryLight(all)) {

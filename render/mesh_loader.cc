@@ -13,7 +13,9 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <sstream>
+#include <tuple>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -605,12 +607,9 @@ int SliceAlongPrincipalAxis(TriangleMesh* mesh, size_t max_triangles) {
   }
   if (estimate > max_triangles) return 0;
   const bool normals = !m.normals.empty(), uvs = !m.uvs.empty();
-  std::unordered_map<uint64_t, uint32_t> cuts;  // (edge, plane) -> vertex
-  std::unordered_map<uint64_t, int64_t> edge_ids;
+  std::map<std::tuple<uint32_t, uint32_t, int64_t>, uint32_t> cuts;  // (edge, plane) -> vertex
   const auto cut = [&](uint32_t a, uint32_t b, int64_t plane, double spacing) {
-    const uint64_t edge = (uint64_t(std::min(a, b)) << 32) | std::max(a, b);
-    const int64_t edge_id = edge_ids.emplace(edge, int64_t(edge_ids.size())).first->second;
-    const uint64_t key = (uint64_t(edge_id) << 24) ^ uint64_t(plane & 0xffffff);
+    const auto key = std::make_tuple(std::min(a, b), std::max(a, b), plane);
     const auto found = cuts.find(key);
     if (found != cuts.end()) return found->second;
     // From the lower-numbered vertex, so both triangles compute the same point.

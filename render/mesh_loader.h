@@ -57,6 +57,8 @@ TriangleMesh MakeCylinderMesh(int segments = kCylinderSegments, int rings = 1);
 // 8 rings (2.3 to 5.8 radii long) were best or within 5% of the best everywhere, at 7-26% more
 // CPU for 20-45% less error.
 constexpr float kCylinderRingRadii = 4.0f;
+constexpr int kMaxCylinderRings = 64;
+int CylinderRings(float length, float radius);
 // The same for emitting meshes read from files (obj, ply, serialized): a tube modelled in Blender
 // has one ring too. SliceAlongPrincipalAxis cuts each connected part of the mesh by planes across
 // the part's principal axis (the line through its surface's centroid along the leading
@@ -67,8 +69,6 @@ constexpr float kCylinderRingRadii = 4.0f;
 // before. Stops (leaving the mesh as it was) where the slices would make more than max_triangles.
 // Returns the triangles added.
 int SliceAlongPrincipalAxis(TriangleMesh* mesh, size_t max_triangles);
-constexpr int kMaxCylinderRings = 64;
-int CylinderRings(float length, float radius);
 
 // Positions by to_world, normals by its inverse transpose (normalized). The index order is kept,
 // as Mitsuba does: a mirroring transform (negative determinant) turns the geometric normal

@@ -163,9 +163,6 @@ TEST(LightTreeTest, ProbabilitiesSumToAtMostOneAgreeAndAreNonZeroWhereATriangleC
     }
 }
 
-// Also on a tube, whose narrow strips the tree keeps in buckets of several triangles (a leaf
-// that picks among them by power), and on a ceiling disk far from the point, where a walk with
-// stop_far stops at the root and picks among all its triangles by power.
 // A soup, a bucketed tube and a ceiling disk, each with its tree, seen from one point (p, n).
 struct PickCase {
   std::vector<LightTriangle> tris;
@@ -182,6 +179,10 @@ std::vector<PickCase> PickCases(Rng& rng) {
 const Vec3 kPickPoint(0.3f, -0.2f, 0.4f);
 const Vec3 kPickNormal = Normalize(Vec3(0.2f, 0.1f, 1));
 
+// Sample's picks follow Pmf (chi-square), also on a tube, whose narrow strips the tree keeps in
+// buckets of several triangles (a leaf that picks among them by power), and on a ceiling disk far
+// from the point, where a walk with stop_far stops at the root and picks among all its triangles
+// by power.
 TEST(LightTreeTest, SamplesFollowTheirProbabilities) {
   Rng rng(8, 1);
   for (const bool stop_far : {false, true})
