@@ -96,6 +96,7 @@ EnvironmentSun EnvironmentSun::Find(const std::function<Vec3(const Vec3&)>& radi
   sun.marked_ = std::move(marked);
   sun.cells_ = std::move(cells);
   sun.cdf_ = std::move(cdf);
+  sun.guide_.Build(sun.cdf_, sun.cdf_.size());
   sun.axis_ = axis;
   sun.radius_ = radius;
   sun.cos_radius_ = std::cos(radius) - 1e-4f;  // a margin for rounding
@@ -115,9 +116,7 @@ bool EnvironmentSun::Contains(const Vec3& d) const {
 
 void EnvironmentSun::Sample(float u1, float u2, float u3, Vec3* d, float* pdf) const {
   const float total = cdf_.back();
-  const size_t k =
-      std::min(size_t(std::upper_bound(cdf_.begin(), cdf_.end(), u1 * total) - cdf_.begin()),
-               cells_.size() - 1);
+  const size_t k = std::min(guide_.UpperBound(cdf_, u1, u1 * total), cells_.size() - 1);
   const float weight = cdf_[k] - (k > 0 ? cdf_[k - 1] : 0.0f);
   constexpr int kFineU = kU * kSubCells, kFineV = kV * kSubCells;
   const int i = int(cells_[k] % kFineU), j = int(cells_[k] / kFineU);

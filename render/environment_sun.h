@@ -19,6 +19,7 @@
 #include <functional>
 #include <vector>
 
+#include "cache/cdf_guide.h"
 #include "cache/math.h"
 
 namespace irfarm {
@@ -56,6 +57,7 @@ class EnvironmentSun {
   std::vector<uint8_t> marked_;  // kCellsU x kCellsV, row-major (v rows); empty when none
   std::vector<uint32_t> cells_;  // the marked cells' sub-cells (row-major, kSubCells finer)
   std::vector<float> cdf_;       // cumulative weights over cells_
+  CdfGuide guide_;               // over cdf_, one bucket per sub-cell
   Vec3 axis_;
   float radius_ = 0, irradiance_ = 0;
   float cos_radius_ = 2;  // Contains' quick rejection: below it, outside (2: empty)
