@@ -62,8 +62,8 @@ absl::StatusOr<std::vector<NamedToken>> ReadTokenFile(const std::string& path,
     t.token = words.back();
     if (t.token.size() < kMinTokenBytes)
       return absl::InvalidArgumentError(path + ":" + std::to_string(number) +
-                                        ": token shorter than " +
-                                        std::to_string(kMinTokenBytes) + " bytes");
+                                        ": token shorter than " + std::to_string(kMinTokenBytes) +
+                                        " bytes");
     out.push_back(std::move(t));
   }
   if (out.empty()) return absl::InvalidArgumentError(path + ": no tokens");

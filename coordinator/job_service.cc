@@ -43,9 +43,9 @@ absl::StatusOr<Caller> JobServiceImpl::Authenticate(const grpc::ServerContext* c
   return auth_->Client(*context);
 }
 
-#define IRFARM_AUTHENTICATE(caller)                                      \
-  absl::StatusOr<Caller> caller##_or = Authenticate(context);           \
-  if (!caller##_or.ok()) return ToGrpcStatus(caller##_or.status());     \
+#define IRFARM_AUTHENTICATE(caller)                                 \
+  absl::StatusOr<Caller> caller##_or = Authenticate(context);       \
+  if (!caller##_or.ok()) return ToGrpcStatus(caller##_or.status()); \
   const Caller& caller = *caller##_or
 
 grpc::Status JobServiceImpl::SubmitJob(grpc::ServerContext* context,

@@ -15,8 +15,8 @@
 namespace irfarm {
 
 struct ClientAuthOptions {
-  std::string token_file;  // first "TOKEN" or "NAME TOKEN" line; empty: $IRFARM_TOKEN
-  std::string tls_ca;      // PEM roots to verify the coordinator with; empty: no TLS
+  std::string token_file;         // first "TOKEN" or "NAME TOKEN" line; empty: $IRFARM_TOKEN
+  std::string tls_ca;             // PEM roots to verify the coordinator with; empty: no TLS
   std::string tls_cert, tls_key;  // PEM client certificate and key (mutual TLS)
 };
 

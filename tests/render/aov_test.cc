@@ -19,8 +19,8 @@
 namespace irfarm {
 namespace {
 
-RenderOutput RenderAovs(const LoadedScene& s, const std::string& integrator, int spp,
-                        uint64_t seed, bool aovs = true) {
+RenderOutput RenderAovs(const LoadedScene& s, const std::string& integrator, int spp, uint64_t seed,
+                        bool aovs = true) {
   RenderSettings settings = *SettingsForScene(s.desc, integrator);
   settings.spp = spp;
   settings.seed = seed;
@@ -147,9 +147,9 @@ TEST(AovTest, LayersRoundTripThroughOpenExrsReader) {
     EXPECT_EQ(it.channel().type, Imf::FLOAT) << it.name();
   }
   const std::set<std::string> expected = {
-      "R",          "G",          "B",          "albedo.R",   "albedo.G",   "albedo.B",
-      "normal.X",   "normal.Y",   "normal.Z",   "depth.Z",    "emission.R", "emission.G",
-      "emission.B", "direct.R",   "direct.G",   "direct.B",   "indirect.R", "indirect.G",
+      "R",          "G",          "B",          "albedo.R",  "albedo.G",   "albedo.B",
+      "normal.X",   "normal.Y",   "normal.Z",   "depth.Z",   "emission.R", "emission.G",
+      "emission.B", "direct.R",   "direct.G",   "direct.B",  "indirect.R", "indirect.G",
       "indirect.B", "variance.R", "variance.G", "variance.B"};
   EXPECT_EQ(names, expected);
   // OpenEXR's layer API groups them as layers.
@@ -165,8 +165,8 @@ TEST(AovTest, LayersRoundTripThroughOpenExrsReader) {
       std::vector<float> values(size_t(w) * h);
       Imf::FrameBuffer fb;
       const std::string name = layer.name + "." + layer.channels[c];
-      fb.insert(name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(values.data()),
-                                 sizeof(float), sizeof(float) * w));
+      fb.insert(name, Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(values.data()), sizeof(float),
+                                 sizeof(float) * w));
       file.setFrameBuffer(fb);
       file.readPixels(0, h - 1);
       for (size_t i = 0; i < values.size(); ++i)

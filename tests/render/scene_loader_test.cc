@@ -746,7 +746,8 @@ TEST(SceneLoaderTest, UpgradesMitsuba05DiffuseAndUvScale) {
 
 // Mitsuba 0.6's other global-illumination integrators in a 0.x file (flower_bedroom of
 // github.com/VElysianP/mitsuba_scenes names bdpt) read as path, with a warning naming what was not
-// read; in a 3.x file bdpt stays an error (SceneLoaderErrorTest.UnknownPluginType), as in Mitsuba 3.
+// read; in a 3.x file bdpt stays an error (SceneLoaderErrorTest.UnknownPluginType), as in
+// Mitsuba 3.
 TEST(SceneLoaderTest, Mitsuba06EstimatorsReadAsPath) {
   const auto scene = LoadSceneString(R"(<scene version="0.6.0">
   <integrator type="bdpt">
