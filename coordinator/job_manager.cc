@@ -1236,24 +1236,36 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
   return result;
 }
 
-absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& result) {
-  std::unique_lock<std::mutex> lock(mu_);
-  auto wit = workers_.find(worker);
-  if (wit == workers_.end()) return absl::NotFoundError("no worker " + std::to_string(worker));
+absl::StatusOr<JobManager::HeldLease> JobManager::ReleaseHeldLease(uint32_t worker_id,
+                                                                   const std::string& token_bytes,
+                                                                   const std::string& job_id,
+                                                                   int tile,
+                                                                   const std::string& what) {
+  auto wit = workers_.find(worker_id);
+  if (wit == workers_.end()) return absl::NotFoundError("no worker " + std::to_string(worker_id));
   Worker& w = wit->second;
-  const absl::StatusOr<LeaseToken> token = TokenOf(worker, w, result.lease_token(), "tile result");
+  const absl::StatusOr<LeaseToken> token = TokenOf(worker_id, w, token_bytes, what);
   if (!token.ok()) return token.status();
-  ReleaseLease(w, *token);  // its lease is over, whether the result counts or not
-  auto it = jobs_.find(result.job_id());
-  const int tile = result.tile_index();
+  ReleaseLease(w, *token);  // its lease is over, whether the report counts or not
+  auto it = jobs_.find(job_id);
   const TileLeaseInfo* lease = it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
                                        tile >= it->second->tiles->num_tiles()
                                    ? nullptr
                                    : it->second->tiles->Current(tile, *token);
-  if (lease == nullptr || lease->worker != worker)
-    return NotHolder(worker, &w, *token, "tile result");
-  Job& job = *it->second;
-  const SteadyTime lease_start = lease->start;
+  if (lease == nullptr || lease->worker != worker_id) return NotHolder(worker_id, &w, *token, what);
+  return HeldLease{&w, it->second.get(), lease, *token};
+}
+
+absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& result) {
+  std::unique_lock<std::mutex> lock(mu_);
+  const int tile = result.tile_index();
+  absl::StatusOr<HeldLease> held =
+      ReleaseHeldLease(worker, result.lease_token(), result.job_id(), tile, "tile result");
+  if (!held.ok()) return held.status();
+  Worker& w = *held->worker;
+  Job& job = *held->job;
+  const LeaseToken* token = &held->token;
+  const SteadyTime lease_start = held->lease->start;
   Touched(&w);  // it may get its next lease
   // The result of the lease this worker holds: check it before it counts.
   const PixelRect& r = job.tiles->rect(tile);
@@ -1314,7 +1326,7 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   lock.unlock();
   absl::Status st = store_->PutTile(job_id, tile, bytes);
   lock.lock();
-  it = jobs_.find(job_id);
+  auto it = jobs_.find(job_id);
   if (it == jobs_.end() || IsFinal(*it->second) ||
       it->second->tiles->Current(tile, *token) == nullptr)
     return absl::FailedPreconditionError("tile result: the lease ended while it was stored");
@@ -1327,7 +1339,7 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   }
   st = done.tiles->Complete(tile, *token);
   if (!st.ok()) return st;
-  wit = workers_.find(worker);
+  auto wit = workers_.find(worker);
   const std::string worker_name = wit == workers_.end() ? std::string() : wit->second.name;
   if (wit != workers_.end()) health_[worker_name].consecutive_failures = 0;
   done.pixels[tile] = std::move(bytes);
@@ -1353,21 +1365,13 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
 
 absl::Status JobManager::FailTile(uint32_t worker, const v1::TileFailed& failed) {
   std::lock_guard<std::mutex> lock(mu_);
-  auto wit = workers_.find(worker);
-  if (wit == workers_.end()) return absl::NotFoundError("no worker " + std::to_string(worker));
-  Worker& w = wit->second;
-  const absl::StatusOr<LeaseToken> token = TokenOf(worker, w, failed.lease_token(), "tile failure");
-  if (!token.ok()) return token.status();
-  ReleaseLease(w, *token);
-  auto it = jobs_.find(failed.job_id());
   const int tile = failed.tile_index();
-  const TileLeaseInfo* lease = it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
-                                       tile >= it->second->tiles->num_tiles()
-                                   ? nullptr
-                                   : it->second->tiles->Current(tile, *token);
-  if (lease == nullptr || lease->worker != worker)
-    return NotHolder(worker, &w, *token, "tile failure");
-  Job& job = *it->second;
+  absl::StatusOr<HeldLease> held =
+      ReleaseHeldLease(worker, failed.lease_token(), failed.job_id(), tile, "tile failure");
+  if (!held.ok()) return held.status();
+  Worker& w = *held->worker;
+  Job& job = *held->job;
+  const LeaseToken* token = &held->token;
   metrics_.tiles_failed->Add();
   TileFailedOn(w);
   absl::Status st = job.tiles->Requeue(

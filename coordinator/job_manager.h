@@ -314,6 +314,19 @@ class JobManager {
   absl::Status NotHolder(uint32_t worker_id, Worker* worker, const LeaseToken& token,
                          const std::string& what);
   void ReleaseLease(Worker& worker, const LeaseToken& token);
+  // A worker's report about its lease of a tile (`what`: "tile result", "tile failure"), under
+  // mu_: the worker, the job and the lease the report names, the lease released whether or not
+  // the report counts. NOT_FOUND for an unknown worker, a violation for a malformed token, and
+  // NotHolder's answer when the tile is not (or no longer) under this worker's lease.
+  struct HeldLease {
+    Worker* worker = nullptr;
+    Job* job = nullptr;
+    const TileLeaseInfo* lease = nullptr;
+    LeaseToken token;
+  };
+  absl::StatusOr<HeldLease> ReleaseHeldLease(uint32_t worker_id, const std::string& token_bytes,
+                                             const std::string& job_id, int tile,
+                                             const std::string& what);
   void TileFailedOn(const Worker& worker);
   bool Quarantined(const Worker& worker, SteadyTime now) const;
   // The workers other than `worker_id` that could take a lease now.
