@@ -3,6 +3,7 @@
 // angle compression), as Mitsuba 3 does for radiance. The lobe is chosen with probability F.
 #include <cmath>
 
+#include "render/bsdfs/dielectric_params.h"
 #include "render/bsdfs/fresnel.h"
 #include "render/bsdfs/registry.h"
 
@@ -52,20 +53,11 @@ class DielectricBsdf final : public Bsdf {
   TexturedColor reflect_, transmit_;
 };
 
-absl::Status Parse(BsdfParams& p) {
-  absl::StatusOr<float> int_ior = p.Ior("int_ior", 1.5046f);  // bk7
-  if (!int_ior.ok()) return int_ior.status();
-  absl::StatusOr<float> ext_ior = p.Ior("ext_ior", 1.000277f);  // air
-  if (!ext_ior.ok()) return ext_ior.status();
-  if (absl::Status s = p.Color("specular_reflectance", Vec3(1.0f)).status(); !s.ok()) return s;
-  return p.Color("specular_transmittance", Vec3(1.0f)).status();
-}
+absl::Status Parse(BsdfParams& p) { return ParseDielectricParams(p); }
 
 std::unique_ptr<Bsdf> Build(const BsdfDesc& d, const BsdfBuildContext& ctx) {
-  return std::make_unique<DielectricBsdf>(
-      d.Float("int_ior", 1.5046f) / d.Float("ext_ior", 1.000277f),
-      ctx.Color(d.Color("specular_reflectance", Vec3(1.0f))),
-      ctx.Color(d.Color("specular_transmittance", Vec3(1.0f))));
+  const DielectricParams params(d, ctx);
+  return std::make_unique<DielectricBsdf>(params.eta, params.reflect, params.transmit);
 }
 
 }  // namespace

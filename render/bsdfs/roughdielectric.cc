@@ -8,6 +8,7 @@
 // Normals are sampled for wo mirrored into the upper hemisphere; the lobe with probability F.
 #include <cmath>
 
+#include "render/bsdfs/dielectric_params.h"
 #include "render/bsdfs/fresnel.h"
 #include "render/bsdfs/microfacet_params.h"
 
@@ -119,17 +120,13 @@ class RoughDielectricBsdf final : public Bsdf {
 
 absl::Status Parse(BsdfParams& p) {
   if (absl::Status s = ParseMicrofacetParams(p); !s.ok()) return s;
-  if (absl::Status s = p.Ior("int_ior", 1.5046f).status(); !s.ok()) return s;
-  if (absl::Status s = p.Ior("ext_ior", 1.000277f).status(); !s.ok()) return s;
-  if (absl::Status s = p.Color("specular_reflectance", Vec3(1.0f)).status(); !s.ok()) return s;
-  return p.Color("specular_transmittance", Vec3(1.0f)).status();
+  return ParseDielectricParams(p);
 }
 
 std::unique_ptr<Bsdf> Build(const BsdfDesc& d, const BsdfBuildContext& ctx) {
-  return std::make_unique<RoughDielectricBsdf>(
-      MicrofacetParams(d, ctx), d.Float("int_ior", 1.5046f) / d.Float("ext_ior", 1.000277f),
-      ctx.Color(d.Color("specular_reflectance", Vec3(1.0f))),
-      ctx.Color(d.Color("specular_transmittance", Vec3(1.0f))));
+  const DielectricParams params(d, ctx);
+  return std::make_unique<RoughDielectricBsdf>(MicrofacetParams(d, ctx), params.eta, params.reflect,
+                                               params.transmit);
 }
 
 }  // namespace
