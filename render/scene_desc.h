@@ -102,6 +102,12 @@ struct BsdfDesc {
     const auto it = strings.find(name);
     return it == strings.end() ? def : it->second;
   }
+  // Mitsuba's get_flag for a colour or texture parameter: given, and not the number 0 (a
+  // plugin that erases the parameters it was not given can tell "absent" from a default).
+  bool Given(const std::string& name) const {
+    const auto it = colors.find(name);
+    return it != colors.end() && (it->second.texture >= 0 || !IsBlack(it->second.value));
+  }
   ColorParam Color(const std::string& name, Vec3 def) const {
     const auto it = colors.find(name);
     if (it != colors.end()) return it->second;

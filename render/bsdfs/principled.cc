@@ -353,20 +353,13 @@ constexpr TexturedParam kScalars[] = {
     {"clearcoat", 0.0f}, {"clearcoat_gloss", 0.0f},
 };
 
-// Mitsuba's get_flag: the parameter is given and is not the number 0.
-bool Given(const BsdfDesc& d, const char* name) {
-  const auto it = d.colors.find(name);
-  if (it == d.colors.end()) return false;
-  return it->second.texture >= 0 || !IsBlack(it->second.value);
-}
-
 absl::Status Parse(BsdfParams& p) {
   if (absl::Status s = p.Color("base_color", Vec3(0.5f)).status(); !s.ok()) return s;
   for (const TexturedParam& t : kScalars) {
     const bool given = p.Has(t.name);
     absl::StatusOr<ColorParam> c = p.Color(t.name, Vec3(t.def));
     if (!c.ok()) return c.status();
-    if (!given) p.desc().colors.erase(t.name);  // Given() tells Mitsuba's "has" flags apart
+    if (!given) p.desc().colors.erase(t.name);  // BsdfDesc::Given tells Mitsuba's "has" flags apart
   }
   if (p.Has("eta") && p.Has("specular"))
     return p.Error("specular", "principled takes either eta or specular, not both");
@@ -397,7 +390,7 @@ std::unique_ptr<Bsdf> Build(const BsdfDesc& d, const BsdfBuildContext& ctx) {
                                    &p.clearcoat, &p.clearcoat_gloss};
   for (size_t i = 0; i < std::size(kScalars); ++i)
     *fields[i] = ctx.Color(d.Color(kScalars[i].name, Vec3(kScalars[i].def)));
-  const bool has_spec_trans = Given(d, "spec_trans");
+  const bool has_spec_trans = d.Given("spec_trans");
   if (d.floats.count("eta")) {
     p.eta = d.Float("eta", 1.5f);
     if (has_spec_trans && p.eta == 1) p.eta = 1.001f;  // Mitsuba: eta 1 cannot refract

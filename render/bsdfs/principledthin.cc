@@ -277,13 +277,6 @@ constexpr const char* kRates[] = {
     "specular_reflectance_sampling_rate", "specular_transmittance_sampling_rate",
     "diffuse_reflectance_sampling_rate", "diffuse_transmittance_sampling_rate"};
 
-// Mitsuba's get_flag: the parameter is given and is not the number 0.
-bool Given(const BsdfDesc& d, const char* name) {
-  const auto it = d.colors.find(name);
-  if (it == d.colors.end()) return false;
-  return it->second.texture >= 0 || !IsBlack(it->second.value);
-}
-
 absl::Status Parse(BsdfParams& p) {
   if (absl::Status s = p.Color("base_color", Vec3(0.5f)).status(); !s.ok()) return s;
   for (const ThinParam& t : kThinParams) {
@@ -291,7 +284,7 @@ absl::Status Parse(BsdfParams& p) {
     absl::StatusOr<ColorParam> c = p.Color(t.name, Vec3(t.def));
     if (!c.ok()) return c.status();
     if (!given) {
-      p.desc().colors.erase(t.name);  // Given() tells Mitsuba's "has" flags apart
+      p.desc().colors.erase(t.name);  // BsdfDesc::Given tells Mitsuba's "has" flags apart
       continue;
     }
     if (c->texture >= 0) continue;
@@ -325,7 +318,7 @@ std::unique_ptr<Bsdf> Build(const BsdfDesc& d, const BsdfBuildContext& ctx) {
   p.rate_spec_trans = d.Float(kRates[1], 1);
   p.rate_diff_reflect = d.Float(kRates[2], 1);
   p.rate_diff_trans = d.Float(kRates[3], 1);
-  p.has_spec_trans = Given(d, "spec_trans");
+  p.has_spec_trans = d.Given("spec_trans");
   // The lobes that can exist anywhere on the surface: a constant spec_trans 1 has no diffuse
   // lobes (the irradiance cache then places no records on it).
   const ColorParam st = d.Color("spec_trans", Vec3(0.0f)), dt = d.Color("diff_trans", Vec3(0.0f));
@@ -335,7 +328,7 @@ std::unique_ptr<Bsdf> Build(const BsdfDesc& d, const BsdfBuildContext& ctx) {
   const bool all_diff_trans = dt.texture < 0 && dt_mean >= 2;
   p.flags = kTwoSidedFlag;
   if (!all_specular && !all_diff_trans) p.flags |= kDiffuseReflection;
-  if (!all_specular && Given(d, "diff_trans")) p.flags |= kDiffuseTransmission;
+  if (!all_specular && d.Given("diff_trans")) p.flags |= kDiffuseTransmission;
   if (p.has_spec_trans) p.flags |= kGlossyReflection | kGlossyTransmission;
   return std::make_unique<PrincipledThinBsdf>(p);
 }
