@@ -137,6 +137,20 @@ class Bsdf {
   }
   bool Transmits() const { return (Flags() & kTransmissionLobes) != 0; }
   bool IsTwoSided() const { return (Flags() & kTwoSidedFlag) != 0; }
+
+ protected:
+  // The end of a Sample whose wi, lobe and eta are set: its pdf and weight over `lobes` (Eval /
+  // Pdf, so that the weight agrees with what next-event estimation's MIS sees), or a failed
+  // sample (lobe 0, weight black) where that pdf is not positive.
+  BsdfSample Weighed(const BsdfContext& ctx, const Vec3& wo, BsdfSample s, uint32_t lobes) const {
+    s.pdf = Pdf(ctx, wo, s.wi, lobes);
+    if (!(s.pdf > 0)) {
+      s.lobe = 0;
+      return s;
+    }
+    s.weight = Eval(ctx, wo, s.wi, lobes) / s.pdf;
+    return s;
+  }
 };
 
 // The local shading frame of a hit: n = shading normal (front side); s along the surface's

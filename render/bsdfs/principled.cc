@@ -191,13 +191,7 @@ class PrincipledBsdf final : public Bsdf {
       s.lobe = 0;
       return s;
     }
-    s.pdf = Pdf(ctx, wo, s.wi, lobes);
-    if (!(s.pdf > 0)) {
-      s.lobe = 0;
-      return s;
-    }
-    s.weight = Eval(ctx, wo, s.wi, lobes) / s.pdf;
-    return s;
+    return Weighed(ctx, wo, s, lobes);
   }
 
   Vec3 DiffuseAlbedo(const BsdfContext& ctx, const Vec3& wo) const override {

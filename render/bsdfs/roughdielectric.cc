@@ -77,13 +77,7 @@ class RoughDielectricBsdf final : public Bsdf {
       s.lobe = 0;
       return s;
     }
-    s.pdf = Pdf(ctx, wo, s.wi, lobes);
-    if (!(s.pdf > 0)) {
-      s.lobe = 0;
-      return s;
-    }
-    s.weight = Eval(ctx, wo, s.wi, lobes) / s.pdf;
-    return s;
+    return Weighed(ctx, wo, s, lobes);
   }
 
  private:
