@@ -53,23 +53,34 @@ absl::Status WriteExr(const Image& image, const std::string& path,
   return absl::OkStatus();
 }
 
+namespace {
+
+// Reads up to three float channels of an open EXR (`names`, in order) into an Image's R, G and B;
+// channels left out read as 0. Throws as OpenEXR does.
+Image ReadChannels(Imf::InputFile& file, const std::vector<std::string>& names) {
+  const Imath::Box2i dw = file.header().dataWindow();
+  const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+  Image image(w, h);
+  Imf::FrameBuffer fb;
+  char* base = reinterpret_cast<char*>(image.pixels.data()) -
+               (size_t(dw.min.x) + size_t(dw.min.y) * w) * sizeof(Vec3);
+  const size_t xs = sizeof(Vec3), ys = sizeof(Vec3) * w;
+  for (size_t c = 0; c < names.size() && c < 3; ++c)
+    fb.insert(names[c], Imf::Slice(Imf::FLOAT, base + 4 * c, xs, ys, 1, 1, 0.0));
+  file.setFrameBuffer(fb);
+  file.readPixels(dw.min.y, dw.max.y);
+  return image;
+}
+
+}  // namespace
+
 absl::StatusOr<Image> ReadExr(const std::string& path) {
   try {
     Imf::InputFile file(path.c_str());
-    const Imath::Box2i dw = file.header().dataWindow();
-    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
-    Image image(w, h);
-    Imf::FrameBuffer fb;
-    char* base = reinterpret_cast<char*>(image.pixels.data()) -
-                 (size_t(dw.min.x) + size_t(dw.min.y) * w) * sizeof(Vec3);
-    const size_t xs = sizeof(Vec3), ys = sizeof(Vec3) * w;
-    const bool has_rgb = file.header().channels().findChannel("R") != nullptr;
-    const char* names[3] = {"R", "G", "B"};
-    for (int c = 0; c < 3; ++c)
-      fb.insert(has_rgb ? names[c] : "Y", Imf::Slice(Imf::FLOAT, base + 4 * c, xs, ys, 1, 1, 0.0));
-    file.setFrameBuffer(fb);
-    file.readPixels(dw.min.y, dw.max.y);
-    return image;
+    // RGB, or a luminance-only image (Y) as grey.
+    if (file.header().channels().findChannel("R") != nullptr)
+      return ReadChannels(file, {"R", "G", "B"});
+    return ReadChannels(file, {"Y", "Y", "Y"});
   } catch (const std::exception& e) {
     return absl::InvalidArgumentError(path + ": cannot read EXR: " + e.what());
   }
@@ -79,22 +90,13 @@ absl::StatusOr<Image> ReadExrLayer(const std::string& path, const std::string& l
                                    const std::vector<std::string>& channels) {
   try {
     Imf::InputFile file(path.c_str());
-    const Imath::Box2i dw = file.header().dataWindow();
-    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
-    Image image(w, h);
-    Imf::FrameBuffer fb;
-    char* base = reinterpret_cast<char*>(image.pixels.data()) -
-                 (size_t(dw.min.x) + size_t(dw.min.y) * w) * sizeof(Vec3);
-    const size_t xs = sizeof(Vec3), ys = sizeof(Vec3) * w;
+    std::vector<std::string> names;
     for (size_t c = 0; c < channels.size() && c < 3; ++c) {
-      const std::string name = layer + "." + channels[c];
-      if (!file.header().channels().findChannel(name))
-        return absl::NotFoundError(path + ": no EXR channel '" + name + "'");
-      fb.insert(name, Imf::Slice(Imf::FLOAT, base + 4 * c, xs, ys));
+      names.push_back(layer + "." + channels[c]);
+      if (!file.header().channels().findChannel(names.back()))
+        return absl::NotFoundError(path + ": no EXR channel '" + names.back() + "'");
     }
-    file.setFrameBuffer(fb);
-    file.readPixels(dw.min.y, dw.max.y);
-    return image;
+    return ReadChannels(file, names);
   } catch (const std::exception& e) {
     return absl::InvalidArgumentError(path + ": cannot read EXR: " + e.what());
   }

@@ -25,6 +25,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
+#include "render/parse_number.h"
 
 namespace irfarm {
 
@@ -40,20 +41,6 @@ namespace {
 
 absl::Status LineError(const std::string& path, int line, absl::string_view what) {
   return absl::InvalidArgumentError(absl::StrCat(path, ":", line, ": ", what));
-}
-
-// Parses one finite number; on failure returns why ("malformed number 'x'").
-std::string ParseFinite(absl::string_view token, double* out) {
-  absl::string_view s = token;
-  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
-  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), *out);
-  if (s.empty() || end != s.data() + s.size() ||
-      (ec != std::errc() && ec != std::errc::result_out_of_range)) {
-    return absl::StrCat("malformed number '", token, "'");
-  }
-  if (ec == std::errc::result_out_of_range) *out = std::strtod(std::string(s).c_str(), nullptr);
-  if (!std::isfinite(*out)) return absl::StrCat("non-finite number '", token, "'");
-  return "";
 }
 
 // One OBJ face corner: 0-based indices into v / vt / vn, -1 = not given.

@@ -31,6 +31,7 @@
 #include "absl/strings/str_split.h"
 #include "render/bsdfs/registry.h"
 #include "render/mesh_loader.h"
+#include "render/parse_number.h"
 #include "render/serialized_mesh.h"
 #include "render/spectrum.h"
 
@@ -78,20 +79,6 @@ bool IsPropertyTag(absl::string_view tag) {
 bool IsObjectTag(absl::string_view tag) {
   return IsOneOf(tag, {"bsdf", "texture", "emitter", "shape", "sensor", "film", "sampler",
                        "rfilter", "integrator"});
-}
-
-// Parses one finite number; on failure returns why ("malformed number 'x'").
-std::string ParseFinite(absl::string_view token, double* out) {
-  absl::string_view s = token;
-  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
-  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), *out);
-  if (s.empty() || end != s.data() + s.size() ||
-      (ec != std::errc() && ec != std::errc::result_out_of_range)) {
-    return absl::StrCat("malformed number '", token, "'");
-  }
-  if (ec == std::errc::result_out_of_range) *out = std::strtod(std::string(s).c_str(), nullptr);
-  if (!std::isfinite(*out)) return absl::StrCat("non-finite number '", token, "'");
-  return "";
 }
 
 // Mitsuba's parse_fov: the horizontal fov for a fov measured along `axis`; aspect = width/height.
