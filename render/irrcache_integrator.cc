@@ -611,6 +611,12 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
   // direct light (and light its glossy sample hits) is direct, its cached term and everything
   // after is indirect.
   int first_diffuse = -1;
+  // The albedo AOV is set at the first vertex with a diffuse or a glossy lobe (`albedo_set`):
+  // the diffuse albedo plus, where glossy lobes are, their directional albedo as this vertex's
+  // glossy sample estimates it (its weight; the pixel's mean is the albedo), both times the
+  // delta lobes' throughput before it. A rough metal or a plastic's coat then guides the denoiser
+  // with its own reflectance, instead of with what it reflects (metal) or its base alone.
+  bool albedo_set = false;
   if (aov) *aov = SampleAov{};
   const auto add = [&](const Vec3& c, int d, bool cached) {
     L += c;
@@ -653,14 +659,17 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     const ShadingFrame frame = hit.Frame();
     const Vec3 wo_l = frame.ToLocal(wo);
     const Vec3 albedo = bsdf.DiffuseAlbedo(ctx, wo_l);
+    const bool glossy = (bsdf.Flags() & kSmoothNonDiffuseLobes) != 0;
+    const bool albedo_here = aov && !albedo_set && (glossy || !IsBlack(albedo));
+    if (albedo_here) {
+      albedo_set = true;
+      aov->albedo = beta * albedo;  // the glossy part is added with the glossy sample below
+      aov->normal = wo_l.z >= 0 ? hit.ns : -hit.ns;
+      aov->depth = distance;
+    }
     if (!IsBlack(albedo)) {
       const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;
-      if (aov && first_diffuse < 0) {
-        first_diffuse = depth;
-        aov->albedo = beta * albedo;
-        aov->normal = nf;
-        aov->depth = distance;
-      }
+      if (aov && first_diffuse < 0) first_diffuse = depth;
       Vec3 cached;
       // Direct light about the mapped normal (normalmap/bumpmap), on the side wo is on; the cache
       // keeps the surface's own normal (records are smooth over the surface).
@@ -682,7 +691,6 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     }
     if (!bsdf.HasNonDiffuse()) break;
     if (max_depth >= 0 && depth + 1 > max_depth) break;
-    const bool glossy = (bsdf.Flags() & kSmoothNonDiffuseLobes) != 0;
     if (glossy) {
       prev_glossy = true;
       ++counters.glossy_bounces;
@@ -691,6 +699,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
     }
     const float u1 = rng.Next(), u2 = rng.Next(), u3 = rng.Next();
     const BsdfSample bs = bsdf.Sample(ctx, wo_l, u1, u2, u3, kNonDiffuseLobes);
+    if (albedo_here && !bs.IsDelta() && IsFinite(bs.weight)) aov->albedo += beta * bs.weight;
     if (IsBlack(bs.weight)) break;
     const Vec3 wi = frame.ToWorld(bs.wi);
     if (!SidesAgree(wo, wi, hit.ng, wo_l.z, bs.wi.z)) break;

@@ -14,6 +14,8 @@
 #include <set>
 
 #include "render/aov.h"
+#include "render/bsdfs/bsdf.h"
+#include "render/sampling.h"
 #include "render_test_util.h"
 
 namespace irfarm {
@@ -106,6 +108,57 @@ TEST(AovTest, AlbedoSeenThroughAMirrorIsTintedByIt) {
         break;
       }
   EXPECT_GT(tinted, 0);
+}
+
+// A rough metal seen head-on under a uniform sky: there is no diffuse surface anywhere, so an
+// albedo made of diffuse albedos alone would be 0 (it was, before 2026-12-06). irrcache's albedo
+// AOV is the metal's directional albedo, int f(wo, wi) cos(theta_i) dwi, here taken by
+// quadrature of the BSDF's Eval (the AOV estimates it from glossy samples' weights: Sample and
+// Pdf). `path` keeps the diffuse albedos (README, "The albedo of glossy surfaces").
+TEST(AovTest, AlbedoOfARoughMetalIsItsDirectionalAlbedo) {
+  const std::string xml = R"(<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="2"/>
+    <transform name="to_world"><lookat origin="0, 0, 3" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <sampler type="independent"><integer name="sample_count" value="16"/></sampler>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/>
+      <rfilter type="box"/></film>
+  </sensor>
+  <shape type="rectangle">
+    <transform name="to_world"><scale value="10"/></transform>
+    <bsdf type="roughconductor"><string name="distribution" value="ggx"/>
+      <float name="alpha" value="0.4"/><rgb name="specular_reflectance" value="0.9, 0.6, 0.3"/>
+    </bsdf>
+  </shape>
+  <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+</scene>
+)";
+  const LoadedScene s = BuildLoaded(LoadSceneString(xml, ::testing::TempDir() + "/metal.xml", {}));
+  ASSERT_NE(s.scene, nullptr);
+  SurfaceHit hit;
+  ASSERT_TRUE(s.scene->Intersect(Ray{Vec3(0, 0, 3), Vec3(0, 0, -1), INFINITY}, &hit));
+  const Bsdf& metal = s.scene->material(hit.material);
+  const Vec3 wo(0, 0, 1);
+  Vec3 expected;
+  // Midpoints of kTheta x kPhi cells of equal projected solid angle (pi / cells each): Eval is
+  // f cos, so each cell adds Eval / cos times pi / cells.
+  constexpr int kTheta = 400, kPhi = 64;
+  for (int i = 0; i < kTheta; ++i)
+    for (int j = 0; j < kPhi; ++j) {
+      const Vec3 wi = StratifiedCosineHemisphere(i, j, kTheta, kPhi, 0.5f, 0.5f);
+      expected += metal.Eval(hit.Context(), wo, wi) * (kPi / float(kTheta * kPhi) / wi.z);
+    }
+  ASSERT_GT(expected.x, 0.5f);  // a bright metal: the AOV had 0 here
+  for (const char* integrator : {"irrcache"}) {
+    const RenderOutput out = RenderAovs(s, integrator, 64, 7);
+    ASSERT_FALSE(out.aovs.empty());
+    Vec3 mean;
+    for (const Vec3& a : out.aovs.albedo.pixels) mean += a;
+    mean = mean / float(out.aovs.albedo.pixels.size());
+    // 64 x 64 samples of a weight whose spread is about its mean: 1% standard error; 4%.
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(mean[c], expected[c], 0.04f * expected[c]) << integrator << " channel " << c;
+  }
 }
 
 TEST(AovTest, VarianceLayerPredictsTheSpreadBetweenIndependentRenders) {
