@@ -581,18 +581,20 @@ int SliceAlongPrincipalAxis(TriangleMesh* mesh, size_t max_triangles) {
   }
   if (!any) return 0;
   // Planes at t = j spacing. A triangle's slabs run from floor(min t / s) to floor(max t / s).
-  size_t estimate = 0;
+  // Counted in double: a part a few float ulps wide (a degenerate strip in a scene file) gives
+  // slab counts past any integer type, and the cap must refuse it before a slab index is formed.
+  double estimate = 0;
   for (size_t i = 0; i + 2 < m.indices.size(); i += 3) {
     const double spacing = parts[size_t(part[m.indices[i]])].spacing;
     if (!(spacing > 0)) {
-      ++estimate;
+      estimate += 1;
       continue;
     }
     const double a = t[m.indices[i]], b = t[m.indices[i + 1]], e = t[m.indices[i + 2]];
-    estimate += 3 * size_t(std::floor(std::max({a, b, e}) / spacing) -
-                           std::floor(std::min({a, b, e}) / spacing) + 1);
+    estimate += 3 * (std::floor(std::max({a, b, e}) / spacing) -
+                     std::floor(std::min({a, b, e}) / spacing) + 1);
   }
-  if (estimate > max_triangles) return 0;
+  if (!(estimate <= double(max_triangles))) return 0;
   const bool normals = !m.normals.empty(), uvs = !m.uvs.empty();
   std::map<std::tuple<uint32_t, uint32_t, int64_t>, uint32_t> cuts;  // (edge, plane) -> vertex
   const auto cut = [&](uint32_t a, uint32_t b, int64_t plane, double spacing) {

@@ -295,5 +295,18 @@ TEST(CylinderMeshTest, SlicingAnEmitterFromAFileKeepsItsSurface) {
   EXPECT_EQ(SliceAlongPrincipalAxis(&disk, 100000), 0);
 }
 
+// A strip a few float ulps wide (two triangles, 1 m long, 1e-30 m across: a degenerate emitter
+// in a scene file) would need about 1e30 slabs. The cap must refuse it from a count that cannot
+// overflow (a size_t cast of 1e30 is undefined; UBSan reports it) and leave the mesh as it was.
+TEST(CylinderMeshTest, SlicingAStripTooThinToCutLeavesItAlone) {
+  TriangleMesh strip;
+  strip.positions = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1e-30f, 0), Vec3(0, 1e-30f, 0)};
+  strip.indices = {0, 1, 2, 0, 2, 3};
+  const TriangleMesh before = strip;
+  EXPECT_EQ(SliceAlongPrincipalAxis(&strip, 65536), 0);
+  EXPECT_EQ(strip.indices, before.indices);
+  EXPECT_EQ(strip.positions.size(), before.positions.size());
+}
+
 }  // namespace
 }  // namespace irfarm
