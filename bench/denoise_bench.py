@@ -35,6 +35,10 @@ SCENES = ["cornell-box", "sunlit-room", "specular", "thin-panels", "veach-ajar",
 # irfarm settings: (label, extra render arguments).
 IRFARM_SETTINGS = [
     ("irrcache default", []),
+    # `render --denoise` itself, the integrator left to irfarm: path where its pilots find the
+    # cache's own error would stay after the denoiser (record_balance.h, ChooseForDenoising); the
+    # stats' integrator is printed. Samples stay in their pixel, as --denoise renders them.
+    ("default --denoise", ["--denoise"]),
     ("irrcache 16spp", ["--spp", "16"]),
     ("path 16spp", ["--integrator", "path", "--spp", "16"]),
     ("path 64spp", ["--integrator", "path", "--spp", "64"]),
@@ -66,8 +70,18 @@ def run_irfarm(args, scene, ref_path, label, extra, outdir):
            base + ".exr", "--aovs", "-q", "--stats", stats] + extra
     subprocess.run(cmd, check=True)
     with open(stats) as f:
-        st = json.load(f)["seconds"]
+        stats_json = json.load(f)
+    st = stats_json["seconds"]
     seconds = st.get("pilot", 0) + st.get("overture", 0) + st["render"]
+    if "--denoise" in extra:  # OUT.exr denoised by the render itself, OUT.noisy.exr as rendered
+        integrator = stats_json["integrator"]
+        return [{"renderer": "irfarm", "setting": label, "denoise": "none",
+                 "integrator": integrator, "seconds": seconds,
+                 "relmse": irfarm_relmse(args.irfarm, base + ".noisy.exr", ref_path)},
+                {"renderer": "irfarm", "setting": label, "denoise": "image",
+                 "integrator": integrator, "seconds": seconds + st.get("denoise", 0),
+                 "denoise_seconds": st.get("denoise", 0),
+                 "relmse": irfarm_relmse(args.irfarm, base + ".exr", ref_path)}]
     points = [{"renderer": "irfarm", "setting": label, "denoise": "none",
                "seconds": seconds, "relmse": irfarm_relmse(args.irfarm, base + ".exr", ref_path)}]
     for mode in DENOISE_MODES:
@@ -257,7 +271,8 @@ def main():
         print(f"  {'renderer':8} {'setting':17} {'denoise':12} {'seconds':>8} {'relMSE':>10}")
         for p in points:
             print(f"  {p['renderer']:8} {p['setting']:17} {p['denoise']:12} "
-                  f"{p['seconds']:8.2f} {p['relmse']:10.3e}")
+                  f"{p['seconds']:8.2f} {p['relmse']:10.3e}"
+                  + (f"  ({p['integrator']})" if "integrator" in p else ""))
         sys.stdout.flush()
         plot(scene, points, os.path.join(args.out, scene + ".png"))
         with open(os.path.join(args.out, "bench-denoise.json"), "w") as f:

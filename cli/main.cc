@@ -149,6 +149,10 @@ int RunRender(const RenderArgs& args) {
   // detail: on the living room with a gaussian filter, path 64 spp denoised 4.8e-2 splatted
   // against 1.6e-2 with each sample kept in its pixel (undenoised 5.3e-2 and 1.7e-1).
   s.splat = !args.denoise;
+  // Named or not, the integrator renders the image; unnamed, a denoised image may be rendered by
+  // path where the pilots find it cheaper (RenderSettings::choose_integrator).
+  s.denoise = args.denoise;
+  s.choose_integrator = args.integrator.empty();
 
   std::unique_ptr<IrradianceCache> warm_cache;
   if (!args.cache_in.empty()) {
@@ -301,7 +305,10 @@ int main(int argc, char** argv) {
   CLI::App* render = app.add_subcommand("render", "render a Mitsuba 3 XML scene locally");
   render->add_option("scene", ra.scene, "scene.xml")->required()->check(CLI::ExistingFile);
   render->add_option("-o,--output", ra.output, "output EXR (a PNG preview is written beside it)");
-  render->add_option("--integrator", ra.integrator, "path or irrcache (default irrcache)")
+  render
+      ->add_option("--integrator", ra.integrator,
+                   "path or irrcache (default irrcache; with --denoise, path where the pilots "
+                   "predict it the better once denoised)")
       ->check(CLI::IsMember({"path", "irrcache"}));
   render->add_option("--spp", ra.spp, "samples per pixel (adaptive: on average)")
       ->check(CLI::PositiveNumber);

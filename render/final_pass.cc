@@ -34,6 +34,14 @@ std::vector<Tile> MakeTiles(const PixelRect& r, int size) {
   return tiles;
 }
 
+PathSettings PathIntegratorSettings(const Scene& scene, const RenderSettings& settings) {
+  PathSettings path = settings.irrcache.path;
+  if (settings.irrcache.direct_sun && !scene.environment_sun().empty())
+    path.direct_sun = &scene.environment_sun();
+  path.coarse_light_tree = true;
+  return path;
+}
+
 void FinalPass(const Scene& scene, const RenderSettings& settings,
                const IrrcacheIntegrator& integrator, const PixelRect& rect, bool tty,
                tbb::task_arena& arena, tbb::enumerable_thread_specific<RenderCounters>& counters,
@@ -57,13 +65,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   const int max_spp = adaptive ? int(std::clamp<int64_t>(most, spp, 1 << 30)) : spp;
   const int min_spp = adaptive ? std::clamp(settings.min_spp, 2, spp) : spp;
   const double goal = settings.target_error > 0 ? settings.target_error : settings.sampling_error;
-  // The path integrator samples an environment map's sun as irrcache's records do
-  // (PathSettings::direct_sun): one sample of it by its cells' luminance at every non-delta
-  // vertex, which the environment's own samples then leave out.
-  PathSettings path = settings.irrcache.path;
-  if (!irrcache && settings.irrcache.direct_sun && !scene.environment_sun().empty())
-    path.direct_sun = &scene.environment_sun();
-  path.coarse_light_tree = !irrcache;
+  const PathSettings path = PathIntegratorSettings(scene, settings);
 
   // The pixels whose samples reach `rect` (src), and where a pixel of each is.
   const int g = settings.splat ? filter.SplatReach() : 0;

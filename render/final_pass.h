@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "render/irrcache_integrator.h"
+#include "render/path_tracer.h"
 #include "render/render_counters.h"
 #include "render/renderer.h"
 #include "render/scene.h"
@@ -23,6 +24,13 @@ struct Tile {
 
 // `r` cut into tiles of `size` pixels, row by row.
 std::vector<Tile> MakeTiles(const PixelRect& r, int size);
+
+// What the path integrator traces a camera sample with: the settings' path and, where the
+// settings ask for it and the map has one, an environment map's sun sampled as direct light
+// (PathSettings::direct_sun, as irrcache's records do: one sample of it by its cells' luminance at
+// every non-delta vertex, which the environment's own samples then leave out); the coarse light
+// tree. FinalPass and the path pilot (pilot.cc) trace with it.
+PathSettings PathIntegratorSettings(const Scene& scene, const RenderSettings& settings);
 
 // The final pass: every pixel of `rect` gets its samples (all of them, or with adaptive
 // sampling min_spp first and then rounds that double the samples of the pixels with the largest

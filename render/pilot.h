@@ -36,4 +36,11 @@ double EstimateSamplingError(const IrrcacheIntegrator& integrator, const Camera&
                              tbb::task_arena& arena,
                              tbb::enumerable_thread_specific<RenderCounters>& counters);
 
+// The path pilot of ChooseForDenoising (record_balance.h): 1,024 random pixels of `rect`, 16
+// camera samples each, traced as the path integrator's final pass traces them
+// (PathIntegratorSettings); their per-sample error and thread time.
+PathPilotFigures PathPilot(const Scene& scene, const RenderSettings& settings,
+                           const PixelRect& rect, tbb::task_arena& arena,
+                           tbb::enumerable_thread_specific<RenderCounters>& counters);
+
 }  // namespace irfarm

@@ -25,12 +25,9 @@ BalanceResult ChooseRecordRays(const PilotFigures& pilot, const BalanceInputs& i
   // The sampling error without the pilot's largest kTrimmed of pixels: one firefly among a
   // hundred pixels would otherwise decide the rays (on living-room the pilot's mean ranged 2.8x
   // over three seeds); the image's fireflies are no reason to make records noisier either.
-  std::sort(errors.begin(), errors.end());
-  const size_t kept = k - std::min(k - 1, size_t(std::floor(kTrimmed * double(k))));
-  for (size_t i = 0; i < kept; ++i) per_sample_error += errors[i];
+  per_sample_error = TrimmedMean(std::move(errors));
   noise /= double(k);
   per_px /= double(k);
-  per_sample_error /= double(kept);
   r.record_noise = noise;
 
   // Samples adaptive sampling will take: min_spp everywhere, then doubling where the error is,
@@ -57,6 +54,41 @@ BalanceResult ChooseRecordRays(const PilotFigures& pilot, const BalanceInputs& i
   const double lowest = std::max(1.0, std::floor(r0 / 8.0));
   r.record_rays = int(std::lround(std::clamp(r0 * ratio, lowest, double(r0))));
   return r;
+}
+
+double TrimmedMean(std::vector<double> values) {
+  const size_t k = values.size();
+  if (k == 0) return 0;
+  std::sort(values.begin(), values.end());
+  const size_t kept = k - std::min(k - 1, size_t(std::floor(kTrimmed * double(k))));
+  double sum = 0;
+  for (size_t i = 0; i < kept; ++i) sum += values[i];
+  return sum / double(kept);
+}
+
+DenoisedChoice ChooseForDenoising(const BalanceResult& cache, int settings_rays,
+                                  const PathPilotFigures& path, double image_pixels,
+                                  double min_pixels) {
+  DenoisedChoice c;
+  c.image_pixels = image_pixels;
+  c.min_pixels = min_pixels;
+  const double r0 = std::max(1, settings_rays), r = std::max(1, cache.record_rays);
+  c.cache_seconds = cache.record_seconds * r / r0 + cache.sampling_seconds;
+  c.cache_own = kInterpolationFloor * cache.record_noise + cache.record_noise * r0 / r;
+  c.cache_sampling = cache.sampling_error;
+  const double path_error_time = path.per_sample_error * path.seconds_per_sample * image_pixels;
+  if (!(c.cache_seconds > 0) || !(c.cache_own > 0) || !(path_error_time > 0)) return c;
+  c.path = path_error_time / c.cache_seconds;
+  c.path_pays =
+      image_pixels >= min_pixels && c.path - c.cache_sampling < kDenoiserGain * c.cache_own;
+  return c;
+}
+
+int PathSppForSeconds(double seconds, const PathPilotFigures& path, double image_pixels, int lo,
+                      int hi) {
+  const double per_image = path.seconds_per_sample * image_pixels;
+  const double spp = per_image > 0 && seconds > 0 ? seconds / per_image : double(lo);
+  return int(std::lround(std::clamp(spp, double(lo), double(hi))));
 }
 
 }  // namespace irfarm

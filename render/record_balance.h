@@ -19,6 +19,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -98,6 +99,10 @@ constexpr double kInterpolationFloor = 0.5;
 
 // R* as the model above gives it, from the pilot's figures.
 BalanceResult ChooseRecordRays(const PilotFigures& pilot, const BalanceInputs& in);
+
+// The mean of `values` without their largest kTrimmed share (at least one value is kept); 0 for
+// none.
+double TrimmedMean(std::vector<double> values);
 
 // Cache levels at default settings. A second level (records' rays shaded from a cache of
 // secondary records at the surfaces they reach, IrrcacheSettings::cache_levels) smooths the
@@ -197,5 +202,59 @@ inline bool ThreeLevelsPay(uint64_t secondary_records, uint64_t heavy_records, f
   return secondary_records > 0 && accuracy <= kThreeLevelsMaxAccuracy &&
          double(heavy_records) > kThreeLevelsHeavyShare * double(secondary_records);
 }
+
+// A path tracer instead of the cache, for an image that will be denoised (`irfarm render
+// --denoise` without --integrator). A denoiser removes most of a path-traced image's noise but
+// little of an irradiance cache's own error, records' noise (blotches a few pixels wide that look
+// like detail) and interpolation: denoised relMSE / raw relMSE, irrcache defaults against path at
+// 64 spp (docs/denoise/summary-2026-12-06-57a2d88.txt): irrcache 1.00-1.40 on the ten shared
+// scenes, path 5.1 (room-c) to 168 (veach-ajar). So the denoised errors are taken as
+//   cache: I + N R0 / R + S / g,   path at the cache's time: P / g,
+// (the model of ChooseRecordRays; P from the path pilot), and path is chosen where P / g is the
+// smaller: P - S < g (I + N R0 / R). g = kDenoiserGain is fitted, not measured: the model's I and
+// N are the pilot's, and the pilots leave the largest 2% of pixels' errors out of P and S. The
+// figures with --denoise, full size, seeds 1-8 (docs/bench/path-when-denoised-2026-12-06):
+// (P - S) / (I + N R0 / R) was 0.53-1.35 on living-room, where path with the denoiser measured
+// 7.0e-3 to 8.3e-3 in 25-41 CPU seconds against the cache's 1.13e-2 to 1.40e-2 in 26-30; 2.7-7.4
+// on materials (tests/data: glass and metal spheres), where the cache was the better (6.3e-4 to
+// 7.2e-4 in 8-10 s against path's 8.1e-4 to 8.4e-4 in 7-10 s). g = 2 lies between the two
+// (1.5x above living-room's largest, 1.35x below materials' smallest). Seeds 7 and 8 (the same
+// run): 11-23 on specular, 17-21 on a glossy room lit by a sun (make_room 907, where path would
+// have been 1.7x better), 9-26 on four other fresh rooms, above 23 on the other shared scenes.
+constexpr double kDenoiserGain = 2.0;
+
+// The smallest image (pixels) for which path is chosen: the figures above are of images of 49,000
+// and 58,000 pixels. On materials at a quarter of that (64 x 48), (P - S) / (I + N R0 / R) came
+// out at 0.6-1.8, and path with the denoiser at 1.8e-3 to 2.4e-3 against the cache's 1.4e-3 to
+// 1.9e-3 (seeds 1-4, reference-x4): the denoiser has less of the image to work with.
+constexpr int kPathChoiceMinPixels = 32768;
+
+// The path pilot (pilot.cc): camera samples of random pixels traced as the path integrator
+// traces them.
+struct PathPilotFigures {
+  double per_sample_error = 0;    // a pixel's relMSE at one sample (TrimmedMean over the pixels)
+  double seconds_per_sample = 0;  // thread time
+};
+
+// The errors ChooseForDenoising compares, from the two pilots: relMSE of the image, raw.
+struct DenoisedChoice {
+  double cache_seconds = 0;   // the cache's predicted thread time: C R / R0 + D
+  double cache_own = 0;       // I + N R0 / R: what the denoiser leaves of the cache's error
+  double cache_sampling = 0;  // S
+  double path = 0;            // P: path's error in cache_seconds
+  double image_pixels = 0, min_pixels = 0;
+  bool path_pays = false;  // P - S < kDenoiserGain x cache_own, image_pixels >= min_pixels
+};
+
+// The choice for a denoised image between the cache the pilot chose (`cache`, its figures at
+// `settings_rays`) and path, over an image of `image_pixels`. Never path when either pilot
+// measured nothing, nor for an image of fewer than `min_pixels`.
+DenoisedChoice ChooseForDenoising(const BalanceResult& cache, int settings_rays,
+                                  const PathPilotFigures& path, double image_pixels,
+                                  double min_pixels = kPathChoiceMinPixels);
+
+// The samples per pixel the path tracer takes in `seconds` of thread time, within [lo, hi].
+int PathSppForSeconds(double seconds, const PathPilotFigures& path, double image_pixels, int lo,
+                      int hi);
 
 }  // namespace irfarm

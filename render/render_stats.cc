@@ -167,6 +167,18 @@ std::string RenderStats::ToJson() const {
                            {"secondary_heavy_share", balance.secondary_heavy_share},
                            {"one_level_record_noise_relmse", balance.one_level_record_noise},
                            {"one_level_sampling_relmse", balance.one_level_sampling_error}};
+  if (integrator_chosen)
+    j["integrator_choice"] = {{"integrator", integrator},
+                              {"path_per_sample_relmse", path_pilot.per_sample_error},
+                              {"path_seconds_per_sample", path_pilot.seconds_per_sample},
+                              {"cache_thread_seconds", denoised_choice.cache_seconds},
+                              {"cache_own_relmse", denoised_choice.cache_own},
+                              {"cache_sampling_relmse", denoised_choice.cache_sampling},
+                              {"path_relmse", denoised_choice.path},
+                              {"image_pixels", denoised_choice.image_pixels},
+                              {"min_pixels", denoised_choice.min_pixels},
+                              {"path_pays", denoised_choice.path_pays},
+                              {"denoiser_gain", kDenoiserGain}};
   j["tiles"] = {{"count", tiles}, {"size", tile_size}};
   j["geometry"] = {{"triangles", triangles}, {"degenerate_dropped", degenerate_dropped}};
   j["environment_guide"] = {{"cells", environment_guide_cells}};

@@ -66,6 +66,11 @@ struct RenderStats {
   // Default settings: the pilot's balance of record rays (record_balance.h), when it ran.
   bool balanced = false;
   BalanceResult balance;
+  // A denoised image at default settings (RenderSettings::choose_integrator): the path pilot's
+  // figures and what ChooseForDenoising compared, when it ran.
+  bool integrator_chosen = false;
+  PathPilotFigures path_pilot;
+  DenoisedChoice denoised_choice;
   long triangles = 0, degenerate_dropped = 0;
   int environment_guide_cells = 0;  // EnvironmentGuide's histograms (0: none learned)
   std::vector<std::string> warnings;

@@ -11,7 +11,8 @@ enum RenderStream : uint64_t {
   kStreamOverture = 2,
   kStreamCacheCheck = 3,
   kStreamPilot = 4,
-  kStreamSamplingCheck = 5
+  kStreamSamplingCheck = 5,
+  kStreamPathPilot = 6
 };
 
 }  // namespace irfarm

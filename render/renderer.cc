@@ -175,7 +175,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   RenderOutput out;
   const Camera& cam = scene.camera();
   const int rw = rect.width(), rh = rect.height();
-  const bool irrcache = settings_in.integrator == "irrcache";
+  bool irrcache = settings_in.integrator == "irrcache";  // path where the pilot chooses it
   const int threads = RenderThreads(settings_in);
   tbb::task_arena arena(threads);
   // Caustics from a photon map (render/caustic_map.h), where the scene has a delta surface and an
@@ -286,6 +286,24 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
     }
     out.stats.balance = b;
     out.stats.balanced = true;
+    if (!target_mode && settings.denoise && settings.choose_integrator) {
+      const PathPilotFigures path = PathPilot(scene, settings, rect, arena, pilot_counters);
+      const double pixels = double(rw) * rh;
+      const int rays = settings.irrcache.record_rays;
+      const DenoisedChoice choice =
+          ChooseForDenoising(b, rays, path, pixels, settings.choose_integrator_min_pixels);
+      out.stats.integrator_chosen = true;
+      out.stats.path_pilot = path;
+      out.stats.denoised_choice = choice;
+      if (choice.path_pays) {
+        settings.spp =
+            PathSppForSeconds(choice.cache_seconds, path, pixels, std::max(1, settings.min_spp),
+                              kMaxSppFactor * std::max(1, settings.spp));
+        settings.integrator = "path";
+        settings.adaptive = false;
+        irrcache = false;
+      }
+    }
     out.stats.phases.push_back(timer.Stop());
   }
   if (irrcache) {

@@ -69,4 +69,24 @@ err=$("$irfarm" render "$tmp/cb.xml" -o "$tmp/x.exr" -q 2>&1)
 code=$?
 set -e
 [[ $code -ne 0 && $err == *"cb.xml:"*"accuracy"* ]] || fail "bad accuracy: $code $err"
+# --denoise with the integrator left to irfarm: the stats say what the two pilots compared and
+# which integrator rendered the image (path where its error less the cache's samples' is under
+# kDenoiserGain times the cache's own, on images of at least kPathChoiceMinPixels,
+# record_balance.h; this one is smaller); a named integrator is kept, no path pilot.
+"$irfarm" render "$data/scenes/materials/scene.xml" -D resx=64 -D resy=48 --denoise \
+  -o "$tmp/d.exr" --stats "$tmp/d.json" -q
+"$irfarm" render "$data/scenes/materials/scene.xml" -D resx=64 -D resy=48 --denoise \
+  --integrator irrcache -o "$tmp/n.exr" --stats "$tmp/n.json" -q
+python3 - "$tmp/d.json" "$tmp/n.json" <<'PY'
+import json, sys
+d, n = (json.load(open(f)) for f in sys.argv[1:3])
+c = d["integrator_choice"]
+pays = (c["path_relmse"] - c["cache_sampling_relmse"] < c["denoiser_gain"] * c["cache_own_relmse"]
+        and c["image_pixels"] >= c["min_pixels"])
+assert c["image_pixels"] == 64 * 48 and c["min_pixels"] > c["image_pixels"] and not pays, c
+assert c["path_pays"] == pays and d["integrator"] == ("path" if pays else "irrcache"), (d["integrator"], c)
+assert c["path_per_sample_relmse"] > 0 and c["cache_thread_seconds"] > 0, c
+assert "integrator_choice" not in n and n["integrator"] == "irrcache", n.get("integrator_choice")
+PY
+
 echo "cli_test: all checks passed"

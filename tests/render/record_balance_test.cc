@@ -146,6 +146,135 @@ TEST(RecordBalanceTest, TwoLevelsWhereThePilotsPredictThemCheaper) {
   EXPECT_FALSE(TwoLevelsPay(BalanceResult{}, veach2, 1536));
 }
 
+// Path instead of the cache for a denoised image (ChooseForDenoising): the pilots' figures as the
+// renderer measured them with --denoise (full size, seed 10 and seed 2). living-room ((P - S) /
+// (I + N R0 / R) 0.49-1.48 over seeds 1-10) is rendered by path, which with the denoiser measured
+// 7.4e-3 to 8.4e-3 in 27-38 CPU seconds against the cache's 1.27e-2 to 1.40e-2 in 26-29;
+// materials (3.9-7.6) keeps the cache, which measured 6.4e-4 to 6.7e-4 against path's 8.1e-4 to
+// 8.4e-4.
+TEST(RecordBalanceTest, PathForADenoisedImageWhereTheCachesOwnErrorWouldStay) {
+  constexpr double kLivingPixels = 320.0 * 180.0, kMaterialsPixels = 256.0 * 192.0;
+  const BalanceResult living = Figures(394, 4.06e-3, 8.34e-3, 66.3, 11.2);
+  PathPilotFigures living_path;
+  living_path.per_sample_error = 4.36;
+  living_path.seconds_per_sample = 3.25e-6;
+  const DenoisedChoice l = ChooseForDenoising(living, 1536, living_path, kLivingPixels);
+  EXPECT_NEAR(l.cache_seconds, 66.3 * 394 / 1536 + 11.2, 1e-9);
+  EXPECT_NEAR(l.cache_own, 4.06e-3 * (kInterpolationFloor + 1536.0 / 394), 1e-12);
+  EXPECT_DOUBLE_EQ(l.cache_sampling, 8.34e-3);
+  EXPECT_NEAR(l.path, 4.36 * 3.25e-6 * kLivingPixels / l.cache_seconds, 1e-12);
+  EXPECT_TRUE(l.path_pays);
+  EXPECT_LT((l.path - l.cache_sampling) / l.cache_own, 1.5);
+
+  const BalanceResult materials = Figures(959, 1.56e-4, 2.41e-4, 6.48, 5.16);
+  PathPilotFigures materials_path;
+  materials_path.per_sample_error = 0.189;
+  materials_path.seconds_per_sample = 1.72e-6;
+  const DenoisedChoice m = ChooseForDenoising(materials, 1536, materials_path, kMaterialsPixels);
+  EXPECT_FALSE(m.path_pays);
+  EXPECT_GT((m.path - m.cache_sampling) / m.cache_own, 3.5);
+
+  // The boundary: P - S just under and just over kDenoiserGain (I + N R0 / R).
+  PathPilotFigures edge = materials_path;
+  const double p_edge = m.cache_sampling + kDenoiserGain * m.cache_own;
+  edge.per_sample_error = 0.99 * p_edge * m.cache_seconds / (1.72e-6 * kMaterialsPixels);
+  EXPECT_TRUE(ChooseForDenoising(materials, 1536, edge, kMaterialsPixels).path_pays);
+  edge.per_sample_error *= 1.02;
+  EXPECT_FALSE(ChooseForDenoising(materials, 1536, edge, kMaterialsPixels).path_pays);
+  // Nor for an image smaller than kPathChoiceMinPixels (living-room at a quarter of its size,
+  // with the same figures per pixel).
+  EXPECT_FALSE(ChooseForDenoising(living, 1536, living_path, kLivingPixels / 16).path_pays);
+  EXPECT_TRUE(ChooseForDenoising(living, 1536, living_path, kLivingPixels / 16, 0).path_pays);
+  // A pilot that measured nothing never decides for path.
+  EXPECT_FALSE(ChooseForDenoising(BalanceResult{}, 1536, living_path, kLivingPixels).path_pays);
+  EXPECT_FALSE(ChooseForDenoising(living, 1536, PathPilotFigures{}, kLivingPixels).path_pays);
+
+  // The samples that take a given thread time, within the bounds.
+  EXPECT_EQ(PathSppForSeconds(l.cache_seconds, living_path, kLivingPixels, 16, 768),
+            int(std::lround(l.cache_seconds / (3.25e-6 * kLivingPixels))));
+  EXPECT_EQ(PathSppForSeconds(l.cache_seconds, living_path, kLivingPixels, 16, 64), 64);
+  EXPECT_EQ(PathSppForSeconds(1e-3, living_path, kLivingPixels, 16, 768), 16);
+  EXPECT_EQ(PathSppForSeconds(10, PathPilotFigures{}, kLivingPixels, 16, 768), 16);
+}
+
+// The trimmed mean leaves out the largest kTrimmed of the values (fireflies), at least one kept.
+TEST(RecordBalanceTest, TrimmedMeanLeavesOutTheLargest) {
+  EXPECT_EQ(TrimmedMean({}), 0);
+  EXPECT_EQ(TrimmedMean({5}), 5);
+  std::vector<double> v(100, 1.0);
+  v[17] = 1e6;
+  v[60] = 1e6;  // 2 of 100: both left out
+  EXPECT_DOUBLE_EQ(TrimmedMean(v), 1.0);
+  v[3] = 1e6;  // a third one stays in
+  EXPECT_DOUBLE_EQ(TrimmedMean(v), (97.0 + 1e6) / 98.0);
+}
+
+// A denoised render at default settings with its integrator left to it
+// (RenderSettings::choose_integrator) runs the path pilot, and renders with what
+// ChooseForDenoising chose from the figures in its stats: by path at PathSppForSeconds' samples,
+// not adaptive, with no records; or with the cache. The scenes are a quarter of their size, below
+// kPathChoiceMinPixels, which is lowered to 0 here: materials (glass and metal spheres, whose
+// camera samples are the error; (P - S) / (I + N R0 / R) 0.6-1.8 over seeds 1-6) goes to path on
+// at least one of three seeds; cornell-box (above 25) never. At the default limit neither does;
+// named, the integrator is kept and no path pilot runs.
+TEST(RecordBalanceTest, ADenoisedRenderChoosesItsIntegrator) {
+  for (const std::string name : {"materials", "cornell-box"}) {
+    SCOPED_TRACE(name);
+    const LoadedScene s = LoadQuarter(name);
+    const double pixels = double(s.scene->camera().width()) * s.scene->camera().height();
+    ASSERT_LT(pixels, kPathChoiceMinPixels);
+    RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
+    settings.denoise = true;
+    settings.splat = false;
+    settings.choose_integrator = true;
+    settings.choose_integrator_min_pixels = 0;
+    int paths = 0;
+    for (uint64_t seed = 1; seed <= 3; ++seed) {
+      settings.seed = seed;
+      const RenderOutput out = Render(*s.scene, settings);
+      ASSERT_TRUE(out.stats.balanced);
+      ASSERT_TRUE(out.stats.integrator_chosen);
+      const PathPilotFigures& path = out.stats.path_pilot;
+      EXPECT_GT(path.per_sample_error, 0);
+      EXPECT_GT(path.seconds_per_sample, 0);
+      const DenoisedChoice c =
+          ChooseForDenoising(out.stats.balance, settings.irrcache.record_rays, path, pixels, 0);
+      EXPECT_DOUBLE_EQ(out.stats.denoised_choice.path, c.path);
+      EXPECT_EQ(out.stats.denoised_choice.path_pays, c.path_pays);
+      EXPECT_EQ(out.stats.integrator, c.path_pays ? "path" : "irrcache")
+          << "P " << c.path << " S " << c.cache_sampling << " I + N " << c.cache_own;
+      if (c.path_pays) {
+        ++paths;
+        EXPECT_EQ(out.stats.spp, PathSppForSeconds(c.cache_seconds, path, pixels, settings.min_spp,
+                                                   kMaxSppFactor * settings.spp));
+        EXPECT_EQ(out.stats.counters.records_computed, 0u);
+        EXPECT_EQ(out.stats.spp_min, out.stats.spp);  // not adaptive: every pixel its spp
+        EXPECT_EQ(out.stats.spp_max, out.stats.spp);
+      } else {
+        EXPECT_GT(out.stats.counters.records_computed, 0u);
+      }
+    }
+    if (name == "materials")
+      EXPECT_GE(paths, 1);
+    else
+      EXPECT_EQ(paths, 0);
+
+    RenderSettings limited = settings;
+    limited.seed = 1;
+    limited.choose_integrator_min_pixels = kPathChoiceMinPixels;
+    const RenderOutput small = Render(*s.scene, limited);
+    EXPECT_TRUE(small.stats.integrator_chosen);
+    EXPECT_FALSE(small.stats.denoised_choice.path_pays);
+    EXPECT_EQ(small.stats.integrator, "irrcache");
+
+    RenderSettings named = settings;
+    named.choose_integrator = false;
+    const RenderOutput kept = Render(*s.scene, named);
+    EXPECT_FALSE(kept.stats.integrator_chosen);
+    EXPECT_EQ(kept.stats.integrator, "irrcache");
+  }
+}
+
 TEST(RecordBalanceTest, PilotInARealRender) {
   const LoadedScene s = LoadQuarter("cornell-box");
   RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
