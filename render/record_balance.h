@@ -219,8 +219,9 @@ inline bool ThreeLevelsPay(uint64_t secondary_records, uint64_t heavy_records, f
 // on materials (tests/data: glass and metal spheres), where the cache was the better (6.3e-4 to
 // 7.2e-4 in 8-10 s against path's 8.1e-4 to 8.4e-4 in 7-10 s). g = 2 lies between the two
 // (1.5x above living-room's largest, 1.35x below materials' smallest). Seeds 7 and 8 (the same
-// run): 11-23 on specular, 17-21 on a glossy room lit by a sun (make_room 907, where path would
-// have been 1.7x better), 9-26 on four other fresh rooms, above 23 on the other shared scenes.
+// run): 11-23 on specular, 17-21 on a glossy room lit by a sun (make_room 907, where path at 32
+// spp would have been 1.17x lower in the same time), 9-460 on four other fresh rooms, above 20 on
+// the other shared scenes.
 constexpr double kDenoiserGain = 2.0;
 
 // The smallest image (pixels) for which path is chosen: the figures above are of images of 49,000
