@@ -21,6 +21,16 @@ void RandomPixel(const PixelRect& rect, Rng& rng, int* x, int* y) {
   *y = rect.y0 + std::min(rect.height() - 1, int(rng.Next() * float(rect.height())));
 }
 
+// Camera sample s of pixel (x, y) as the final pass takes it unsplatted: its film point from
+// `points`, its lens point (thinlens) from rng.
+Ray PixelRay(const Camera& cam, int x, int y, const PixelSampler& points, int s, Rng& rng) {
+  float fu, fv;
+  points.Get(s, &fu, &fv);
+  Ray ray;
+  cam.LensRay(cam.SampleDirection(x, y, fu, fv), rng, &ray.origin, &ray.dir);
+  return ray;
+}
+
 // `spp` camera samples of pixel (x, y) taken as the final pass takes them (stratified film and
 // light points, one lookup region for the pixel), added to slot i of `film`. A non-finite sample
 // adds 0 here: the final pass, which renders the pixel again, counts it.
@@ -29,10 +39,7 @@ void SamplePixel(const IrrcacheIntegrator& integrator, const Camera& cam, int x,
   PixelSampler film_points(spp, rng), light_points(spp * light_samples, rng);
   PixelReuse reuse;
   for (int s = 0; s < spp; ++s) {
-    float fu, fv;
-    film_points.Get(s, &fu, &fv);
-    Ray ray;
-    cam.LensRay(cam.SampleDirection(x, y, fu, fv), rng, &ray.origin, &ray.dir);
+    const Ray ray = PixelRay(cam, x, y, film_points, s, rng);
     IrrcacheShade shade;
     shade.reuse = &reuse;
     DirectTerms terms;
@@ -212,10 +219,7 @@ PathPilotFigures PathPilot(const Scene& scene, const RenderSettings& settings,
       PixelSampler film_points(kPathPilotSamples, rng);
       const double t0 = ThreadCpuSeconds();
       for (int s = 0; s < kPathPilotSamples; ++s) {
-        float fu, fv;
-        film_points.Get(s, &fu, &fv);
-        Ray ray;
-        cam.LensRay(cam.SampleDirection(x, y, fu, fv), rng, &ray.origin, &ray.dir);
+        const Ray ray = PixelRay(cam, x, y, film_points, s, rng);
         Vec3 L = TracePath(scene, ray, 1, false, path, rng, c, nullptr, nullptr);
         if (!IsFinite(L)) L = Vec3();  // as SamplePixel: the final pass counts it
         film.Add(size_t(i), s, L, nullptr);

@@ -73,8 +73,9 @@ struct RenderSettings {
   // default: on specular it takes a quarter off the error for an eighth more time, and a scene
   // without mirrors or smooth glass lit by an area light skips it (README).
   bool caustics = true;
-  // The image will be denoised (`irfarm render --denoise`, a job with denoise). With
-  // choose_integrator as well (the user named no integrator), an irrcache render at default
+  // The image will be denoised (`irfarm render --denoise`; the service's workers leave it off,
+  // see README "Path for a denoised image"). With choose_integrator as well (the user named no
+  // integrator), an irrcache render at default
   // settings runs a path pilot beside its own and renders with path instead where the two
   // pilots predict it the better once denoised (ChooseForDenoising, record_balance.h): at the
   // samples per pixel that take the cache's predicted time, not adaptive.
