@@ -228,6 +228,29 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
   state.counters["bare_hit_frac"] = double(bare_hits) / double(bare_rays);
   state.counters["us_per_record"] = record_seconds / double(counters.records_computed) * 1e6;
 }
+// The records alone, many times over (no bare loops): for a profiler, e.g.
+// perf record -g build/bench/bench_record --benchmark_filter=RecordsOnly/cornell
+void BM_RecordsOnly(benchmark::State& state, const char* name) {
+  const std::unique_ptr<Fixture> f = MakeFixture(name, 12);
+  if (!f || f->points.empty()) return state.SkipWithError("cannot load the scene");
+  IrrcacheIntegrator integrator(*f->scene, nullptr, f->settings.irrcache);
+  RenderCounters counters;
+  Rng rng(1, 2);
+  for (auto _ : state) {
+    for (const RecordPoint& p : f->points) {
+      benchmark::DoNotOptimize(
+          integrator.ComputeRecord(p.hit, p.nf, 1, p.pixel_spread, rng, counters));
+    }
+  }
+  state.counters["us_per_record"] = benchmark::Counter(
+      double(counters.records_computed), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["record_rays"] = double(counters.record_rays) / double(counters.records_computed);
+  state.counters["bounce_rays"] = double(counters.bounce_rays) / double(counters.records_computed);
+  state.counters["shadow_rays"] = double(counters.shadow_rays) / double(counters.records_computed);
+}
+BENCHMARK_CAPTURE(BM_RecordsOnly, cornell_box, "cornell-box")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_RecordsOnly, veach_ajar, "veach-ajar")->Unit(benchmark::kMillisecond);
+
 BENCHMARK_CAPTURE(BM_RecordVsBareEmbree, cornell_box, "cornell-box")
     ->UseManualTime()
     ->Iterations(3)
