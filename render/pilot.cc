@@ -194,8 +194,11 @@ BalanceResult PilotSettings(const Scene& scene, const RenderSettings& settings,
   ic->cache_levels = 2;
   ic->record_rays = b2.record_rays;
   // --target-error keeps at most two: its refinement was calibrated with them.
-  if (!target && ThreeLevelsPay(made, heavy, settings.irrcache.accuracy))
+  if (!target && ThreeLevelsPay(made, heavy, settings.irrcache.accuracy)) {
     b2.cache_levels = ic->cache_levels = 3;
+    b2.record_rays = ic->record_rays =
+        ThreeLevelsRecordRays(b2.record_rays, settings.irrcache.record_rays);
+  }
   return b2;
 }
 

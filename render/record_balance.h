@@ -19,6 +19,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -200,6 +201,25 @@ constexpr float kThreeLevelsMaxAccuracy = 0.1f;  // as IrrcacheSettings::accurac
 inline bool ThreeLevelsPay(uint64_t secondary_records, uint64_t heavy_records, float accuracy) {
   return secondary_records > 0 && accuracy <= kThreeLevelsMaxAccuracy &&
          double(heavy_records) > kThreeLevelsHeavyShare * double(secondary_records);
+}
+
+// Record rays with three levels: at least kThreeLevelsMinRayShare of the settings' rays (R0). The
+// balance's model takes a record's noise as its pilot variance, falling as 1 / R; where three
+// levels are chosen, the secondary records are mostly one lucky ray's light (a door gap), their
+// noise is heavy-tailed, and a render at the balance's rays is sometimes far off, a whole region
+// too bright or too dark (one secondary record feeds many primary ones). The pilot also times its
+// records in an almost empty cache, where each makes its own secondary records (veach-ajar: about
+// five each, against 1.3 in the render): its record time was twice the render's there.
+// Forced rays, three levels, veach-ajar seeds 3, 5, 8 (docs/bench/three-level-rays-2026-12-06):
+// 384 and 512 rays 4.8e-3 to 1.5e-2; 768 rays 3.5e-3 to 3.8e-3; 1024 and 1536 3.0e-3 to 4.6e-3 for
+// 1.3x and 1.9x the CPU of 768. At defaults, before and after, alternately: veach-ajar (seeds 1-8)
+// relMSE 4.2e-3 mean, 7.0e-3 worst, against 8.2e-3 and 1.8e-2, for 1.72x the CPU (error x time
+// 0.87x); room-242 (a photographed sky through a window; seeds 7-15, the balance chose 505-773
+// rays there) 4.44e-4 against 4.59e-4 for 1.13x the CPU (error x time 1.09x, its reference's own
+// error 2.25e-4 included).
+constexpr double kThreeLevelsMinRayShare = 0.5;
+inline int ThreeLevelsRecordRays(int chosen, int settings_rays) {
+  return std::max(chosen, int(std::lround(kThreeLevelsMinRayShare * settings_rays)));
 }
 
 // A path tracer instead of the cache, for an image that will be denoised (`irfarm render
