@@ -216,7 +216,8 @@ inline bool ThreeLevelsPay(uint64_t secondary_records, uint64_t heavy_records, f
 // relMSE 4.2e-3 mean, 7.0e-3 worst, against 8.2e-3 and 1.8e-2, for 1.72x the CPU (error x time
 // 0.87x); room-242 (a photographed sky through a window; seeds 7-15, the balance chose 505-773
 // rays there) 4.44e-4 against 4.59e-4 for 1.13x the CPU (error x time 1.09x, its reference's own
-// error 2.25e-4 included).
+// error 2.25e-4 included); veach-ajar at 640 x 360 (seeds 7-10, box-filtered to the reference's
+// size) 2.7e-3 mean, 2.9e-3 worst, against 3.9e-3 and 4.9e-3 for 1.51x the CPU (1.06x).
 constexpr double kThreeLevelsMinRayShare = 0.5;
 inline int ThreeLevelsRecordRays(int chosen, int settings_rays) {
   return std::max(chosen, int(std::lround(kThreeLevelsMinRayShare * settings_rays)));
