@@ -338,7 +338,7 @@ TEST(RecordBalanceTest, ThePilotChoosesTheCacheLevels) {
             kTwoLevelsPilotRatio * chosen.stats.balance.one_level_sampling_error);
   EXPECT_GT(chosen.stats.balance.secondary_heavy_share, kThreeLevelsHeavyShare);
   // With three levels, at least half the settings' rays (ThreeLevelsRecordRays; the model alone
-  // chose 250-430 of 1536 on veach-ajar at full size).
+  // chose 325-472 of 1536 on veach-ajar at full size).
   EXPECT_GE(chosen.stats.balance.record_rays, settings.irrcache.record_rays / 2);
   RecordProperty("veach_three_levels_rays", std::to_string(chosen.stats.balance.record_rays));
   // The images at the levels chosen and at one level, both at the default rays: the pilot's rays
