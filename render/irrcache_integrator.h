@@ -130,6 +130,16 @@ struct IrrcacheSettings {
   // given (scene, --cache-levels, the job's settings); --target-error chooses one or two.
   int cache_levels = 1;
   bool choose_cache_levels = true;
+  // The two-level pilot stops, and one level is kept, once its pixels have taken this many times
+  // the one-level pilot's thread time. Where two levels lose for being dear - a cluttered scene,
+  // whose every record makes many secondary records of its own - the pilot is dear for the same
+  // reason: living-room's took 2.4-2.6 thread-s against 0.37-0.44 s for the one-level pilot
+  // (6-6.5x), and two levels lost there on every seed. Where two levels were taken it cost
+  // 0.9-2.0x (seed 8: cornell-box 1.65, sunlit-room 1.5, thin-panels 1.6, room-a 1.12, room-b
+  // 1.78, room-d 1.51, veach-ajar 2.0, make_room 931 and 940 1.08, 961 0.9-1.0, specular
+  // 1.15-1.18). The recorded pilots of Mitsuba's layered_kitchen, where two levels lose 1.62x:
+  // the two-level record time 4.7x the one-level one (veach-ajar 1.8x, make_room 602 0.8x).
+  double two_level_pilot_cost_cap = 3.0;
   // With an environment map, a record also samples the map by its radiance (next-event samples,
   // each a shadow ray), weighed against its strata's rays by the balance heuristic (MIS): a bright
   // patch of the map (the sun's disc, a lamp in a studio map) is then found by many samples

@@ -3,6 +3,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <vector>
 
 #include "render/final_pass.h"
@@ -57,9 +58,12 @@ void SamplePixel(const IrrcacheIntegrator& integrator, const Camera& cam, int x,
 // a blotch by the lamp; 2.5e-4 again with the same pilot kept apart). They are made with a
 // quarter of the rays (their noise and time scaled back to the settings' rays: noise ~ 1 / rays,
 // time ~ rays), so the pilot costs about 64 records of the render's.
+// With time_cap > 0, pixels not yet started once the pilot's thread time has passed time_cap are
+// skipped, and the result is `capped` (its figures are not to be used).
 BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settings,
                                 const PixelRect& rect, tbb::task_arena& arena,
-                                tbb::enumerable_thread_specific<RenderCounters>& counters) {
+                                tbb::enumerable_thread_specific<RenderCounters>& counters,
+                                double time_cap = 0) {
   constexpr int kPilotPixels = 256, kPilotSamples = 16;
   const Camera& cam = scene.camera();
   const int light_samples = std::max(1, settings.irrcache.light_samples);
@@ -81,8 +85,14 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
       double(full.strata_theta() * full.strata_phi()) /
       double(std::max(1, integrator.strata_theta() * integrator.strata_phi()));
   SampleFilm film(kPilotPixels, integrator.ratio_slots());
+  std::atomic<int64_t> spent_ns{0};  // the pixels' thread time so far
+  std::atomic<bool> capped{false};
   arena.execute([&] {
     tbb::parallel_for(0, kPilotPixels, [&](int i) {
+      if (time_cap > 0 && double(spent_ns.load(std::memory_order_relaxed)) * 1e-9 > time_cap) {
+        capped.store(true, std::memory_order_relaxed);
+        return;
+      }
       RenderCounters& c = counters.local();
       Rng rng(HashCombine(settings.seed, uint64_t(i)), kStreamPilot);
       int x, y;
@@ -99,8 +109,16 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
       const double made = c.record_seconds - made_before;
       sample_seconds[size_t(i)] = std::max(0.0, ThreadCpuSeconds() - t1 - made);
       record_seconds[size_t(i)] += made;
+      spent_ns.fetch_add(int64_t((ThreadCpuSeconds() - t0) * 1e9), std::memory_order_relaxed);
     });
   });
+  if (capped.load()) {
+    BalanceResult r;
+    r.record_rays = settings.irrcache.record_rays;
+    r.pilot_seconds = double(spent_ns.load()) * 1e-9;
+    r.capped = true;
+    return r;
+  }
   for (int i = 0; i < kPilotPixels; ++i) {
     PilotPixel& px = pilot.pixels[size_t(i)];
     px.sampling_error =
@@ -127,7 +145,9 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
   in.min_spp = settings.min_spp;
   in.max_spp = settings.spp;
   in.sampling_goal = settings.sampling_error;
-  return ChooseRecordRays(pilot, in);
+  BalanceResult r = ChooseRecordRays(pilot, in);
+  r.pilot_seconds = double(spent_ns.load()) * 1e-9;
+  return r;
 }
 
 }  // namespace
@@ -181,8 +201,14 @@ BalanceResult PilotSettings(const Scene& scene, const RenderSettings& settings,
     return t;
   };
   const RenderCounters before = total();
-  BalanceResult b2 = BalanceRecordRays(scene, two, rect, arena, counters);
+  BalanceResult b2 =
+      BalanceRecordRays(scene, two, rect, arena, counters,
+                        settings.irrcache.two_level_pilot_cost_cap * b.pilot_seconds);
   const RenderCounters after = total();
+  if (b2.capped) {  // two levels would cost what their pilot did: one level
+    b.two_level_pilot_capped = true;
+    return b;
+  }
   const uint64_t made = after.records_secondary - before.records_secondary;
   const uint64_t heavy = after.records_secondary_heavy - before.records_secondary_heavy;
   b.secondary_heavy_share = made > 0 ? double(heavy) / double(made) : 0.0;

@@ -67,6 +67,12 @@ struct BalanceResult {
   // The two-level pilot's share of secondary records with one ray bringing more than
   // kHeavyRayShare of their sum (ThreeLevelsPay); -1 where no two-level pilot ran.
   double secondary_heavy_share = -1;
+  // This pilot's own thread time (its records and camera samples, unscaled).
+  double pilot_seconds = 0;
+  // The pilot stopped at its time cap (BalanceRecordRays) before all its pixels were done: its
+  // figures are not to be used. For a render: whether the two-level pilot did.
+  bool capped = false;
+  bool two_level_pilot_capped = false;
 };
 
 // Records per pixel, as a factor on the plain tiling by the pilot records' validity areas
@@ -151,7 +157,11 @@ inline bool PrefersTwoLevels(const BalanceResult& one_level) {
 // two levels measured 0.18-0.94, 1.16-1.41 on room-c (measured 0.95-1.08), 1.22-2.63 where they
 // lose (living-room 1.20-1.25, the kitchen 1.45-1.62, the shoes 1.14-1.20), and 0.05-0.06 on the
 // one miss, room-503 (measured 1.03-1.11).
-constexpr double kTwoLevelsPilotRatio = 1.0;
+// Since later on 2026-12-06 the gate is 0.5, with the second pilot capped in time
+// (IrrcacheSettings::two_level_pilot_cost_cap): make_room 961 (a closed glossy room lit by bulbs;
+// N/S 0.57-0.85) and specular (0.74-0.93) flipped between one level and two with the seed, and two
+// are 1.3x and 1.1-1.2x better in error x time there (docs/bench/two-level-gate-2026-12-06).
+constexpr double kTwoLevelsPilotRatio = 0.5;
 inline bool MayPreferTwoLevels(const BalanceResult& one_level) {
   return one_level.record_noise > kTwoLevelsPilotRatio * one_level.sampling_error;
 }

@@ -165,6 +165,7 @@ std::string RenderStats::ToJson() const {
                            {"pilot_records", balance.pilot_records},
                            {"cache_levels", balance.cache_levels},
                            {"secondary_heavy_share", balance.secondary_heavy_share},
+                           {"two_level_pilot_capped", balance.two_level_pilot_capped},
                            {"one_level_record_noise_relmse", balance.one_level_record_noise},
                            {"one_level_sampling_relmse", balance.one_level_sampling_error}};
   if (integrator_chosen)

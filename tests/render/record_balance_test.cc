@@ -139,8 +139,12 @@ TEST(RecordBalanceTest, TwoLevelsWhereThePilotsPredictThemCheaper) {
   EXPECT_FALSE(TwoLevelsPay(kitchen1, kitchen2, 1536));
   // The same figures with the second level's records as cheap as the first level's: two pay.
   EXPECT_TRUE(TwoLevelsPay(kitchen1, Figures(352, 2.96e-3, 1.24e-3, 8.88, 2.02), 1536));
-  // living-room: its samples' error dominates; no second pilot.
-  EXPECT_FALSE(MayPreferTwoLevels(Figures(424, 4.09e-3, 7.18e-3, 68.5, 11.8)));
+  // living-room (N/S 0.57): a second pilot runs since the gate went to 0.5, and its cost stops it
+  // (ADearTwoLevelPilotStopsAndKeepsOneLevel).
+  EXPECT_TRUE(MayPreferTwoLevels(Figures(424, 4.09e-3, 7.18e-3, 68.5, 11.8)));
+  // make_room 962 (glass and rough plastic; N/S 0.27): the samples' error dominates; no second
+  // pilot.
+  EXPECT_FALSE(MayPreferTwoLevels(Figures(395, 1.85e-4, 6.84e-4, 17.0, 4.74)));
   // A pilot that measured nothing never decides for two levels.
   EXPECT_FALSE(TwoLevelsPay(veach1, BalanceResult{}, 1536));
   EXPECT_FALSE(TwoLevelsPay(BalanceResult{}, veach2, 1536));
@@ -369,6 +373,26 @@ TEST(RecordBalanceTest, ThePilotChoosesTheCacheLevels) {
   EXPECT_EQ(room.stats.balance.cache_levels, 2);
   EXPECT_GE(room.stats.balance.secondary_heavy_share, 0.0);
   EXPECT_LT(room.stats.balance.secondary_heavy_share, kThreeLevelsHeavyShare);
+}
+
+// The two-level pilot stops at its time cap (IrrcacheSettings::two_level_pilot_cost_cap, a
+// multiple of the one-level pilot's thread time) and one level is kept: room-b, which takes two
+// levels, keeps one when the cap is a hundredth of the one-level pilot's time, and takes two again
+// at the default cap, its second pilot uncapped.
+TEST(RecordBalanceTest, ADearTwoLevelPilotStopsAndKeepsOneLevel) {
+  const LoadedScene room = LoadQuarter("room-b");
+  RenderSettings settings = *SettingsForScene(room.desc, "irrcache");
+  settings.seed = 3;
+  const RenderOutput free = Render(*room.scene, settings);
+  ASSERT_TRUE(free.stats.balanced);
+  EXPECT_EQ(free.stats.cache_levels, 2);
+  EXPECT_FALSE(free.stats.balance.two_level_pilot_capped);
+  settings.irrcache.two_level_pilot_cost_cap = 0.01;
+  const RenderOutput capped = Render(*room.scene, settings);
+  ASSERT_TRUE(capped.stats.balanced);
+  EXPECT_TRUE(capped.stats.balance.two_level_pilot_capped);
+  EXPECT_EQ(capped.stats.balance.cache_levels, 1);
+  EXPECT_EQ(capped.stats.cache_levels, 1);
 }
 
 // The rule itself: a quarter of the secondary records made of one ray's light, at the default
