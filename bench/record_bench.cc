@@ -17,7 +17,7 @@
 // (`non_embree_budget_us_at_0.8`: the replay's time for its rays x (1 / 0.8 - 1)) beside what the
 // Hessian spacing alone costs it (`hessian_us_per_record`: the same records timed with Ward's
 // split-sphere spacing, alternately, subtracted).
-// Run: build/bench/bench_record (one thread; the two loops alternate within each iteration, timed
+// Run: build/bench/bench_record (one thread; the loops alternate within each iteration, timed
 // in thread CPU time).
 #include <benchmark/benchmark.h>
 
@@ -155,6 +155,16 @@ uint64_t TracePackets(RTCScene scene, const std::vector<RTCRayHit>& rays) {
   return hits;
 }
 
+// Makes one record at each of the fixture's points with `integrator`; returns the thread time.
+double MakeRecords(const Fixture& f, const IrrcacheIntegrator& integrator, Rng& rng,
+                   RenderCounters& counters) {
+  const double t0 = ThreadSeconds();
+  for (const RecordPoint& p : f.points)
+    benchmark::DoNotOptimize(
+        integrator.ComputeRecord(p.hit, p.nf, 1, p.pixel_spread, rng, counters));
+  return ThreadSeconds() - t0;
+}
+
 void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
   const std::unique_ptr<Fixture> f = MakeFixture(name, 12);
   if (!f || f->points.empty()) return state.SkipWithError("cannot load the scene");
@@ -175,17 +185,9 @@ void BM_RecordVsBareEmbree(benchmark::State& state, const char* name) {
   Rng split_rng(1, 2);
   double split_seconds = 0;
   for (auto _ : state) {
-    const double ts = ThreadSeconds();
-    for (const RecordPoint& p : f->points) {
-      benchmark::DoNotOptimize(split_integrator.ComputeRecord(p.hit, p.nf, 1, p.pixel_spread,
-                                                              split_rng, split_counters));
-    }
-    split_seconds += ThreadSeconds() - ts;
+    split_seconds += MakeRecords(*f, split_integrator, split_rng, split_counters);
     const double t0 = ThreadSeconds();
-    for (const RecordPoint& p : f->points) {
-      benchmark::DoNotOptimize(
-          integrator.ComputeRecord(p.hit, p.nf, 1, p.pixel_spread, rng, counters));
-    }
+    MakeRecords(*f, integrator, rng, counters);
     const double t1 = ThreadSeconds();
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
@@ -265,12 +267,7 @@ void BM_RecordsOnly(benchmark::State& state, const char* name) {
   IrrcacheIntegrator integrator(*f->scene, nullptr, f->settings.irrcache);
   RenderCounters counters;
   Rng rng(1, 2);
-  for (auto _ : state) {
-    for (const RecordPoint& p : f->points) {
-      benchmark::DoNotOptimize(
-          integrator.ComputeRecord(p.hit, p.nf, 1, p.pixel_spread, rng, counters));
-    }
-  }
+  for (auto _ : state) MakeRecords(*f, integrator, rng, counters);
   state.counters["us_per_record"] = benchmark::Counter(
       double(counters.records_computed), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
   state.counters["record_rays"] = double(counters.record_rays) / double(counters.records_computed);
