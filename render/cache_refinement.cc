@@ -39,9 +39,9 @@ CacheRefinement::CacheRefinement(const RefinementStart& start) : start_(start) {
   // the start the coarsest cache is more accurate, and easy scenes ended below E/2
   // (2026-12-03, seed 7, E = 4e-3 and 1e-3 on eight shared scenes and six unseen rooms,
   // against the truth: 17 of 28 in [E/2, 2E] at factor 1.5, 22 of 28 with the model's
-  // constant recalibrated to 1.5e-4, 25 of 28 at factor 1; README, "Wider lookups"). Each
-  // round's checks also measure the settings' wider lookups; where the cache is above its
-  // share, mostly by its records' noise, and they measure lower but not below the
+  // constant recalibrated to 1.5e-4, 25 of 28 at factor 1; docs/guide/irradiance-cache.md, "Wider
+  // lookups"). Each round's checks also measure the settings' wider lookups; where the cache is
+  // above its share, mostly by its records' noise, and they measure lower but not below the
   // refinement's aim (0.8 of the share, below: the calibrated rounds get there without
   // overshooting), the render takes them from then on.
   lookup_factor_ = 1;

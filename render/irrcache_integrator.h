@@ -43,12 +43,13 @@ inline const char* RecordSpacingName(RecordSpacing s) {
 }
 
 struct IrrcacheSettings {
-  float accuracy = 0.1f;   // Ward's a: records count when eps_i < a (RADIANCE rtrace -aa 0.1)
-  int record_rays = 1536;  // rays per record, T x P with P ~ pi T (measured: see README)
-  int light_samples = 1;   // direct-light samples per shading point and camera sample
+  float accuracy = 0.1f;  // Ward's a: records count when eps_i < a (RADIANCE rtrace -aa 0.1)
+  // Rays per record, T x P with P ~ pi T (measured: docs/guide/irradiance-cache.md).
+  int record_rays = 1536;
+  int light_samples = 1;  // direct-light samples per shading point and camera sample
   // Hessian by default since the wider camera lookups (lookup_factor): at equal records it halves
   // the cache's own error against the split sphere's on all eight indirect-only scenes; the split
-  // sphere stays for comparison (README "Hessian spacing").
+  // sphere stays for comparison (docs/guide/irradiance-cache.md, "Hessian spacing").
   RecordSpacing spacing = RecordSpacing::kHessian;
   // Lookups take the value of the plane fitted to the records that count (weighted least
   // squares, Ward's weights; CacheSettings::linear_fit, cache/local_linear_fit.h) instead of
@@ -71,7 +72,8 @@ struct IrrcacheSettings {
   // a room lit by a small bright patch of ceiling). 1 = Ward's rule. The wider answer is taken
   // only where its luminance is within lookup_agreement of the answer of the records at a alone:
   // a larger difference is structure, not noise (the dark gap between a lamp and the ceiling, the
-  // foot of a panel), and the records at a answer there. Measured: README, "Wider lookups".
+  // foot of a panel), and the records at a answer there. Measured: docs/guide/irradiance-cache.md,
+  // "Wider lookups".
   float lookup_factor = 1.5f;
   float lookup_agreement = 0.25f;
   // Neighbour clamping of record radii (CacheSettings::neighbour_slope): R_i <= R_j + 3 |x_i -

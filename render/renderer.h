@@ -71,14 +71,14 @@ struct RenderSettings {
   bool splat = true;
   // irrcache: caustics from a photon map where the scene has any (render/caustic_map.h). On by
   // default: on specular it takes a quarter off the error for an eighth more time, and a scene
-  // without mirrors or smooth glass lit by an area light skips it (README).
+  // without mirrors or smooth glass lit by an area light skips it (docs/guide/irradiance-cache.md).
   bool caustics = true;
   // The image will be denoised (`irfarm render --denoise`; the service's workers leave it off,
-  // see README "Path for a denoised image"). With choose_integrator as well (the user named no
-  // integrator), an irrcache render at default
-  // settings runs a path pilot beside its own and renders with path instead where the two
-  // pilots predict it the better once denoised (ChooseForDenoising, record_balance.h): at the
-  // samples per pixel that take the cache's predicted time, not adaptive.
+  // see docs/guide/denoising.md, "Path for a denoised image"). With choose_integrator as well (the
+  // user named no integrator), an irrcache render at default settings runs a path pilot beside its
+  // own and renders with path instead where the two pilots predict it the better once denoised
+  // (ChooseForDenoising, record_balance.h): at the samples per pixel that take the cache's
+  // predicted time, not adaptive.
   bool denoise = false;
   bool choose_integrator = false;
   // The smallest image (pixels of the rect) it chooses for (kPathChoiceMinPixels); the tests

@@ -927,7 +927,7 @@ absl::Status Parser::ParseFilm(pugi::xml_node n) {
       // catmullrom, 0.406 for lanczos with 3 lobes) instead, said once; the parameters are still
       // checked. No positive filter makes their ringing at sharp edges: against Mitsuba's own
       // image with the original filter, cornell-box (256 x 256) differs by relMSE 2.3e-3, 5.1e-3
-      // and 1.5e-2 (README).
+      // and 1.5e-2 (docs/guide/film-filters.md).
       LOADER_RETURN_IF_ERROR(GetFloat(fp, "B", 1.0f / 3).status());
       LOADER_RETURN_IF_ERROR(GetFloat(fp, "C", 1.0f / 3).status());
       LOADER_RETURN_IF_ERROR(GetInt(fp, "lobes", 3).status());

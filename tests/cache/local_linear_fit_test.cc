@@ -98,7 +98,7 @@ Errors Trials(unsigned seed, int n, double slope, double noise) {
 // Noise with no trend: the unshrunk fit turns the noise into a slope and extrapolates it; the
 // shrunk fit keeps less of it. (From eight records on one side it still loses to the weighted
 // mean, about 4x here: extrapolating is the price of taking the one-sided bias off; measured in
-// renders, see README "Linear fit".)
+// renders, see docs/guide/irradiance-cache.md, "Linear fit".)
 TEST(LocalLinearFitTest, ShrinksASlopeThatIsOnlyNoise) {
   const Errors e = Trials(5, 8, 0, 0.1);
   EXPECT_LT(e.fit, 0.7 * e.plain);  // 0.58 measured

@@ -114,7 +114,8 @@ TEST(AovTest, AlbedoSeenThroughAMirrorIsTintedByIt) {
 // albedo made of diffuse albedos alone would be 0 (it was, before 2026-12-06). irrcache's albedo
 // AOV is the metal's directional albedo, int f(wo, wi) cos(theta_i) dwi, here taken by
 // quadrature of the BSDF's Eval (the AOV estimates it from glossy samples' weights: Sample and
-// Pdf). `path` keeps the diffuse albedos (README, "The albedo of glossy surfaces").
+// Pdf). `path` keeps the diffuse albedos (docs/guide/denoising.md, "The albedo of glossy
+// surfaces").
 TEST(AovTest, AlbedoOfARoughMetalIsItsDirectionalAlbedo) {
   const std::string xml = R"(<scene version="3.0.0">
   <sensor type="perspective">
