@@ -3,6 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+
+#include "render/emitters/registry.h"
 
 namespace irfarm {
 namespace {
@@ -28,20 +31,9 @@ float EmitterIrradianceBound(const SceneDesc& desc) {
   for (const ShapeDesc& s : desc.shapes)
     if (s.area_radiance) direct += kPi * std::max(0.0f, MaxComponent(*s.area_radiance));
   for (const EmitterDesc& e : desc.emitters) {
-    switch (e.type) {
-      case EmitterType::kPoint:
-      case EmitterType::kSpot:
-        direct += std::max(0.0f, MaxComponent(e.intensity)) / (double(d_min) * d_min);
-        break;
-      case EmitterType::kDirectional:
-        direct += std::max(0.0f, MaxComponent(e.irradiance));
-        break;
-      case EmitterType::kConstant:
-        direct += kPi * std::max(0.0f, MaxComponent(e.radiance));
-        break;
-      case EmitterType::kEnvmap:
-        return std::numeric_limits<float>::max();
-    }
+    const EmitterPlugin* plugin = FindEmitterPlugin(e.type);
+    if (plugin == nullptr) return std::numeric_limits<float>::max();
+    direct += plugin->irradiance_bound(e, double(d_min));
   }
   const double bound = direct * kInterreflectionFactor;
   if (!(bound < double(std::numeric_limits<float>::max())))

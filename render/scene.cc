@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cstring>
 
+#include "absl/strings/str_cat.h"
 #include "render/bsdfs/registry.h"
+#include "render/emitters/registry.h"
 #include "render/sampling.h"
 
 namespace irfarm {
@@ -142,22 +144,6 @@ Light MakeAreaLight(const MeshView& m, const Vec3& radiance, unsigned geom) {
   }
   l.tree.Build(l.triangles, Luminance(l.radiance));
   return l;
-}
-
-// Mean radiance of an environment map over the sphere (for light selection weights).
-Vec3 AverageRadiance(const Light& l) {
-  constexpr int kN = 64;
-  Vec3 sum;
-  double wsum = 0;
-  for (int j = 0; j < kN; ++j) {
-    const float theta = (j + 0.5f) * kPi / kN;
-    const float w = std::sin(theta);
-    for (int i = 0; i < 2 * kN; ++i) {
-      sum += l.envmap->EvalLatLong((i + 0.5f) / (2 * kN), (j + 0.5f) / kN) * (w * l.scale);
-      wsum += w;
-    }
-  }
-  return sum / float(wsum);
 }
 
 }  // namespace
@@ -323,55 +309,14 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc,
   std::vector<Light> local = std::move(area_lights);
   std::vector<Light> env;
   for (const EmitterDesc& e : desc.emitters) {
-    Light l;
-    switch (e.type) {
-      case EmitterType::kPoint:
-        l.type = LightType::kPoint;
-        l.position = e.position;
-        l.intensity = e.intensity;
-        break;
-      case EmitterType::kSpot: {
-        l.type = LightType::kSpot;
-        l.position = e.position;
-        l.direction = Normalize(e.direction);
-        l.intensity = e.intensity;
-        const float cutoff = e.cutoff_angle_deg * kPi / 180, beam = e.beam_width_deg * kPi / 180;
-        l.cutoff = cutoff;
-        l.cos_cutoff = std::cos(cutoff);
-        l.cos_beam = std::cos(beam);
-        l.inv_transition = cutoff > beam ? 1 / (cutoff - beam) : 0;
-        break;
-      }
-      case EmitterType::kDirectional:
-        l.type = LightType::kDirectional;
-        l.direction = Normalize(e.direction);
-        l.intensity = e.irradiance;
-        break;
-      case EmitterType::kConstant:
-        l.type = LightType::kConstant;
-        l.radiance = e.radiance;
-        break;
-      case EmitterType::kEnvmap: {
-        l.type = LightType::kEnvmap;
-        TextureDesc td;
-        td.filename = e.filename;
-        td.raw = true;
-        td.loc = e.loc;
-        absl::StatusOr<Texture> tex = Texture::Load(td);
-        if (!tex.ok()) return tex.status();
-        s->textures_.push_back(std::make_unique<Texture>(std::move(*tex)));
-        l.envmap = s->textures_.back().get();
-        l.world_to_env = e.to_world.Inverse();
-        l.scale = e.scale;
-        break;
-      }
+    const EmitterPlugin* plugin = FindEmitterPlugin(e.type);
+    if (plugin == nullptr || plugin->build == nullptr) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(e.loc.file, ":", e.loc.line, ": no light for emitter type '", e.type, "'"));
     }
-    if (l.IsEnvironment()) {
-      l.average_radiance = l.type == LightType::kConstant ? l.radiance : AverageRadiance(l);
-      env.push_back(l);
-    } else {
-      local.push_back(l);
-    }
+    absl::StatusOr<Light> l = plugin->build(e, &s->textures_);
+    if (!l.ok()) return l.status();
+    (l->IsEnvironment() ? env : local).push_back(*std::move(l));
   }
   const int num_local = int(local.size());
   for (Light& l : env) local.push_back(l);

@@ -139,15 +139,13 @@ struct ShapeDesc {
   SourceLoc loc;
 };
 
-enum class EmitterType { kPoint, kSpot, kDirectional, kConstant, kEnvmap };
-
 struct EmitterDesc {
-  EmitterType type = EmitterType::kPoint;
+  std::string type;          // the XML type: its plugin (render/emitters/registry.h)
   Vec3 position;             // point, spot (world)
   Vec3 direction{0, 0, 1};   // directional, spot: the direction light travels (unit, world)
   Vec3 intensity{1, 1, 1};   // point, spot: W/sr
   Vec3 irradiance{1, 1, 1};  // directional: W/m^2 on a perpendicular surface
-  Vec3 radiance{1, 1, 1};    // constant
+  Vec3 radiance{1, 1, 1};    // constant, area
   float cutoff_angle_deg = 20, beam_width_deg = 15;  // spot (Mitsuba defaults 20 and 15)
   std::string filename;                              // envmap (lat-long EXR/PNG), resolved path
   Mat4 to_world;                                     // envmap

@@ -30,9 +30,10 @@
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "render/bsdfs/registry.h"
+#include "render/emitters/registry.h"
 #include "render/mesh_loader.h"
 #include "render/parse_number.h"
-#include "render/serialized_mesh.h"
+#include "render/shapes/registry.h"
 #include "render/spectrum.h"
 
 #define LOADER_RETURN_IF_ERROR(expr)   \
@@ -182,12 +183,18 @@ class Parser {
   absl::Status ParseSampler(pugi::xml_node n);
   class BsdfReader;
   friend class BsdfReader;
+  class ShapeReader;
+  friend class ShapeReader;
   absl::StatusOr<BsdfDesc> ParseBsdf(pugi::xml_node n);
   absl::StatusOr<int> AddBsdf(pugi::xml_node n, BsdfDesc bsdf);
   absl::StatusOr<int> ParseTexture(pugi::xml_node n);
   absl::Status ParseShape(pugi::xml_node n);
   absl::Status ParseShapeGroup(pugi::xml_node n);
   absl::Status ParseInstance(pugi::xml_node n);
+  class EmitterReader;
+  friend class EmitterReader;
+  absl::StatusOr<const EmitterPlugin*> EmitterPluginOf(pugi::xml_node n) const;
+  absl::StatusOr<EmitterDesc> ParseEmitterDesc(pugi::xml_node n, const EmitterPlugin& plugin);
   absl::StatusOr<Vec3> ParseAreaEmitter(pugi::xml_node n);
   absl::Status ParseEmitter(pugi::xml_node n);
 
@@ -222,6 +229,7 @@ class Parser {
   Mat4 World(const std::optional<Mat4>& to_world) const {
     return recentre_ * to_world.value_or(Mat4());
   }
+  Mat4 World(const Mat4& m) const { return recentre_ * m; }
   // The point `name` (point, vector or three numbers) in double, if given.
   absl::StatusOr<std::optional<std::array<double, 3>>> GetPoint(Params& p,
                                                                 absl::string_view name) const;
@@ -1183,6 +1191,38 @@ absl::Status Parser::ParseInstance(pugi::xml_node n) {
   return RegisterId(n, "shape", -1);
 }
 
+// A shape plugin's view of its element's parameters (render/shapes/registry.h).
+class Parser::ShapeReader final : public ShapeParams {
+ public:
+  ShapeReader(Parser& parser, Params& params) : parser_(parser), p_(params) {}
+
+  absl::StatusOr<float> Float(absl::string_view name, float def) override {
+    return parser_.GetFloat(p_, name, def);
+  }
+  absl::StatusOr<int> Int(absl::string_view name, int def) override {
+    return parser_.GetInt(p_, name, def);
+  }
+  absl::StatusOr<bool> Bool(absl::string_view name, bool def) override {
+    return parser_.GetBool(p_, name, def);
+  }
+  absl::StatusOr<std::optional<std::array<double, 3>>> Point(absl::string_view name) override {
+    return parser_.GetPoint(p_, name);
+  }
+  absl::StatusOr<std::string> File(absl::string_view name) override {
+    return parser_.GetFile(p_, name);
+  }
+  absl::Status Error(absl::string_view name, absl::string_view what) const override {
+    return parser_.Error(parser_.NodeOf(p_, name), what);
+  }
+  absl::Status ElementError(const absl::Status& s, absl::string_view what) const override {
+    return absl::Status(s.code(), absl::StrCat(parser_.Where(p_.node), what, s.message()));
+  }
+
+ private:
+  Parser& parser_;
+  Params& p_;
+};
+
 absl::Status Parser::ParseShape(pugi::xml_node n) {
   LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
   if (type == "shapegroup") return ParseShapeGroup(n);
@@ -1190,10 +1230,14 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     if (shape_sink_) return Error(n, "an instance cannot be part of a shapegroup");
     return ParseInstance(n);
   }
-  LOADER_RETURN_IF_ERROR(PluginType(n, "shape",
-                                    {"obj", "ply", "serialized", "rectangle", "cube", "sphere",
-                                     "disk", "cylinder", "shapegroup", "instance"})
-                             .status());
+  const ShapePlugin* plugin = FindShapePlugin(type);
+  if (plugin == nullptr) {
+    std::vector<std::string> names = ShapePluginNames();
+    names.emplace_back("shapegroup");
+    names.emplace_back("instance");
+    return Error(n, absl::StrCat("unknown shape type '", type,
+                                 "' (supported: ", absl::StrJoin(names, ", "), ")"));
+  }
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "shape"));
   ShapeDesc s;
   LOADER_ASSIGN_OR_RETURN(s.id, Attr(n, "id"));
@@ -1201,36 +1245,8 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
   LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world_opt, GetTransform(p, "to_world"));
   const Mat4 to_world = World(to_world_opt);
   LOADER_ASSIGN_OR_RETURN(s.flip_normals, GetBool(p, "flip_normals", false));
-  bool face_normals = false, flip_tex_coords = true;
-  std::string filename;
-  std::array<double, 3> center{0, 0, 0};           // double: it may be far from the origin
-  std::array<double, 3> p0{0, 0, 0}, p1{0, 0, 1};  // cylinder
-  float radius = 1;
-  int shape_index = 0;  // serialized
-  if (type == "sphere") {
-    s.type = ShapeType::kSphere;
-    LOADER_ASSIGN_OR_RETURN(const auto c, GetPoint(p, "center"));
-    if (c) center = *c;
-    LOADER_ASSIGN_OR_RETURN(radius, GetFloat(p, "radius", 1));
-  } else {
-    LOADER_ASSIGN_OR_RETURN(face_normals, GetBool(p, "face_normals", false));
-    if (type == "obj" || type == "ply" || type == "serialized") {
-      LOADER_ASSIGN_OR_RETURN(filename, GetFile(p, "filename"));
-    }
-    if (type == "serialized") {
-      LOADER_ASSIGN_OR_RETURN(shape_index, GetInt(p, "shape_index", 0));
-    }
-    if (type == "cylinder") {
-      LOADER_ASSIGN_OR_RETURN(const auto a, GetPoint(p, "p0"));
-      LOADER_ASSIGN_OR_RETURN(const auto b, GetPoint(p, "p1"));
-      if (a) p0 = *a;
-      if (b) p1 = *b;
-      LOADER_ASSIGN_OR_RETURN(radius, GetFloat(p, "radius", 1));
-    }
-    if (type == "obj") {
-      LOADER_ASSIGN_OR_RETURN(flip_tex_coords, GetBool(p, "flip_tex_coords", true));
-    }
-  }
+  ShapeReader reader(*this, p);
+  LOADER_ASSIGN_OR_RETURN(ShapeGeometry g, plugin->parse(reader));
 
   const std::vector<const Entry*> emitters = TakeObjects(p, "emitter");
   const std::vector<const Entry*> bsdfs = TakeObjects(p, "bsdf");
@@ -1268,71 +1284,26 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
   }
   LOADER_RETURN_IF_ERROR(Finish(p));
 
-  const double det = to_world.Determinant3();
-  if (s.type == ShapeType::kSphere) {
-    if (!(radius > 0)) {
-      return Error(NodeOf(p, "radius"),
-                   absl::StrCat("sphere radius must be positive, got ", radius));
-    }
+  if (g.sphere) {
+    s.type = ShapeType::kSphere;
+    const double det = to_world.Determinant3();
     if (det == 0) return Error(NodeOf(p, "to_world"), "the sphere's to_world is singular");
-    s.center = (to_world * Mat4::Translate(center[0], center[1], center[2])).ApplyPoint(Vec3(0.0f));
-    s.radius = float(radius * std::cbrt(std::abs(det)));
+    s.center =
+        (to_world * Mat4::Translate(g.center[0], g.center[1], g.center[2])).ApplyPoint(Vec3(0.0f));
+    s.radius = float(g.radius * std::cbrt(std::abs(det)));
   } else {
-    // A cylinder is Mitsuba's unit tube (radius 1, z in [0, 1]) placed by to_world, then p0 at the
-    // origin, the axis p1 - p0 along z in Mitsuba's frame of it (which fixes where u = 0 is), and
-    // scaled by the radius and length.
-    Mat4 mesh_to_world = to_world;
-    int rings = 1;
-    if (type == "cylinder") {
-      const Vec3 axis(float(p1[0] - p0[0]), float(p1[1] - p0[1]), float(p1[2] - p0[2]));
-      const float length = Length(axis);
-      if (!(radius > 0) || !(length > 0) || !std::isfinite(radius) || !std::isfinite(length)) {
-        return Error(n, absl::StrCat("cylinder needs a positive radius and p0 != p1 (radius ",
-                                     radius, ", length ", length, ")"));
-      }
-      rings = CylinderRings(length, float(radius));
-      Vec3 sx, sy;
-      const Vec3 sz = axis / length;
-      MakeFrame(sz, &sx, &sy);
-      Mat4 frame;
-      for (int r = 0; r < 3; ++r) {
-        frame.m[r][0] = sx[r];
-        frame.m[r][1] = sy[r];
-        frame.m[r][2] = sz[r];
-      }
-      mesh_to_world = to_world * Mat4::Translate(p0[0], p0[1], p0[2]) * frame *
-                      Mat4::Scale(radius, radius, length);
-    }
-    absl::StatusOr<TriangleMesh> mesh;
-    if (type == "obj") mesh = LoadObjMesh(filename, flip_tex_coords);
-    if (type == "ply") mesh = LoadPlyMesh(filename);
-    if (type == "serialized") mesh = LoadSerializedMesh(filename, shape_index);
-    if (type == "cylinder") mesh = MakeCylinderMesh(kCylinderSegments, rings);
-    if (type == "rectangle") mesh = MakeRectangleMesh();
-    if (type == "cube") mesh = MakeCubeMesh();
-    if (type == "disk") mesh = MakeDiskMesh(128);
-    if (!mesh.ok()) {
-      return absl::Status(mesh.status().code(),
-                          absl::StrCat(Where(n), "mesh ", mesh.status().message()));
-    }
-    s.mesh = *std::move(mesh);
+    const Mat4 mesh_to_world = to_world * g.placement;
+    s.mesh = std::move(g.mesh);
     TransformMesh(mesh_to_world, &s.mesh);
-    // Mitsuba's rectangle and disk are analytic: their normal is to_world's normal transform of
-    // +z even when to_world mirrors, so the triangles must turn with it; a cylinder's faces out
-    // (Mitsuba keeps only its rotation). Meshes keep their order.
-    if ((type == "rectangle" || type == "disk" || type == "cylinder") &&
-        mesh_to_world.Determinant3() < 0)
-      ReverseWinding(&s.mesh);
+    if (g.turns_with_mirror && mesh_to_world.Determinant3() < 0) ReverseWinding(&s.mesh);
     s.degenerate_dropped = DropDegenerateTriangles(&s.mesh);
-    if (!face_normals && s.mesh.normals.empty()) ComputeSmoothNormals(&s.mesh);
-    // An emitting mesh from a file is sliced across its length as a cylinder is cut into rings
-    // (kCylinderRingRadii), so a tube's full-length slivers become short pieces.
-    if (!emitters.empty() && (type == "obj" || type == "ply" || type == "serialized")) {
+    if (!g.face_normals && s.mesh.normals.empty()) ComputeSmoothNormals(&s.mesh);
+    if (!emitters.empty() && g.slice_when_emitting) {
       SliceAlongPrincipalAxis(&s.mesh, std::max<size_t>(64 * (s.mesh.indices.size() / 3), 65536));
       DropDegenerateTriangles(&s.mesh);
     }
     if (s.flip_normals) FlipNormals(&s.mesh);
-    if (face_normals) s.mesh.normals.clear();
+    if (g.face_normals) s.mesh.normals.clear();
     if (s.degenerate_dropped > 0) {
       Warn(n, absl::StrCat("shape '", s.id, "': dropped ", s.degenerate_dropped,
                            " degenerate triangle(s) (zero area, repeated or non-finite vertices)"));
@@ -1346,81 +1317,85 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
   return RegisterId(n, "shape", -1);
 }
 
-absl::StatusOr<Vec3> Parser::ParseAreaEmitter(pugi::xml_node n) {
-  LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
-  if (type != "area") {
-    return Error(
-        n, absl::StrCat("emitter '", type, "' cannot be attached to a shape (only 'area' can)"));
+// An emitter plugin's view of its element's parameters (render/emitters/registry.h).
+class Parser::EmitterReader final : public EmitterParams {
+ public:
+  EmitterReader(Parser& parser, Params& params) : parser_(parser), p_(params) {}
+
+  absl::StatusOr<float> Float(absl::string_view name, float def) override {
+    return parser_.GetFloat(p_, name, def);
   }
+  absl::StatusOr<Vec3> Rgb(absl::string_view name, Vec3 def) override {
+    return parser_.GetRgb(p_, name, def);
+  }
+  absl::StatusOr<std::optional<Vec3>> Vector(absl::string_view name) override {
+    return parser_.GetVec3(p_, name);
+  }
+  absl::StatusOr<std::optional<std::array<double, 3>>> Point(absl::string_view name) override {
+    return parser_.GetPoint(p_, name);
+  }
+  absl::StatusOr<std::optional<Mat4>> Transform(absl::string_view name) override {
+    return parser_.GetTransform(p_, name);
+  }
+  absl::StatusOr<std::string> File(absl::string_view name) override {
+    return parser_.GetFile(p_, name);
+  }
+  Mat4 World(const Mat4& m) const override { return parser_.World(m); }
+  absl::Status Error(absl::string_view name, absl::string_view what) const override {
+    return parser_.Error(parser_.NodeOf(p_, name), what);
+  }
+
+ private:
+  Parser& parser_;
+  Params& p_;
+};
+
+absl::StatusOr<const EmitterPlugin*> Parser::EmitterPluginOf(pugi::xml_node n) const {
+  LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
+  const EmitterPlugin* plugin = FindEmitterPlugin(type);
+  if (plugin == nullptr) {
+    return Error(n, absl::StrCat("unknown emitter type '", type,
+                                 "' (supported: ", absl::StrJoin(EmitterPluginNames(), ", "), ")"));
+  }
+  return plugin;
+}
+
+absl::StatusOr<EmitterDesc> Parser::ParseEmitterDesc(pugi::xml_node n,
+                                                     const EmitterPlugin& plugin) {
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "emitter"));
-  LOADER_ASSIGN_OR_RETURN(const Vec3 radiance, GetRgb(p, "radiance", Vec3(1.0f)));
+  EmitterDesc e;
+  e.type = plugin.name;
+  e.loc = Loc(n);
+  EmitterReader reader(*this, p);
+  LOADER_RETURN_IF_ERROR(plugin.parse(reader, &e));
   LOADER_RETURN_IF_ERROR(Finish(p));
   LOADER_RETURN_IF_ERROR(RegisterId(n, "emitter", -1));
-  return radiance;
+  return e;
+}
+
+absl::StatusOr<Vec3> Parser::ParseAreaEmitter(pugi::xml_node n) {
+  LOADER_ASSIGN_OR_RETURN(const EmitterPlugin* plugin, EmitterPluginOf(n));
+  if (plugin->kind != EmitterPlugin::Kind::kArea) {
+    return Error(n, absl::StrCat("emitter '", plugin->name,
+                                 "' cannot be attached to a shape (only 'area' can)"));
+  }
+  LOADER_ASSIGN_OR_RETURN(const EmitterDesc e, ParseEmitterDesc(n, *plugin));
+  return e.radiance;
 }
 
 absl::Status Parser::ParseEmitter(pugi::xml_node n) {
-  LOADER_ASSIGN_OR_RETURN(
-      const std::string type,
-      PluginType(n, "emitter", {"area", "point", "spot", "directional", "constant", "envmap"}));
-  if (type == "area") return Error(n, "an area emitter must be nested in a <shape>");
-  LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "emitter"));
-  EmitterDesc e;
-  e.loc = Loc(n);
-  if (type == "point") {
-    e.type = EmitterType::kPoint;
-    LOADER_ASSIGN_OR_RETURN(const auto position, GetPoint(p, "position"));
-    LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
-    if (position && to_world) {
-      return Error(n, "give either position or to_world for a point emitter, not both");
-    }
-    const Mat4 m = position ? Mat4::Translate((*position)[0], (*position)[1], (*position)[2])
-                            : to_world.value_or(Mat4());
-    e.position = (recentre_ * m).ApplyPoint(Vec3(0.0f));
-    LOADER_ASSIGN_OR_RETURN(e.intensity, GetRgb(p, "intensity", Vec3(1.0f)));
-  } else if (type == "spot") {
-    e.type = EmitterType::kSpot;
-    LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
-    const Mat4 m = World(to_world);
-    e.position = m.ApplyPoint(Vec3(0.0f));
-    e.direction = Normalize(m.ApplyVector(Vec3(0, 0, 1)));
-    LOADER_ASSIGN_OR_RETURN(e.intensity, GetRgb(p, "intensity", Vec3(1.0f)));
-    LOADER_ASSIGN_OR_RETURN(e.cutoff_angle_deg, GetFloat(p, "cutoff_angle", 20));
-    LOADER_ASSIGN_OR_RETURN(e.beam_width_deg,
-                            GetFloat(p, "beam_width", e.cutoff_angle_deg * 0.75f));
-    if (!(e.cutoff_angle_deg > 0 && e.beam_width_deg > 0)) {
-      return Error(n, "spot cutoff_angle and beam_width must be positive");
-    }
-  } else if (type == "directional") {
-    e.type = EmitterType::kDirectional;
-    LOADER_ASSIGN_OR_RETURN(const std::optional<Vec3> direction, GetVec3(p, "direction"));
-    LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
-    if (direction && to_world) {
-      return Error(n, "give either direction or to_world for a directional emitter, not both");
-    }
-    const Vec3 d = direction ? *direction : to_world.value_or(Mat4()).ApplyVector(Vec3(0, 0, 1));
-    if (!(LengthSquared(d) > 0)) return Error(NodeOf(p, "direction"), "zero light direction");
-    e.direction = Normalize(d);
-    LOADER_ASSIGN_OR_RETURN(e.irradiance, GetRgb(p, "irradiance", Vec3(1.0f)));
-  } else {  // constant, envmap: the environment, at most one per scene as in Mitsuba
+  LOADER_ASSIGN_OR_RETURN(const EmitterPlugin* plugin, EmitterPluginOf(n));
+  if (plugin->kind == EmitterPlugin::Kind::kArea) {
+    return Error(n, absl::StrCat("an ", plugin->name, " emitter must be nested in a <shape>"));
+  }
+  if (plugin->kind == EmitterPlugin::Kind::kEnvironment) {
     if (environment_) {
       return Error(n, absl::StrCat("a second environment emitter (the first is at line ",
                                    Line(environment_), ")"));
     }
     environment_ = n;
-    if (type == "constant") {
-      e.type = EmitterType::kConstant;
-      LOADER_ASSIGN_OR_RETURN(e.radiance, GetRgb(p, "radiance", Vec3(1.0f)));
-    } else {
-      e.type = EmitterType::kEnvmap;
-      LOADER_ASSIGN_OR_RETURN(e.filename, GetFile(p, "filename"));
-      LOADER_ASSIGN_OR_RETURN(e.scale, GetFloat(p, "scale", 1));
-      LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
-      e.to_world = to_world.value_or(Mat4());
-    }
   }
-  LOADER_RETURN_IF_ERROR(Finish(p));
-  LOADER_RETURN_IF_ERROR(RegisterId(n, "emitter", -1));
+  LOADER_ASSIGN_OR_RETURN(EmitterDesc e, ParseEmitterDesc(n, *plugin));
   scene_.emitters.push_back(std::move(e));
   return absl::OkStatus();
 }

@@ -82,7 +82,7 @@ uint64_t SceneHash(const SceneDesc& desc) {
     if (s.area_radiance) h.V(*s.area_radiance);
   }
   for (const EmitterDesc& e : desc.emitters) {
-    h.Pod(int(e.type));
+    h.Str(e.type);
     h.V(e.position);
     h.V(e.direction);
     h.V(e.intensity);
