@@ -13,6 +13,7 @@
 #include "render/bsdfs/microfacet.h"
 #include "render/irradiance_hessian.h"
 #include "render/light_tree.h"
+#include "render/pipeline.h"
 #include "render/sampling.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
@@ -94,11 +95,9 @@ void BM_CacheLookupPixelRuns(benchmark::State& state) {
 BENCHMARK(BM_CacheLookupPixelRuns)->ArgsProduct({{1000, 10000, 100000}, {1, 0}});
 
 std::unique_ptr<Scene> CornellBox() {
-  absl::StatusOr<SceneDesc> desc =
-      LoadSceneFile(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml", {});
-  if (!desc.ok()) return nullptr;
-  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
-  return scene.ok() ? std::move(*scene) : nullptr;
+  absl::StatusOr<PreparedRender> prepared = PrepareRender(
+      std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml", {}, RenderRequest{});
+  return prepared.ok() ? std::move(prepared->scene) : nullptr;
 }
 
 void BM_Intersect(benchmark::State& state) {

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "render/pipeline.h"
 #include "render/renderer.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
@@ -39,14 +40,19 @@ int main(int argc, char** argv) {
 
   int failures = 0;
   for (const std::string& name : scenes) {
-    absl::StatusOr<SceneDesc> desc = LoadSceneFile(dir + "/" + name + "/scene.xml", options);
-    absl::StatusOr<std::unique_ptr<Scene>> scene =
-        desc.ok() ? Scene::Build(*desc) : absl::StatusOr<std::unique_ptr<Scene>>(desc.status());
-    if (!scene.ok()) {
-      std::fprintf(stderr, "%s: %s\n", name.c_str(), std::string(scene.status().message()).c_str());
+    RenderRequest request;
+    request.integrator = "irrcache";
+    request.spp = 1;  // the final pass is not measured; keep it short
+    request.seed = 7;
+    absl::StatusOr<PreparedRender> prepared =
+        PrepareRender(dir + "/" + name + "/scene.xml", options, request);
+    if (!prepared.ok()) {
+      std::fprintf(stderr, "%s: %s\n", name.c_str(),
+                   std::string(prepared.status().message()).c_str());
       ++failures;
       continue;
     }
+    const SceneDesc* desc = &prepared->desc;
     struct Best {
       double wall = 1e30, cpu = 0;
       uint64_t records = 0;
@@ -54,11 +60,9 @@ int main(int argc, char** argv) {
     std::map<int, Best> best;
     for (int r = 0; r < repeat; ++r) {
       for (int threads : {1, 2}) {
-        RenderSettings s = *SettingsForScene(*desc, "irrcache");
+        RenderSettings s = prepared->settings;
         s.threads = threads;
-        s.spp = 1;  // the final pass is not measured; keep it short
-        s.seed = 7;
-        const RenderOutput out = Render(**scene, s);
+        const RenderOutput out = Render(*prepared->scene, s);
         for (const PhaseTime& p : out.stats.phases) {
           if (p.name != "overture" || p.wall_seconds >= best[threads].wall) continue;
           best[threads] = Best{p.wall_seconds, p.cpu_seconds, out.stats.records_overture};

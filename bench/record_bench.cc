@@ -30,6 +30,7 @@
 
 #include "render/bsdfs/bsdf.h"
 #include "render/irrcache_integrator.h"
+#include "render/pipeline.h"
 #include "render/renderer.h"
 #include "render/sampling.h"
 #include "render/scene.h"
@@ -63,14 +64,13 @@ struct Fixture {
 // Loads a test scene and finds up to `grid` x `grid` record points (diffuse first hits).
 std::unique_ptr<Fixture> MakeFixture(const std::string& name, int grid) {
   const std::string path = std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/scene.xml";
-  absl::StatusOr<SceneDesc> desc = LoadSceneFile(path, {});
-  if (!desc.ok()) return nullptr;
-  absl::StatusOr<RenderSettings> settings = SettingsForScene(*desc, "irrcache");
-  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
-  if (!settings.ok() || !scene.ok()) return nullptr;
+  RenderRequest request;
+  request.integrator = "irrcache";
+  absl::StatusOr<PreparedRender> prepared = PrepareRender(path, {}, request);
+  if (!prepared.ok()) return nullptr;
   auto f = std::make_unique<Fixture>();
-  f->scene = std::move(*scene);
-  f->settings = *settings;
+  f->scene = std::move(prepared->scene);
+  f->settings = prepared->settings;
   const Camera& cam = f->scene->camera();
   for (int gy = 0; gy < grid; ++gy) {
     for (int gx = 0; gx < grid; ++gx) {

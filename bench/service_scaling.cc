@@ -22,6 +22,7 @@
 
 #include "bench/child_process.h"
 #include "irfarm/v1/jobs.grpc.pb.h"
+#include "render/pipeline.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
 #include "service/scene_bundle.h"
@@ -178,16 +179,12 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   const std::string scene_path = scenes_dir + "/" + scene_name + "/scene.xml";
 
-  absl::StatusOr<SceneDesc> desc = LoadSceneFile(scene_path, LoadOptions());
-  if (!desc.ok()) {
-    std::fprintf(stderr, "error: %s\n", desc.status().ToString().c_str());
+  absl::StatusOr<PreparedRender> prepared = PrepareRender(scene_path, {}, RenderRequest{});
+  if (!prepared.ok()) {
+    std::fprintf(stderr, "error: %s\n", prepared.status().ToString().c_str());
     return 1;
   }
-  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
-  if (!scene.ok()) {
-    std::fprintf(stderr, "error: %s\n", scene.status().ToString().c_str());
-    return 1;
-  }
+  const std::unique_ptr<Scene>* scene = &prepared->scene;
   char tmpl[] = "/tmp/irfarm-bench-XXXXXX";
   if (!mkdtemp(tmpl)) {
     std::perror("mkdtemp");

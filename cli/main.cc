@@ -15,6 +15,7 @@
 #include "cli/service_commands.h"
 #include "render/denoiser.h"
 #include "render/image.h"
+#include "render/pipeline.h"
 #include "render/renderer.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
@@ -30,18 +31,13 @@ std::string StripExtension(const std::string& path) {
   return path.substr(0, dot);
 }
 
+// `irfarm render`'s flags: the request (render/render_request.h, validated there, as a job's
+// settings are) and what only the command has (files, the denoiser, the scene's -D defines).
 struct RenderArgs {
+  RenderRequest request;
   std::string scene, output = "out.exr", stats, record_map, sample_map;
-  std::string adaptive;  // "on", "off" or "" (the integrator's default)
-  int min_spp = 0, max_spp = 0;
-  double target_error = 0, time_limit = 0, sampling_error = 0;
-  std::string integrator, spacing, light_sampling, interpolation;
-  int spp = 0, record_rays = 0, threads = 0, light_samples = 0, cache_levels = 0;
-  float accuracy = 0, min_spacing = 0, max_spacing = 0, lookup_factor = 0;
-  uint64_t seed = 0;
-  bool no_overture = false, quiet = false, caustics = true, direct_sun = true, env_guide = true;
-  bool aovs = false;     // write the AOV layers (render/aov.h) into the output EXR
-  bool denoise = false;  // OUT.exr denoised (render/denoiser.h), OUT.noisy.exr as rendered
+  bool no_overture = false, quiet = false, env_guide = true;
+  bool aovs = false;  // write the AOV layers (render/aov.h) into the output EXR
   // Default "image" for both integrators (bench/denoise_bench.py, 10 scenes with living-room):
   // demodulated was better for path at 16 spp in 5 of 10 scenes, 1.04x worse in geometric mean
   // and 1.73x worse on living-room (textured, the real interior); for irrcache image was never
@@ -52,7 +48,6 @@ struct RenderArgs {
 };
 
 int RunRender(const RenderArgs& args) {
-  PhaseTimer load_timer("load");
   LoadOptions options;
   for (const std::string& d : args.defines) {
     const size_t eq = d.find('=');
@@ -62,31 +57,36 @@ int RunRender(const RenderArgs& args) {
     }
     options.defines[d.substr(0, eq)] = d.substr(eq + 1);
   }
-  absl::StatusOr<SceneDesc> desc = LoadSceneFile(args.scene, options);
-  if (!desc.ok()) {
-    std::fprintf(stderr, "%s\n", std::string(desc.status().message()).c_str());
-    return 1;
+  RenderRequest request = args.request;
+  request.overture = !args.no_overture;
+  request.progress = !args.quiet;
+  request.record_map = !args.record_map.empty();
+  request.sample_map = !args.sample_map.empty();
+  request.aovs = args.aovs;
+  if (absl::Status bad = ValidateRequest(request); !bad.ok()) {
+    std::fprintf(stderr, "error: %s\n", std::string(bad.message()).c_str());
+    return 2;
   }
-  for (const std::string& w : desc->warnings) spdlog::warn("{}", w);
-  const PhaseTime load_time = load_timer.Stop();
-
-  PhaseTimer build_timer("build");
   SceneBuildOptions build_options;
   build_options.environment_guide = args.env_guide;
-  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc, build_options);
-  if (!scene.ok()) {
-    std::fprintf(stderr, "%s\n", std::string(scene.status().message()).c_str());
+  absl::StatusOr<PreparedRender> prepared =
+      PrepareRender(args.scene, options, request, build_options);
+  if (!prepared.ok()) {
+    std::fprintf(stderr, "%s\n", std::string(prepared.status().message()).c_str());
     return 1;
   }
-  const PhaseTime build_time = build_timer.Stop();
+  const SceneDesc* desc = &prepared->desc;
+  const std::unique_ptr<Scene>* scene = &prepared->scene;
+  for (const std::string& w : desc->warnings) spdlog::warn("{}", w);
+  const RenderSettings& s = prepared->settings;
 
   // The denoiser is loaded before rendering, so that a missing one fails fast.
   std::unique_ptr<Denoiser> denoiser;
   DenoiseMode denoise_mode = DenoiseMode::kImage;
-  if (args.denoise) {
+  if (request.denoise) {
     absl::StatusOr<DenoiseMode> mode = ParseDenoiseMode(args.denoise_mode);
     absl::StatusOr<std::unique_ptr<Denoiser>> d =
-        mode.ok() ? Denoiser::Open(args.threads) : mode.status();
+        mode.ok() ? Denoiser::Open(request.threads) : mode.status();
     if (!d.ok()) {
       std::fprintf(stderr, "error: %s\n", std::string(d.status().message()).c_str());
       return 1;
@@ -94,65 +94,6 @@ int RunRender(const RenderArgs& args) {
     denoiser = std::move(*d);
     denoise_mode = *mode;
   }
-
-  absl::StatusOr<RenderSettings> defaults =
-      SettingsForScene(*desc, !args.integrator.empty() ? args.integrator : "irrcache");
-  if (!defaults.ok()) {
-    std::fprintf(stderr, "%s\n", std::string(defaults.status().message()).c_str());
-    return 1;
-  }
-  RenderSettings s = *defaults;
-  IrrcacheSettings& ic = s.irrcache;
-  if (args.spp > 0) s.spp = args.spp;
-  if (args.accuracy > 0) ic.accuracy = args.accuracy;
-  if (args.record_rays > 0) {
-    ic.record_rays = args.record_rays;
-    ic.balance_record_rays = false;  // the user's rays, as asked
-  }
-  if (args.light_samples > 0) ic.light_samples = args.light_samples;
-  if (!args.light_sampling.empty()) ic.path.all_lights = args.light_sampling == "all";
-  if (!args.spacing.empty())
-    ic.spacing = args.spacing == RecordSpacingName(RecordSpacing::kHessian)
-                     ? RecordSpacing::kHessian
-                     : RecordSpacing::kSplitSphere;
-  if (!args.interpolation.empty()) ic.linear_fit = args.interpolation == "linear";
-  if (args.cache_levels > 0) {
-    ic.cache_levels = args.cache_levels;
-    ic.choose_cache_levels = false;  // the user's levels, as asked
-  }
-  if (args.min_spacing > 0) ic.min_spacing_px = args.min_spacing;
-  if (args.max_spacing > 0) ic.max_spacing_px = args.max_spacing;
-  if (args.lookup_factor > 0) ic.lookup_factor = args.lookup_factor;
-  if (!(ic.accuracy > 0 && ic.accuracy <= 1)) {
-    std::fprintf(stderr, "error: --accuracy must be in (0, 1], got %g\n", ic.accuracy);
-    return 2;
-  }
-  s.threads = args.threads;
-  s.seed = args.seed;
-  s.overture = !args.no_overture;
-  s.caustics = args.caustics;
-  ic.direct_sun = args.direct_sun;
-  s.record_map = !args.record_map.empty();
-  s.sample_map = !args.sample_map.empty();
-  if (!args.adaptive.empty()) s.adaptive = args.adaptive == "on";
-  if (args.min_spp > 0) s.min_spp = args.min_spp;
-  if (args.max_spp > 0) s.max_spp = args.max_spp;
-  if (args.sampling_error > 0) s.sampling_error = args.sampling_error;
-  if (args.time_limit > 0) s.time_limit = args.time_limit;
-  if (args.target_error > 0) {
-    s.target_error = args.target_error;
-    s.adaptive = true;
-  }
-  s.progress = !args.quiet;
-  s.aovs = args.aovs || args.denoise;
-  // Splatted noise is shared between neighbouring pixels, which the denoiser cannot tell from
-  // detail: on the living room with a gaussian filter, path 64 spp denoised 4.8e-2 splatted
-  // against 1.6e-2 with each sample kept in its pixel (undenoised 5.3e-2 and 1.7e-1).
-  s.splat = !args.denoise;
-  // Named or not, the integrator renders the image; unnamed, a denoised image may be rendered by
-  // path where the pilots find it cheaper (RenderSettings::choose_integrator).
-  s.denoise = args.denoise;
-  s.choose_integrator = args.integrator.empty();
 
   std::unique_ptr<IrradianceCache> warm_cache;
   if (!args.cache_in.empty()) {
@@ -172,8 +113,8 @@ int RunRender(const RenderArgs& args) {
   RenderOutput out = Render(**scene, s, warm_cache.get());
   RenderStats& st = out.stats;
   st.scene = args.scene;
-  st.phases.insert(st.phases.begin(), build_time);
-  st.phases.insert(st.phases.begin(), load_time);
+  st.phases.insert(st.phases.begin(), prepared->build_time);
+  st.phases.insert(st.phases.begin(), prepared->load_time);
   st.triangles = (*scene)->counts().triangles;
   st.degenerate_dropped = (*scene)->counts().degenerate_dropped;
   st.environment_guide_cells = (*scene)->environment_guide().cells();
@@ -305,100 +246,76 @@ int main(int argc, char** argv) {
   CLI::App* render = app.add_subcommand("render", "render a Mitsuba 3 XML scene locally");
   render->add_option("scene", ra.scene, "scene.xml")->required()->check(CLI::ExistingFile);
   render->add_option("-o,--output", ra.output, "output EXR (a PNG preview is written beside it)");
-  render
-      ->add_option("--integrator", ra.integrator,
-                   "path or irrcache (default irrcache; with --denoise, path where the pilots "
-                   "predict it the better once denoised)")
-      ->check(CLI::IsMember({"path", "irrcache"}));
-  render->add_option("--spp", ra.spp, "samples per pixel (adaptive: on average)")
-      ->check(CLI::PositiveNumber);
-  render->add_option("--accuracy", ra.accuracy, "irrcache: Ward's a (default 0.1)");
-  render->add_option("--record-rays", ra.record_rays, "irrcache: hemisphere rays per record")
-      ->check(CLI::PositiveNumber);
-  render->add_option("--light-samples", ra.light_samples, "irrcache: direct samples per hit")
-      ->check(CLI::PositiveNumber);
-  render
-      ->add_option("--cache-levels", ra.cache_levels,
-                   "irrcache: 1 = records' rays are path traced; 2 = they use a second-level "
-                   "cache at the surfaces they reach; 3 = that level's rays a third (default: "
-                   "chosen per scene by the pilots)")
-      ->check(CLI::Range(1, 3));
-  render
-      ->add_option("--light-sampling", ra.light_sampling,
-                   "next-event estimation along paths: all (every light at each vertex, the "
-                   "default) or one (one light picked by its unoccluded contribution)")
-      ->check(CLI::IsMember({"all", "one"}));
-  CLI::Option* spacing =
-      render
-          ->add_option(
-              "--spacing", ra.spacing,
-              "irrcache: record radii by hessian (the record's own derivatives; default) or "
-              "split-sphere (Ward's, for comparison)")
-          ->check(CLI::IsMember(std::vector<std::string>{
-              irfarm::RecordSpacingName(irfarm::RecordSpacing::kSplitSphere),
-              irfarm::RecordSpacingName(irfarm::RecordSpacing::kHessian)}));
+  // Values are checked by ValidateRequest (render/render_request.h), the same check a job's
+  // settings get, not here: one validation, one message.
+  irfarm::RenderRequest& rq = ra.request;
+  render->add_option("--integrator", rq.integrator,
+                     "path or irrcache (default irrcache; with --denoise, path where the pilots "
+                     "predict it the better once denoised)");
+  render->add_option("--spp", rq.spp, "samples per pixel (adaptive: on average)");
+  render->add_option("--accuracy", rq.accuracy, "irrcache: Ward's a, (0, 1] (default 0.1)");
+  render->add_option("--record-rays", rq.record_rays, "irrcache: hemisphere rays per record");
+  render->add_option("--light-samples", rq.light_samples, "irrcache: direct samples per hit");
+  render->add_option("--cache-levels", rq.cache_levels,
+                     "irrcache: 1 = records' rays are path traced; 2 = they use a second-level "
+                     "cache at the surfaces they reach; 3 = that level's rays a third (default: "
+                     "chosen per scene by the pilots)");
+  render->add_option("--light-sampling", rq.light_sampling,
+                     "next-event estimation along paths: all (every light at each vertex, the "
+                     "default) or one (one light picked by its unoccluded contribution)");
+  CLI::Option* spacing = render->add_option(
+      "--spacing", rq.spacing,
+      "irrcache: record radii by hessian (the record's own derivatives; default) or "
+      "split-sphere (Ward's, for comparison)");
   CLI::Option* interpolation =
-      render
-          ->add_option("--interpolation", ra.interpolation,
-                       "irrcache: lookups take the plane fitted to the records that count "
-                       "(linear, the default) or their weighted mean (ward, for comparison)")
-          ->check(CLI::IsMember({"linear", "ward"}));
-  render->add_option("--min-spacing", ra.min_spacing, "irrcache: min validity radius, pixels");
-  render->add_option("--max-spacing", ra.max_spacing, "irrcache: max validity radius, pixels");
-  CLI::Option* lookup_factor =
-      render
-          ->add_option("--lookup-factor", ra.lookup_factor,
-                       "irrcache: camera lookups weigh records out to eps < a x this (default 1.5; "
-                       "1 = Ward's rule; --target-error uses 1)")
-          ->check(CLI::Range(1.0f, 4.0f));
+      render->add_option("--interpolation", rq.interpolation,
+                         "irrcache: lookups take the plane fitted to the records that count "
+                         "(linear, the default) or their weighted mean (ward, for comparison)");
+  render->add_option("--min-spacing", rq.min_spacing_px, "irrcache: min validity radius, pixels");
+  render->add_option("--max-spacing", rq.max_spacing_px, "irrcache: max validity radius, pixels");
+  CLI::Option* lookup_factor = render->add_option(
+      "--lookup-factor", rq.lookup_factor,
+      "irrcache: camera lookups weigh records out to eps < a x this, in [1, 4] (default 1.5; "
+      "1 = Ward's rule; --target-error uses 1)");
   render->add_flag("--no-overture", ra.no_overture, "irrcache: skip the cache-filling prepass");
   render->add_flag(
-      "--caustics,!--no-caustics", ra.caustics,
+      "--caustics,!--no-caustics", rq.caustics,
       "irrcache: caustics (light through mirrors, smooth glass and sharp metals) from a photon map "
       "instead of the records (the default; --no-caustics leaves them to the records)");
-  render->add_flag("--direct-sun,!--no-direct-sun", ra.direct_sun,
+  render->add_flag("--direct-sun,!--no-direct-sun", rq.direct_sun,
                    "an environment map's sun sampled as direct light at every diffuse or glossy "
                    "vertex, not left to the records (irrcache) or to the environment's own samples "
                    "(path); the default where the map has a compact sun");
   render->add_flag("--env-guide,!--no-env-guide", ra.env_guide,
                    "environment samples drawn partly towards where the environment was seen from "
                    "nearby (windows; the default where the scene has an environment light)");
-  render->add_option("--threads", ra.threads, "threads (default: all cores)");
-  render->add_option("--seed", ra.seed, "random seed");
+  render->add_option("--threads", rq.threads, "threads (default: all cores)");
+  render->add_option("--seed", rq.seed, "random seed");
   render->add_option("--stats", ra.stats, "write the stats JSON here");
   render->add_option("--record-map", ra.record_map, "write an image marking computed records");
   render->add_option("--sample-map", ra.sample_map,
                      "write a PNG of the samples each pixel got (dark: few, white: --spp)");
+  render->add_option("--adaptive", rq.adaptive,
+                     "adaptive sampling on|off (default: on for irrcache, off for path)");
+  render->add_option("--min-spp", rq.min_spp, "adaptive: samples every pixel gets first (16)");
+  render->add_option("--max-spp", rq.max_spp,
+                     "adaptive: the most samples one pixel gets (default 16 x --spp)");
+  render->add_option("--sampling-error", rq.sampling_error,
+                     "adaptive: the image's estimated sampling relMSE to stop at");
   render
-      ->add_option("--adaptive", ra.adaptive,
-                   "adaptive sampling on|off (default: on for irrcache, off for path)")
-      ->check(CLI::IsMember({"on", "off"}));
-  render->add_option("--min-spp", ra.min_spp, "adaptive: samples every pixel gets first (16)")
-      ->check(CLI::PositiveNumber);
-  render
-      ->add_option("--max-spp", ra.max_spp,
-                   "adaptive: the most samples one pixel gets (default 16 x --spp)")
-      ->check(CLI::PositiveNumber);
-  render
-      ->add_option("--sampling-error", ra.sampling_error,
-                   "adaptive: the image's estimated sampling relMSE to stop at")
-      ->check(CLI::PositiveNumber);
-  render
-      ->add_option("--target-error", ra.target_error,
+      ->add_option("--target-error", rq.target_error,
                    "stop when the estimated relMSE (cache + sampling) reaches this (or "
                    "--time-limit); no sample budget then")
-      ->check(CLI::PositiveNumber)
       ->excludes(lookup_factor)
       ->excludes(spacing)
       ->excludes(interpolation);
-  render->add_option("--time-limit", ra.time_limit, "stop adding samples after this many seconds")
-      ->check(CLI::PositiveNumber);
+  render->add_option("--time-limit", rq.time_limit, "stop adding samples after this many seconds");
   render->add_option("-D", ra.defines, "name=value for the scene's <default>s");
   render->add_flag("-q,--quiet", ra.quiet, "no progress or summary on stderr");
   render->add_flag("--aovs", ra.aovs,
                    "add layers albedo, normal, depth, emission, direct, indirect, variance "
                    "to the EXR");
-  render->add_flag("--denoise", ra.denoise,
+  render->add_flag("--denoise", rq.denoise,
                    "denoise with Open Image Denoise (OUT.exr), keep the render as OUT.noisy.exr");
   render
       ->add_option("--denoise-mode", ra.denoise_mode,

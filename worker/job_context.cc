@@ -3,6 +3,7 @@
 
 #include <algorithm>
 
+#include "render/pipeline.h"
 #include "service/job_settings.h"
 #include "service/scene_bundle.h"
 
@@ -21,14 +22,14 @@ absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec
     if (!main.ok()) return main.status();
     scene_path = *main;
   }
-  absl::StatusOr<SceneDesc> desc = LoadJobScene(scene_path, spec.settings());
-  if (!desc.ok()) return desc.status();
-  absl::StatusOr<RenderSettings> settings = MakeRenderSettings(*desc, spec.settings(), threads);
-  if (!settings.ok()) return settings.status();
-  c->settings_ = *settings;
-  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
-  if (!scene.ok()) return scene.status();
-  c->scene_ = std::move(*scene);
+  absl::StatusOr<RenderRequest> request = JobRenderRequest(spec.settings(), threads);
+  if (!request.ok()) return request.status();
+  absl::StatusOr<PreparedRender> prepared =
+      PrepareRender(scene_path, JobLoadOptions(spec.settings()), *request);
+  if (!prepared.ok()) return prepared.status();
+  c->settings_ = prepared->settings;
+  c->settings_.tile_size = kJobSubTileSize;
+  c->scene_ = std::move(prepared->scene);
   CausticMapStats caustic_stats;
   c->caustics_ = BuildCausticMap(*c->scene_, c->settings_, &caustic_stats);
   c->settings_.irrcache.caustics = c->caustics_.get();

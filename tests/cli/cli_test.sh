@@ -69,6 +69,21 @@ err=$("$irfarm" render "$tmp/cb.xml" -o "$tmp/x.exr" -q 2>&1)
 code=$?
 set -e
 [[ $code -ne 0 && $err == *"cb.xml:"*"accuracy"* ]] || fail "bad accuracy: $code $err"
+# Bad flags: the request's one validation (render/render_request.h, shared with the service's
+# jobs), before anything is loaded: exit 2, the setting, its range and the value, no image.
+for args in "--accuracy 3|accuracy must be in (0, 1], got 3" \
+            "--spp -5|spp must be in [1, 1048576]" \
+            "--cache-levels 4|cache_levels must be in [1, 3]" \
+            "--integrator bdpt|unknown integrator 'bdpt' (supported: irrcache, path)"; do
+  flag=${args%%|*} want=${args#*|}
+  set +e
+  # shellcheck disable=SC2086
+  err=$("$irfarm" render "$data/scenes/cornell-box/scene.xml" $flag -o "$tmp/flag.exr" -q 2>&1)
+  code=$?
+  set -e
+  [[ $code -eq 2 && $err == "error: $want"* ]] || fail "$flag: $code $err"
+  [[ ! -e $tmp/flag.exr ]] || fail "$flag wrote an image"
+done
 # --denoise with the integrator left to irfarm: the stats say what the two pilots compared and
 # which integrator rendered the image (path where its error less the cache's samples' is under
 # kDenoiserGain times the cache's own, on images of at least kPathChoiceMinPixels,

@@ -17,6 +17,7 @@
 
 #include "render/image.h"
 #include "render/irrcache_integrator.h"
+#include "render/render_request.h"
 #include "render/renderer.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
@@ -166,11 +167,14 @@ inline LoadedScene LoadVariant(const std::string& name, const std::string& from,
 
 inline RenderOutput RenderWith(const LoadedScene& s, const std::string& integrator, int spp,
                                uint64_t seed, int threads = 0) {
-  RenderSettings settings = *SettingsForScene(s.desc, integrator);
-  if (spp > 0) settings.spp = spp;
-  settings.seed = seed;
-  settings.threads = threads;
-  return Render(*s.scene, settings);
+  RenderRequest request;
+  request.integrator = integrator;
+  request.spp = spp;
+  request.seed = seed;
+  request.threads = threads;
+  const absl::StatusOr<RenderSettings> settings = SettingsFor(s.desc, request);
+  EXPECT_TRUE(settings.ok()) << settings.status();
+  return Render(*s.scene, *settings);
 }
 
 // Test scene `name` rendered by `path` and by `irrcache` at 256 spp (seed 1), full size: each

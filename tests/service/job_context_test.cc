@@ -5,7 +5,9 @@
 
 #include "irfarm/v1/worker.pb.h"
 #include "render/image.h"
+#include "render/pipeline.h"
 #include "render/renderer.h"
+#include "service/job_settings.h"
 #include "service/scene_bundle.h"
 #include "worker/job_context.h"
 
@@ -62,6 +64,50 @@ TEST(JobContextTest, NoCausticsAndScenesWithoutCausticsHaveNoMap) {
       JobContext::Create(Spec("cornell-box", false), 1);
   ASSERT_TRUE(cornell.ok()) << cornell.status();
   EXPECT_EQ((*cornell)->settings().irrcache.caustics, nullptr);
+}
+
+// A job's wire settings go through the renderer's one validation (render/render_request.h): a
+// bad value is refused with the message `irfarm render` prints for the same value, and good ones
+// give the settings the command would render with.
+TEST(JobContextTest, JobSettingsAreValidatedAndAppliedAsTheCommandsAre) {
+  v1::JobSpec bad = Spec("cornell-box", false);
+  bad.mutable_settings()->set_accuracy(3);
+  const absl::StatusOr<std::unique_ptr<JobContext>> refused = JobContext::Create(bad, 1);
+  RenderRequest same;
+  same.accuracy = 3;
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(refused.status().message(), ValidateRequest(same).message());
+  EXPECT_EQ(refused.status().message(), "accuracy must be in (0, 1], got 3");
+
+  v1::JobSpec good = Spec("cornell-box", false);
+  good.mutable_settings()->set_accuracy(0.25f);
+  good.mutable_settings()->set_record_rays(300);
+  good.mutable_settings()->set_target_error(2e-3);
+  const absl::StatusOr<std::unique_ptr<JobContext>> job = JobContext::Create(good, 1);
+  ASSERT_TRUE(job.ok()) << job.status();
+  LoadOptions load;
+  load.defines = {{"resx", "48"}, {"resy", "48"}};
+  RenderRequest cli;  // irfarm render --spp 4 --seed 3 --accuracy 0.25 --record-rays 300 ...
+  cli.spp = 4;
+  cli.seed = 3;
+  cli.threads = 1;
+  cli.accuracy = 0.25f;
+  cli.record_rays = 300;
+  cli.target_error = 2e-3;
+  const absl::StatusOr<PreparedRender> local =
+      PrepareRender(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml", load, cli);
+  ASSERT_TRUE(local.ok()) << local.status();
+  const RenderSettings &a = (*job)->settings(), &b = local->settings;
+  EXPECT_EQ(a.integrator, b.integrator);
+  EXPECT_EQ(a.spp, b.spp);
+  EXPECT_EQ(a.seed, b.seed);
+  EXPECT_EQ(a.irrcache.accuracy, b.irrcache.accuracy);
+  EXPECT_EQ(a.irrcache.record_rays, b.irrcache.record_rays);
+  EXPECT_EQ(a.irrcache.balance_record_rays, b.irrcache.balance_record_rays);
+  EXPECT_EQ(a.target_error, b.target_error);
+  EXPECT_EQ(a.adaptive, b.adaptive);
+  EXPECT_EQ(a.splat, b.splat);
+  EXPECT_EQ(a.tile_size, kJobSubTileSize);  // the job's own: sub-tiles of its tiles
 }
 
 }  // namespace
