@@ -49,8 +49,8 @@
 #include <memory>
 
 #include "cache/irradiance_record.h"
-#include "cache/math.h"
 #include "cache/occluder_plane.h"
+#include "core/math.h"
 
 namespace irfarm {
 

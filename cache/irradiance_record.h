@@ -6,7 +6,7 @@
 
 #include <cstdint>
 
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

@@ -8,7 +8,7 @@
 #include <cmath>
 
 #include "cache/irradiance_record.h"
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

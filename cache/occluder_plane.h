@@ -9,7 +9,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "cache/irradiance_record.h"
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

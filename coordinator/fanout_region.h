@@ -11,7 +11,7 @@
 
 #include "absl/status/statusor.h"
 #include "cache/irradiance_record.h"
-#include "cache/math.h"
+#include "core/math.h"
 #include "irfarm/v1/worker.pb.h"
 
 namespace irfarm {

@@ -9,7 +9,7 @@
 #include <limits>
 
 #include "cache/irradiance_record.h"
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/scene_desc.h"
 
 namespace irfarm {

@@ -15,7 +15,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/camera.h"
 #include "render/image.h"
 

@@ -42,7 +42,7 @@
 #include <memory>
 #include <vector>
 
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/environment_sun.h"
 
 namespace irfarm {

@@ -27,7 +27,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

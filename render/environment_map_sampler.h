@@ -12,7 +12,7 @@
 #include <functional>
 #include <vector>
 
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/light.h"
 
 namespace irfarm {

@@ -19,8 +19,8 @@
 #include <functional>
 #include <vector>
 
-#include "cache/cdf_guide.h"
-#include "cache/math.h"
+#include "core/cdf_guide.h"
+#include "core/math.h"
 
 namespace irfarm {
 

@@ -8,7 +8,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

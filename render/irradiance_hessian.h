@@ -19,7 +19,7 @@
 // case for the distances the rays found.
 #pragma once
 
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

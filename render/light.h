@@ -7,7 +7,7 @@
 #include <cmath>
 #include <vector>
 
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/light_tree.h"
 #include "render/light_triangle.h"
 #include "render/texture.h"

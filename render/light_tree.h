@@ -29,8 +29,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "cache/float4.h"
-#include "cache/math.h"
+#include "core/float4.h"
+#include "core/math.h"
 #include "render/light_triangle.h"
 
 namespace irfarm {

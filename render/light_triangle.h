@@ -1,7 +1,7 @@
 // One triangle of an emissive mesh, as the light sampler keeps it (its own copy of the geometry).
 #pragma once
 
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "absl/status/statusor.h"
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/scene_desc.h"
 
 namespace irfarm {

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/record_balance.h"
 #include "render/render_counters.h"
 

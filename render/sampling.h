@@ -2,14 +2,14 @@
 // directions for irradiance records (Ward's T x P strata), other standard warps, the power
 // heuristic for multiple importance sampling, and a small deterministic PCG32 generator.
 // Directions are LOCAL: z is the surface normal, x and y span the tangent plane (see MakeFrame).
-// Header-only; depends on cache/math.h only.
+// Header-only; depends on core/math.h only.
 #pragma once
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

@@ -13,7 +13,7 @@
 // near pi, and a lamp far away subtends a solid angle well below float precision of those.
 #pragma once
 
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

@@ -18,7 +18,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

@@ -10,7 +10,7 @@
 
 #include <optional>
 
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/renderer.h"
 #include "render/scene.h"
 

@@ -22,7 +22,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/texture.h"
 
 namespace irfarm {

@@ -8,7 +8,7 @@
 #include <array>
 #include <cmath>
 
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/sampling.h"
 
 namespace irfarm {

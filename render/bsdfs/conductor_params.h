@@ -14,7 +14,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/bsdfs/registry.h"
 
 namespace irfarm {

@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "cache/math.h"
+#include "core/math.h"
 
 namespace irfarm {
 

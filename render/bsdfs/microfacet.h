@@ -9,7 +9,7 @@
 //        (1 - x tan theta) exp(-x^2) on x < cot theta, whose CDF
 //        C(x) = sqrt(pi)/2 (1 + erf(x)) + tan(theta)/2 exp(-x^2) is inverted by safeguarded
 //        Newton iterations in x on [-4, min(cot theta, 4)] (the mass outside is ~1e-7), in
-//        single precision (cache/erf.h), from a start fitted in b = erf(x) in the form of Jakob
+//        single precision (core/erf.h), from a start fitted in b = erf(x) in the form of Jakob
 //        2014 ("An Improved Visible Normal Sampling Routine for the Beckmann Distribution").
 // G1 is Smith's: exact for GGX; for Beckmann Walter et al.'s rational fit in Eval (as Mitsuba),
 // while Pdf uses the exact erf form, so that it is the sampler's density (the fit is off by up
@@ -20,8 +20,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "cache/erf.h"
-#include "cache/math.h"
+#include "core/erf.h"
+#include "core/math.h"
 
 namespace irfarm {
 
@@ -93,7 +93,7 @@ class Microfacet {
 
  private:
   // Smith's Beckmann masking, exact: 1 / (1 + Lambda(a)), a = 1 / (alpha tan theta),
-  // Lambda(a) = (exp(-a^2) / (a sqrt(pi)) - erfc(a)) / 2, within 1e-7 with cache/erf.h.
+  // Lambda(a) = (exp(-a^2) / (a sqrt(pi)) - erfc(a)) / 2, within 1e-7 with core/erf.h.
   float BeckmannG1Exact(const Vec3& w, const Vec3& m) const {
     if (Dot(w, m) * w.z <= 0) return 0;
     const float xy2 = w.x * w.x * au_ * au_ + w.y * w.y * av_ * av_;

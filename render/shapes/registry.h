@@ -17,7 +17,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
-#include "cache/math.h"
+#include "core/math.h"
 #include "render/scene_desc.h"
 
 namespace irfarm {

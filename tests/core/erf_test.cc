@@ -1,8 +1,8 @@
-// cache/erf.h against libm's double-precision erf: the published bound of Abramowitz and Stegun
+// core/erf.h against libm's double-precision erf: the published bound of Abramowitz and Stegun
 // 7.1.26 (1.5e-7 absolute) and a single-precision inverse, each widened by the rounding of a
 // float evaluation (a few ulps of 1, 6e-8 each): 1e-6 absolute for Erf, 1e-6 relative for
 // ErfInv, over their whole ranges and up to 1e-7 from +-1.
-#include "cache/erf.h"
+#include "core/erf.h"
 
 #include <gtest/gtest.h>
 

@@ -5,7 +5,7 @@
 //         t = 1 / (1 + p x) for x >= 0 (absolute error <= 1.5e-7); erfc(-x) = 2 - erfc(x).
 //   ErfInv: Giles 2010, "Approximating the erfinv function" (GPU Computing Gems), its
 //         single-precision polynomials in w = -log((1 - x)(1 + x)).
-// tests/cache/erf_test.cc checks both against libm in double over their whole ranges.
+// tests/core/erf_test.cc checks both against libm in double over their whole ranges.
 #pragma once
 
 #include <cmath>

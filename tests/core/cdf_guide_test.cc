@@ -1,4 +1,4 @@
-#include "cache/cdf_guide.h"
+#include "core/cdf_guide.h"
 
 #include <gtest/gtest.h>
 
