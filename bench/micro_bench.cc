@@ -1,6 +1,6 @@
 // Micro-benchmarks (Google Benchmark) of the hot paths: irradiance-cache lookups, Embree ray casts
 // (closest hit and occlusion) in the Cornell box, a record's derivatives, Beckmann sampling and a
-// mesh lamp's light-tree walk.
+// mesh lamp's light-tree walk, and core/fast_trig.h's atan2 beside libm's.
 // Run: build/bench/bench_micro.
 #include <benchmark/benchmark.h>
 
@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cache/irradiance_cache.h"
+#include "core/fast_trig.h"
 #include "render/bsdfs/microfacet.h"
 #include "render/irradiance_hessian.h"
 #include "render/light_tree.h"
@@ -158,6 +159,25 @@ void BM_BeckmannSample(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_BeckmannSample);
+
+// core/fast_trig.h's Atan2 against libm's, side by side in one run (arg 0: libm, 1: ours), on what
+// PolygonProjectedSolidAngle passes: (sin, cos) pairs of angles in [0, pi].
+void BM_Atan2(benchmark::State& state) {
+  const bool fast = state.range(0) == 1;
+  std::vector<double> y(1024), x(1024);
+  for (size_t i = 0; i < y.size(); ++i) {
+    const double a = 3.14159265358979 * (double(i) * 0.618034 - std::floor(double(i) * 0.618034));
+    y[i] = std::sin(a);
+    x[i] = std::cos(a);
+  }
+  for (auto _ : state) {
+    double acc = 0;
+    for (size_t i = 0; i < y.size(); ++i) acc += fast ? Atan2(y[i], x[i]) : std::atan2(y[i], x[i]);
+    benchmark::DoNotOptimize(acc);
+  }
+  state.SetItemsProcessed(state.iterations() * int64_t(y.size()));
+}
+BENCHMARK(BM_Atan2)->Arg(0)->Arg(1);
 
 // A tube lamp as a cylinder shape is tessellated (256 segments, 1.5 m long, 5 cm radius, emitting
 // outwards) under a 6 x 3 x 6 m room's ceiling: one light-tree pick (Sample) per iteration, at

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/fast_trig.h"
+
 namespace irfarm {
 namespace {
 
@@ -177,7 +179,9 @@ double PolygonProjectedSolidAngle(const Vec3& x, const Vec3& n, const Vec3* vert
     const D3 c = CrossD(u, v);
     const double sin_t = LenD(c);
     if (sin_t <= 0) continue;
-    const double theta = std::atan2(sin_t, DotD(u, v));
+    // core/fast_trig.h's: within 3e-14 of libm's at half its cost (rectangle lamps call this for
+    // every direct-light estimate).
+    const double theta = Atan2(sin_t, DotD(u, v));
     sum += theta * DotD(c, nd) / sin_t;
   }
   return 0.5 * std::abs(sum);
