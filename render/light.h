@@ -10,7 +10,7 @@
 #include "core/math.h"
 #include "render/light_tree.h"
 #include "render/light_triangle.h"
-#include "render/texture.h"
+#include "render/textures/bitmap.h"
 
 namespace irfarm {
 
@@ -44,7 +44,7 @@ struct Light {
   float area = 0;
   float error_scale = 0;
   // Envmap
-  const Texture* envmap = nullptr;
+  const BitmapTexture* envmap = nullptr;
   Mat4 world_to_env;
   float scale = 1;
   Vec3 average_radiance;  // environment: mean radiance over the sphere (selection weights)

@@ -172,17 +172,16 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc,
   // Textures decode in parallel (veach-ajar's four JPEG/PNG files took most of its Scene::Build,
   // one after another); the first failing one in file order is reported, as a serial load would. On
   // one thread under ThreadSanitizer, as Embree's builds above.
-  std::vector<absl::StatusOr<Texture>> loaded(desc.textures.size(),
-                                              absl::UnknownError("texture not loaded"));
-  const auto load = [&](size_t i) { loaded[i] = Texture::Load(desc.textures[i]); };
+  std::vector<absl::StatusOr<std::unique_ptr<Texture>>> loaded(desc.textures.size());
+  const auto load = [&](size_t i) { loaded[i] = LoadTexture(desc.textures[i]); };
 #if defined(__SANITIZE_THREAD__)
   for (size_t i = 0; i < loaded.size(); ++i) load(i);
 #else
   tbb::parallel_for(size_t(0), loaded.size(), load);
 #endif
-  for (absl::StatusOr<Texture>& tex : loaded) {
+  for (absl::StatusOr<std::unique_ptr<Texture>>& tex : loaded) {
     if (!tex.ok()) return tex.status();
-    s->textures_.push_back(std::make_unique<Texture>(std::move(*tex)));
+    s->textures_.push_back(*std::move(tex));
   }
   BsdfBuildContext bsdf_ctx;
   bsdf_ctx.textures = &s->textures_;

@@ -35,6 +35,7 @@
 #include "render/parse_number.h"
 #include "render/shapes/registry.h"
 #include "render/spectrum.h"
+#include "render/textures/registry.h"
 
 #define LOADER_RETURN_IF_ERROR(expr)   \
   do {                                 \
@@ -185,6 +186,8 @@ class Parser {
   friend class BsdfReader;
   class ShapeReader;
   friend class ShapeReader;
+  class TextureReader;
+  friend class TextureReader;
   absl::StatusOr<BsdfDesc> ParseBsdf(pugi::xml_node n);
   absl::StatusOr<int> AddBsdf(pugi::xml_node n, BsdfDesc bsdf);
   absl::StatusOr<int> ParseTexture(pugi::xml_node n);
@@ -1091,22 +1094,45 @@ absl::StatusOr<int> Parser::AddBsdf(pugi::xml_node n, BsdfDesc bsdf) {
   return index;
 }
 
+// A texture plugin's view of its element's parameters (render/textures/registry.h).
+class Parser::TextureReader final : public TextureParams {
+ public:
+  TextureReader(Parser& parser, Params& params) : parser_(parser), p_(params) {}
+
+  absl::StatusOr<bool> Bool(absl::string_view name, bool def) override {
+    return parser_.GetBool(p_, name, def);
+  }
+  absl::StatusOr<std::string> String(absl::string_view name, absl::string_view def) override {
+    return parser_.GetString(p_, name, def);
+  }
+  absl::StatusOr<Vec3> Rgb(absl::string_view name, Vec3 def) override {
+    return parser_.GetRgb(p_, name, def);
+  }
+  absl::StatusOr<std::string> File(absl::string_view name) override {
+    return parser_.GetFile(p_, name);
+  }
+  absl::Status Error(absl::string_view name, absl::string_view what) const override {
+    return parser_.Error(parser_.NodeOf(p_, name), what);
+  }
+
+ private:
+  Parser& parser_;
+  Params& p_;
+};
+
 absl::StatusOr<int> Parser::ParseTexture(pugi::xml_node n) {
-  LOADER_ASSIGN_OR_RETURN(const std::string type,
-                          PluginType(n, "texture", {"bitmap", "checkerboard"}));
+  LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
+  const TexturePlugin* plugin = FindTexturePlugin(type);
+  if (plugin == nullptr) {
+    return Error(n, absl::StrCat("unknown texture type '", type,
+                                 "' (supported: ", absl::StrJoin(TexturePluginNames(), ", "), ")"));
+  }
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "texture"));
   TextureDesc t;
   t.type = type;
   t.loc = Loc(n);
-  if (type == "bitmap") {
-    LOADER_ASSIGN_OR_RETURN(t.filename, GetFile(p, "filename"));
-    LOADER_ASSIGN_OR_RETURN(t.filter_type, GetString(p, "filter_type", "bilinear"));
-    LOADER_ASSIGN_OR_RETURN(t.wrap_mode, GetString(p, "wrap_mode", "repeat"));
-    LOADER_ASSIGN_OR_RETURN(t.raw, GetBool(p, "raw", false));
-  } else {
-    LOADER_ASSIGN_OR_RETURN(t.color0, GetRgb(p, "color0", t.color0));
-    LOADER_ASSIGN_OR_RETURN(t.color1, GetRgb(p, "color1", t.color1));
-  }
+  TextureReader reader(*this, p);
+  LOADER_RETURN_IF_ERROR(plugin->parse(reader, &t));
   // to_uv: Mitsuba keeps the upper-left 2 x 2 and the first two rows' translation.
   LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_uv, GetTransform(p, "to_uv"));
   if (to_uv) {
@@ -1115,14 +1141,6 @@ absl::StatusOr<int> Parser::ParseTexture(pugi::xml_node n) {
                float(m[1][0]), float(m[1][1]), float(m[1][3])};
   }
   LOADER_RETURN_IF_ERROR(Finish(p));
-  if (!IsOneOf(t.filter_type, {"bilinear", "nearest"})) {
-    return Error(NodeOf(p, "filter_type"), absl::StrCat("unknown filter_type '", t.filter_type,
-                                                        "' (supported: bilinear, nearest)"));
-  }
-  if (!IsOneOf(t.wrap_mode, {"repeat", "mirror", "clamp"})) {
-    return Error(NodeOf(p, "wrap_mode"), absl::StrCat("unknown wrap_mode '", t.wrap_mode,
-                                                      "' (supported: repeat, mirror, clamp)"));
-  }
   const int index = int(scene_.textures.size());
   LOADER_RETURN_IF_ERROR(RegisterId(n, "texture", index));
   scene_.textures.push_back(std::move(t));

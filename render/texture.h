@@ -1,70 +1,40 @@
-// Textures, as Mitsuba 3's plugins (TextureDesc::type), each after its to_uv transform of (u, v):
-// - bitmap: 8-bit images (kept as their bytes, 3 per texel, decoded through a 256-entry table:
-//   sRGB to linear, or /255 when `raw`; the same floats as decoding the whole image on load, in a
-//   quarter of the memory, so lookups miss the CPU caches less), or linear EXR / .hdr (floats);
-//   looked up at (u, v) with column u*w, row v*h (row 0 = top), texel centres at half-integers,
-//   bilinear or nearest filtering and repeat / mirror / clamp wrapping;
-// - checkerboard: color0 where the fractional parts of u and v are both above 0.5 or both not,
-//   color1 elsewhere.
+// A texture: a colour over a surface's (u, v), as one of Mitsuba 3's texture plugins
+// (render/textures/: bitmap, checkerboard; TextureDesc::type), each after its to_uv transform of
+// (u, v). BSDFs hold the Scene's textures through this interface (TexturedColor, bumpmap).
 #pragma once
 
 #include <array>
-#include <cstdint>
-#include <vector>
+#include <memory>
 
 #include "absl/status/statusor.h"
-#include "render/image.h"
+#include "core/math.h"
 #include "render/scene_desc.h"
 
 namespace irfarm {
 
 class Texture {
  public:
-  static absl::StatusOr<Texture> Load(const TextureDesc& desc);
-  Vec3 Eval(float u, float v) const;
-  // An environment map's radiance at (u, v) (u = phi / 2 pi, v = theta / pi), as Mitsuba 3's
-  // envmap emitter looks it up: bilinear, column u*w - 0.5 wrapping around, but row v*(h-1)
-  // clamped, so row 0 lies at the pole v = 0 and row h-1 at v = 1 (not at half-integers as a
-  // bitmap's rows). Measured with mitsuba 3.9.1 (scalar_rgb) on a map with one lit texel: its
-  // radiance peaks at u = (i + 0.5) / w and v = j / (h - 1). For a 1.5-degree sun drawn into a
-  // 512 x 256 map 40 degrees up, the bitmap convention put the sun 0.16 degrees low, and its
-  // shadows' edges a third of a pixel off the reference's (make_room 907). The transform to_uv is
-  // not applied (an envmap has none).
-  Vec3 EvalLatLong(float u, float v) const;
-  // Derivatives of the luminance of Eval with respect to u and v (bilinear filtering; 0 with
-  // nearest), as Mitsuba's eval_1_grad (bump mapping).
-  void Gradient(float u, float v, float* d_du, float* d_dv) const;
+  virtual ~Texture() = default;
+  // The colour at surface coordinates (u, v); the texture's average where they are not finite.
+  virtual Vec3 Eval(float u, float v) const = 0;
+  // Derivatives of the luminance of Eval with respect to u and v, as Mitsuba's eval_1_grad (bump
+  // mapping); 0 where the texture is flat.
+  virtual void Gradient(float u, float v, float* d_du, float* d_dv) const = 0;
   Vec3 Average() const { return average_; }
 
- private:
+ protected:
+  explicit Texture(const std::array<float, 6>& to_uv) : to_uv_(to_uv) {}
   void ToUv(float* u, float* v) const {
     const float x = *u, y = *v;
     *u = to_uv_[0] * x + to_uv_[1] * y + to_uv_[2];
     *v = to_uv_[3] * x + to_uv_[4] * y + to_uv_[5];
   }
-  Vec3 EvalBitmap(float u, float v) const;
-  // Texel (x, y), both in range, as linear RGB.
-  Vec3 Texel(int x, int y) const {
-    if (!bytes_.empty()) {
-      const uint8_t* b = &bytes_[3 * (size_t(y) * size_t(width_) + size_t(x))];
-      return Vec3(decode_[b[0]], decode_[b[1]], decode_[b[2]]);
-    }
-    return image_.at(x, y);
-  }
-  int Wrap(int i, int n) const;
-  static int WrapRepeat(int i, int n);  // i modulo n, in [0, n)
-  // The bilinear blend of texels (x0 | x1, y0 | y1) with weights tx, ty towards x1, y1.
-  Vec3 Bilinear(int x0, int x1, int y0, int y1, float tx, float ty) const;
-  bool checkerboard_ = false;
-  Vec3 color0_, color1_;
-  std::array<float, 6> to_uv_{1, 0, 0, 0, 1, 0};
-  Image image_;                      // float texels (EXR, .hdr); empty for 8-bit images
-  std::vector<uint8_t> bytes_;       // 8-bit images: RGB bytes, row-major
-  std::array<float, 256> decode_{};  // byte -> linear value
-  int width_ = 0, height_ = 0;
-  bool bilinear_ = true;
-  int wrap_ = 0;  // 0 repeat, 1 mirror, 2 clamp
+  std::array<float, 6> to_uv_;
   Vec3 average_;
 };
+
+// The texture `desc` describes, made by its plugin (render/textures/registry.h); a file that
+// cannot be read is an error at desc.loc.
+absl::StatusOr<std::unique_ptr<Texture>> LoadTexture(const TextureDesc& desc);
 
 }  // namespace irfarm

@@ -45,10 +45,10 @@ absl::StatusOr<Light> Build(const EmitterDesc& d, std::vector<std::unique_ptr<Te
   td.filename = d.filename;
   td.raw = true;
   td.loc = d.loc;
-  absl::StatusOr<Texture> tex = Texture::Load(td);
+  absl::StatusOr<std::unique_ptr<BitmapTexture>> tex = BitmapTexture::Load(td);
   if (!tex.ok()) return tex.status();
-  textures->push_back(std::make_unique<Texture>(std::move(*tex)));
-  l.envmap = textures->back().get();
+  l.envmap = tex->get();
+  textures->push_back(*std::move(tex));
   l.world_to_env = d.to_world.Inverse();
   l.scale = d.scale;
   l.average_radiance = AverageEnvironmentRadiance(l);

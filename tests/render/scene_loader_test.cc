@@ -18,6 +18,7 @@
 #include "render/mesh_loader.h"
 #include "render/scene_loader.h"
 #include "render/shapes/registry.h"
+#include "render/textures/registry.h"
 
 #include "absl/strings/str_join.h"
 #include "render/bsdfs/registry.h"
@@ -283,6 +284,14 @@ TEST(SceneLoaderErrorTest, UnknownPluginType) {
   EXPECT_EQ(shape.status().message(), "scene.xml:3: unknown shape type 'mesh' (supported: " +
                                           absl::StrJoin(ShapePluginNames(), ", ") +
                                           ", shapegroup, instance)");
+  const auto texture = Load("  <texture type=\"noise\" id=\"t\"/>\n");
+  ASSERT_FALSE(texture.ok());
+  EXPECT_EQ(texture.status().message(), "scene.xml:2: unknown texture type 'noise' (supported: " +
+                                            absl::StrJoin(TexturePluginNames(), ", ") + ")");
+  EXPECT_EQ(absl::StrJoin(TexturePluginNames(), ","), "bitmap,checkerboard");
+  ExpectError(Load("  <texture type=\"checkerboard\" id=\"t\">\n"
+                   "    <string name=\"filter_type\" value=\"nearest\"/>\n  </texture>\n"),
+              "scene.xml:3:", "unknown parameter 'filter_type' for texture 'checkerboard'");
   const auto emitter = Load("  <emitter type=\"sky\"/>\n");
   ASSERT_FALSE(emitter.ok());
   EXPECT_EQ(emitter.status().message(), "scene.xml:2: unknown emitter type 'sky' (supported: " +
@@ -940,6 +949,19 @@ TEST(SceneLoaderTest, Materials) {
   const std::string dir = MakeDir("materials");
   fs::create_directories(dir + "/textures");
   WriteFile(dir + "/textures/wood.png", "not decoded by the loader");
+  // The bitmap plugin's own choices, at the parameter's line.
+  for (const char* bad : {"<string name=\"filter_type\" value=\"cubic\"/>",
+                          "<string name=\"wrap_mode\" value=\"tile\"/>"}) {
+    ExpectError(
+        Load(std::string("  <texture type=\"bitmap\" id=\"w\">\n"
+                         "    <string name=\"filename\" value=\"textures/wood.png\"/>\n    ") +
+                 bad + "\n  </texture>\n",
+             dir + "/scene.xml"),
+        dir + "/scene.xml:4:",
+        std::string(bad).find("cubic") != std::string::npos
+            ? "unknown filter_type 'cubic' (supported: bilinear, nearest)"
+            : "unknown wrap_mode 'tile' (supported: repeat, mirror, clamp)");
+  }
   const auto scene = Load(R"(  <bsdf type="diffuse" id="red">
     <rgb name="reflectance" value="0.7, 0.1 0.1"/>
   </bsdf>

@@ -1,8 +1,12 @@
-#include "render/texture.h"
+// `bitmap` (see bitmap.h): the image, its lookups and the plugin.
+#include "render/textures/bitmap.h"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "render/textures/registry.h"
 
 namespace irfarm {
 namespace {
@@ -15,54 +19,44 @@ Vec3 AverageOf(const double sum[3], size_t texels) {
 
 }  // namespace
 
-absl::StatusOr<Texture> Texture::Load(const TextureDesc& desc) {
-  if (desc.type == "checkerboard") {
-    Texture t;
-    t.checkerboard_ = true;
-    t.color0_ = desc.color0;
-    t.color1_ = desc.color1;
-    t.to_uv_ = desc.to_uv;
-    t.average_ = (desc.color0 + desc.color1) * 0.5f;
-    return t;
-  }
+absl::StatusOr<std::unique_ptr<BitmapTexture>> BitmapTexture::Load(const TextureDesc& desc) {
   Image floats;
   ByteImage bytes;
   const absl::Status read = ReadTextureImage(desc.filename, &floats, &bytes);
   if (!read.ok())
     return absl::InvalidArgumentError(desc.loc.ToString() + ": " + std::string(read.message()));
-  Texture t;
-  t.to_uv_ = desc.to_uv;
-  t.bilinear_ = desc.filter_type != "nearest";
-  t.wrap_ = desc.wrap_mode == "mirror" ? 1 : (desc.wrap_mode == "clamp" ? 2 : 0);
+  std::unique_ptr<BitmapTexture> t(new BitmapTexture(desc));
+  t->bilinear_ = desc.filter_type != "nearest";
+  t->wrap_ = desc.wrap_mode == "mirror" ? 1 : (desc.wrap_mode == "clamp" ? 2 : 0);
   if (bytes.rgb.empty()) {
-    t.width_ = floats.width;
-    t.height_ = floats.height;
-    t.image_ = std::move(floats);
+    t->width_ = floats.width;
+    t->height_ = floats.height;
+    t->image_ = std::move(floats);
     double sum[3] = {0, 0, 0};
-    for (const Vec3& p : t.image_.pixels)
+    for (const Vec3& p : t->image_.pixels)
       for (int c = 0; c < 3; ++c) sum[c] += double(p[c]);
-    t.average_ = AverageOf(sum, size_t(t.width_) * size_t(t.height_));
+    t->average_ = AverageOf(sum, size_t(t->width_) * size_t(t->height_));
     return t;
   }
   // 8-bit: the bytes as read, decoded through the table on lookup.
   for (int i = 0; i < 256; ++i)
-    t.decode_[size_t(i)] = desc.raw ? i / 255.0f : SrgbToLinear(i / 255.0f);
-  t.width_ = bytes.width;
-  t.height_ = bytes.height;
-  t.bytes_ = std::move(bytes.rgb);
+    t->decode_[size_t(i)] = desc.raw ? i / 255.0f : SrgbToLinear(i / 255.0f);
+  t->width_ = bytes.width;
+  t->height_ = bytes.height;
+  t->bytes_ = std::move(bytes.rgb);
   // The mean from each channel's histogram of bytes: one pass of counts, no decoding per texel.
   std::array<std::array<uint64_t, 256>, 3> counts{};
-  for (size_t i = 0; i < t.bytes_.size(); i += 3)
-    for (int c = 0; c < 3; ++c) ++counts[size_t(c)][t.bytes_[i + size_t(c)]];
+  for (size_t i = 0; i < t->bytes_.size(); i += 3)
+    for (int c = 0; c < 3; ++c) ++counts[size_t(c)][t->bytes_[i + size_t(c)]];
   double sum[3] = {0, 0, 0};
   for (int c = 0; c < 3; ++c)
     for (int b = 0; b < 256; ++b)
-      sum[c] += double(counts[size_t(c)][size_t(b)]) * double(t.decode_[size_t(b)]);
-  t.average_ = AverageOf(sum, size_t(t.width_) * size_t(t.height_));
+      sum[c] += double(counts[size_t(c)][size_t(b)]) * double(t->decode_[size_t(b)]);
+  t->average_ = AverageOf(sum, size_t(t->width_) * size_t(t->height_));
   return t;
 }
 
-int Texture::Wrap(int i, int n) const {
+int BitmapTexture::Wrap(int i, int n) const {
   // Most lookups land inside the image: no integer division for them.
   if (static_cast<unsigned>(i) < static_cast<unsigned>(n)) return i;
   switch (wrap_) {
@@ -78,26 +72,19 @@ int Texture::Wrap(int i, int n) const {
   }
 }
 
-int Texture::WrapRepeat(int i, int n) {
+int BitmapTexture::WrapRepeat(int i, int n) {
   const int m = i % n;
   return m < 0 ? m + n : m;
 }
 
-Vec3 Texture::Bilinear(int x0, int x1, int y0, int y1, float tx, float ty) const {
+Vec3 BitmapTexture::Bilinear(int x0, int x1, int y0, int y1, float tx, float ty) const {
   return (Texel(x0, y0) * (1 - tx) + Texel(x1, y0) * tx) * (1 - ty) +
          (Texel(x0, y1) * (1 - tx) + Texel(x1, y1) * tx) * ty;
 }
 
-Vec3 Texture::Eval(float u, float v) const {
+Vec3 BitmapTexture::Eval(float u, float v) const {
   ToUv(&u, &v);
   if (!std::isfinite(u) || !std::isfinite(v)) return average_;
-  if (checkerboard_) {
-    return ((u - std::floor(u) > 0.5f) == (v - std::floor(v) > 0.5f)) ? color0_ : color1_;
-  }
-  return EvalBitmap(u, v);
-}
-
-Vec3 Texture::EvalBitmap(float u, float v) const {
   const int w = width_, h = height_;
   if (!bilinear_) {
     const int x = Wrap(int(std::floor(u * w)), w), y = Wrap(int(std::floor(v * h)), h);
@@ -111,9 +98,9 @@ Vec3 Texture::EvalBitmap(float u, float v) const {
   return Bilinear(x0, x1, y0, y1, tx, ty);
 }
 
-Vec3 Texture::EvalLatLong(float u, float v) const {
+Vec3 BitmapTexture::EvalLatLong(float u, float v) const {
   const int w = width_, h = height_;
-  if (!std::isfinite(u) || !std::isfinite(v) || checkerboard_ || w <= 0 || h <= 0) return average_;
+  if (!std::isfinite(u) || !std::isfinite(v) || w <= 0 || h <= 0) return average_;
   const float fx = u * float(w) - 0.5f, fy = std::clamp(v, 0.0f, 1.0f) * float(h - 1);
   const float x0f = std::floor(fx), y0f = std::floor(fy);
   const float tx = fx - x0f, ty = fy - y0f;
@@ -122,12 +109,11 @@ Vec3 Texture::EvalLatLong(float u, float v) const {
   return Bilinear(x0, x1, y0, y1, tx, ty);
 }
 
-void Texture::Gradient(float u, float v, float* d_du, float* d_dv) const {
+void BitmapTexture::Gradient(float u, float v, float* d_du, float* d_dv) const {
   *d_du = *d_dv = 0;
   ToUv(&u, &v);
   const int w = width_, h = height_;
-  // A checkerboard is flat between its jumps.
-  if (checkerboard_ || !bilinear_ || !std::isfinite(u) || !std::isfinite(v)) return;
+  if (!bilinear_ || !std::isfinite(u) || !std::isfinite(v)) return;
   const float fx = u * w - 0.5f, fy = v * h - 0.5f;
   const float x0f = std::floor(fx), y0f = std::floor(fy);
   const float tx = fx - x0f, ty = fy - y0f;
@@ -145,5 +131,41 @@ void Texture::Gradient(float u, float v, float* d_du, float* d_dv) const {
   *d_du = g_u * to_uv_[0] + g_v * to_uv_[3];
   *d_dv = g_u * to_uv_[1] + g_v * to_uv_[4];
 }
+
+namespace {
+
+absl::Status Parse(TextureParams& p, TextureDesc* d) {
+  absl::StatusOr<std::string> filename = p.File("filename");
+  if (!filename.ok()) return filename.status();
+  d->filename = *filename;
+  absl::StatusOr<std::string> filter = p.String("filter_type", "bilinear");
+  if (!filter.ok()) return filter.status();
+  if (*filter != "bilinear" && *filter != "nearest") {
+    return p.Error("filter_type", absl::StrCat("unknown filter_type '", *filter,
+                                               "' (supported: bilinear, nearest)"));
+  }
+  d->filter_type = *filter;
+  absl::StatusOr<std::string> wrap = p.String("wrap_mode", "repeat");
+  if (!wrap.ok()) return wrap.status();
+  if (*wrap != "repeat" && *wrap != "mirror" && *wrap != "clamp") {
+    return p.Error("wrap_mode", absl::StrCat("unknown wrap_mode '", *wrap,
+                                             "' (supported: repeat, mirror, clamp)"));
+  }
+  d->wrap_mode = *wrap;
+  absl::StatusOr<bool> raw = p.Bool("raw", false);
+  if (!raw.ok()) return raw.status();
+  d->raw = *raw;
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::unique_ptr<Texture>> Build(const TextureDesc& d) {
+  absl::StatusOr<std::unique_ptr<BitmapTexture>> t = BitmapTexture::Load(d);
+  if (!t.ok()) return t.status();
+  return std::unique_ptr<Texture>(*std::move(t));
+}
+
+}  // namespace
+
+extern const TexturePlugin kBitmapTexture = {"bitmap", Parse, Build};
 
 }  // namespace irfarm
