@@ -2,6 +2,8 @@
 // defining `const BsdfPlugin k<Name>Bsdf`, and add one X(k<Name>Bsdf) line below.
 #include "render/bsdfs/registry.h"
 
+#include "render/plugin_registry.h"
+
 namespace irfarm {
 
 #define IRFARM_BSDF_PLUGINS(X) \
@@ -33,15 +35,9 @@ const BsdfPlugin* const kPlugins[] = {IRFARM_BSDF_PLUGINS(IRFARM_LIST_PLUGIN)};
 }  // namespace
 
 const BsdfPlugin* FindBsdfPlugin(absl::string_view name) {
-  for (const BsdfPlugin* p : kPlugins)
-    if (name == p->name) return p;
-  return nullptr;
+  return FindPluginByName(kPlugins, name);
 }
 
-std::vector<std::string> BsdfPluginNames() {
-  std::vector<std::string> names;
-  for (const BsdfPlugin* p : kPlugins) names.emplace_back(p->name);
-  return names;
-}
+std::vector<std::string> BsdfPluginNames() { return PluginNamesOf(kPlugins); }
 
 }  // namespace irfarm

@@ -3,6 +3,8 @@
 // X(k<Name>Emitter) line below (and its sampling to LightSampler if it is a new kind of light).
 #include "render/emitters/registry.h"
 
+#include "render/plugin_registry.h"
+
 namespace irfarm {
 
 #define IRFARM_EMITTER_PLUGINS(X) \
@@ -24,15 +26,9 @@ const EmitterPlugin* const kPlugins[] = {IRFARM_EMITTER_PLUGINS(IRFARM_LIST_PLUG
 }  // namespace
 
 const EmitterPlugin* FindEmitterPlugin(absl::string_view name) {
-  for (const EmitterPlugin* p : kPlugins)
-    if (name == p->name) return p;
-  return nullptr;
+  return FindPluginByName(kPlugins, name);
 }
 
-std::vector<std::string> EmitterPluginNames() {
-  std::vector<std::string> names;
-  for (const EmitterPlugin* p : kPlugins) names.emplace_back(p->name);
-  return names;
-}
+std::vector<std::string> EmitterPluginNames() { return PluginNamesOf(kPlugins); }
 
 }  // namespace irfarm

@@ -2,6 +2,8 @@
 // defining `const ShapePlugin k<Name>Shape`, and add one X(k<Name>Shape) line below.
 #include "render/shapes/registry.h"
 
+#include "render/plugin_registry.h"
+
 namespace irfarm {
 
 #define IRFARM_SHAPE_PLUGINS(X) \
@@ -25,15 +27,9 @@ const ShapePlugin* const kPlugins[] = {IRFARM_SHAPE_PLUGINS(IRFARM_LIST_PLUGIN)}
 }  // namespace
 
 const ShapePlugin* FindShapePlugin(absl::string_view name) {
-  for (const ShapePlugin* p : kPlugins)
-    if (name == p->name) return p;
-  return nullptr;
+  return FindPluginByName(kPlugins, name);
 }
 
-std::vector<std::string> ShapePluginNames() {
-  std::vector<std::string> names;
-  for (const ShapePlugin* p : kPlugins) names.emplace_back(p->name);
-  return names;
-}
+std::vector<std::string> ShapePluginNames() { return PluginNamesOf(kPlugins); }
 
 }  // namespace irfarm

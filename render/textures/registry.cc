@@ -3,6 +3,8 @@
 // X(k<Name>Texture) line below.
 #include "render/textures/registry.h"
 
+#include "render/plugin_registry.h"
+
 #include "absl/strings/str_cat.h"
 
 namespace irfarm {
@@ -22,16 +24,10 @@ const TexturePlugin* const kPlugins[] = {IRFARM_TEXTURE_PLUGINS(IRFARM_LIST_PLUG
 }  // namespace
 
 const TexturePlugin* FindTexturePlugin(absl::string_view name) {
-  for (const TexturePlugin* p : kPlugins)
-    if (name == p->name) return p;
-  return nullptr;
+  return FindPluginByName(kPlugins, name);
 }
 
-std::vector<std::string> TexturePluginNames() {
-  std::vector<std::string> names;
-  for (const TexturePlugin* p : kPlugins) names.emplace_back(p->name);
-  return names;
-}
+std::vector<std::string> TexturePluginNames() { return PluginNamesOf(kPlugins); }
 
 absl::StatusOr<std::unique_ptr<Texture>> LoadTexture(const TextureDesc& desc) {
   const TexturePlugin* plugin = FindTexturePlugin(desc.type);
