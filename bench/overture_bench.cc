@@ -52,7 +52,7 @@ int main(int argc, char** argv) {
       ++failures;
       continue;
     }
-    const SceneDesc* desc = &prepared->desc;
+    const CameraDesc& camera = prepared->desc.camera;
     struct Best {
       double wall = 1e30, cpu = 0;
       uint64_t records = 0;
@@ -70,7 +70,7 @@ int main(int argc, char** argv) {
       }
     }
     const Best &one = best[1], &two = best[2];
-    std::printf("%s (%dx%d)\n", name.c_str(), desc->camera.width, desc->camera.height);
+    std::printf("%s (%dx%d)\n", name.c_str(), camera.width, camera.height);
     for (int threads : {1, 2}) {
       const Best& b = best[threads];
       std::printf(

@@ -184,7 +184,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "error: %s\n", prepared.status().ToString().c_str());
     return 1;
   }
-  const std::unique_ptr<Scene>* scene = &prepared->scene;
+  const Scene& scene = *prepared->scene;
   char tmpl[] = "/tmp/irfarm-bench-XXXXXX";
   if (!mkdtemp(tmpl)) {
     std::perror("mkdtemp");
@@ -205,8 +205,8 @@ int main(int argc, char** argv) {
               scene_path.c_str(), res, res, std::thread::hardware_concurrency(), repeats);
   for (int rep = 0; rep < repeats; ++rep) {
     // Interleaved, so that a slow phase of the machine affects every configuration alike.
-    embree1 = std::min(embree1, EmbreeLoop(**scene, rays, 1));
-    embree2 = std::min(embree2, EmbreeLoop(**scene, rays, 2));
+    embree1 = std::min(embree1, EmbreeLoop(scene, rays, 1));
+    embree2 = std::min(embree2, EmbreeLoop(scene, rays, 2));
     for (size_t c = 0; c < 3; ++c) {
       JobFigures f = RunJob(bin, scene_path, res, configs[c].workers, configs[c].share, tmp);
       if (!f.ok) {

@@ -63,6 +63,8 @@ int RunRender(const RenderArgs& args) {
   request.record_map = !args.record_map.empty();
   request.sample_map = !args.sample_map.empty();
   request.aovs = args.aovs;
+  // Checked here as well as in PrepareRender: a bad flag is a usage error (exit 2), found before
+  // the scene is read.
   if (absl::Status bad = ValidateRequest(request); !bad.ok()) {
     std::fprintf(stderr, "error: %s\n", std::string(bad.message()).c_str());
     return 2;
@@ -75,9 +77,9 @@ int RunRender(const RenderArgs& args) {
     std::fprintf(stderr, "%s\n", std::string(prepared.status().message()).c_str());
     return 1;
   }
-  const SceneDesc* desc = &prepared->desc;
-  const std::unique_ptr<Scene>* scene = &prepared->scene;
-  for (const std::string& w : desc->warnings) spdlog::warn("{}", w);
+  const SceneDesc& desc = prepared->desc;
+  const Scene& scene = *prepared->scene;
+  for (const std::string& w : desc.warnings) spdlog::warn("{}", w);
   const RenderSettings& s = prepared->settings;
 
   // The denoiser is loaded before rendering, so that a missing one fails fast.
@@ -99,27 +101,27 @@ int RunRender(const RenderArgs& args) {
   if (!args.cache_in.empty()) {
     absl::StatusOr<Snapshot> snap = ReadSnapshotFile(args.cache_in);
     absl::Status st =
-        snap.ok() ? CheckSnapshotScene(*snap, SceneHash(*desc), args.cache_in) : snap.status();
+        snap.ok() ? CheckSnapshotScene(*snap, SceneHash(desc), args.cache_in) : snap.status();
     if (!st.ok()) {
       std::fprintf(stderr, "error: %s\n", std::string(st.message()).c_str());
       return 1;
     }
-    warm_cache = std::make_unique<IrradianceCache>(CacheSettingsFor(**scene, s));
+    warm_cache = std::make_unique<IrradianceCache>(CacheSettingsFor(scene, s));
     for (IrradianceRecord r : snap->records) {
       r.origin = 0xffffffffu;  // not computed by this render
       warm_cache->Insert(r);
     }
   }
-  RenderOutput out = Render(**scene, s, warm_cache.get());
+  RenderOutput out = Render(scene, s, warm_cache.get());
   RenderStats& st = out.stats;
   st.scene = args.scene;
   st.phases.insert(st.phases.begin(), prepared->build_time);
   st.phases.insert(st.phases.begin(), prepared->load_time);
-  st.triangles = (*scene)->counts().triangles;
-  st.degenerate_dropped = (*scene)->counts().degenerate_dropped;
-  st.environment_guide_cells = (*scene)->environment_guide().cells();
+  st.triangles = scene.counts().triangles;
+  st.degenerate_dropped = scene.counts().degenerate_dropped;
+  st.environment_guide_cells = scene.environment_guide().cells();
   for (const std::string& w : st.warnings) spdlog::warn("{}", w);  // the render's own
-  st.warnings.insert(st.warnings.begin(), desc->warnings.begin(), desc->warnings.end());
+  st.warnings.insert(st.warnings.begin(), desc.warnings.begin(), desc.warnings.end());
 
   const std::vector<ExrLayer> layers = args.aovs ? out.aovs.Layers() : std::vector<ExrLayer>{};
   absl::Status status;

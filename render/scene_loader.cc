@@ -158,6 +158,11 @@ class Parser {
   absl::StatusOr<const Entry*> Find(Params& p, absl::string_view name,
                                     std::initializer_list<absl::string_view> tags) const;
   pugi::xml_node NodeOf(const Params& p, absl::string_view name) const;
+  // A plugin's error (the readers' Error): at parameter `name`'s line, or the element's when
+  // `name` is empty or not given (NodeOf alone would match an unnamed nested object for "").
+  absl::Status ParamError(const Params& p, absl::string_view name, absl::string_view what) const {
+    return Error(name.empty() ? p.node : NodeOf(p, name), what);
+  }
   std::vector<const Entry*> TakeObjects(Params& p, absl::string_view kind) const;
   absl::Status Finish(const Params& p) const;
   absl::StatusOr<float> GetFloat(Params& p, absl::string_view name, float def) const;
@@ -1059,7 +1064,7 @@ class Parser::BsdfReader final : public BsdfParams {
     return out;
   }
   absl::Status Error(absl::string_view name, absl::string_view what) const override {
-    return parser_.Error(name.empty() ? p_.node : parser_.NodeOf(p_, name), what);
+    return parser_.ParamError(p_, name, what);
   }
   BsdfDesc& desc() override { return d_; }
 
@@ -1112,7 +1117,7 @@ class Parser::TextureReader final : public TextureParams {
     return parser_.GetFile(p_, name);
   }
   absl::Status Error(absl::string_view name, absl::string_view what) const override {
-    return parser_.Error(parser_.NodeOf(p_, name), what);
+    return parser_.ParamError(p_, name, what);
   }
 
  private:
@@ -1230,7 +1235,7 @@ class Parser::ShapeReader final : public ShapeParams {
     return parser_.GetFile(p_, name);
   }
   absl::Status Error(absl::string_view name, absl::string_view what) const override {
-    return parser_.Error(parser_.NodeOf(p_, name), what);
+    return parser_.ParamError(p_, name, what);
   }
   absl::Status ElementError(const absl::Status& s, absl::string_view what) const override {
     return absl::Status(s.code(), absl::StrCat(parser_.Where(p_.node), what, s.message()));
@@ -1360,7 +1365,7 @@ class Parser::EmitterReader final : public EmitterParams {
   }
   Mat4 World(const Mat4& m) const override { return parser_.World(m); }
   absl::Status Error(absl::string_view name, absl::string_view what) const override {
-    return parser_.Error(parser_.NodeOf(p_, name), what);
+    return parser_.ParamError(p_, name, what);
   }
 
  private:

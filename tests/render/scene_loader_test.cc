@@ -1137,6 +1137,21 @@ TEST(SceneLoaderTest, ShapeAndEmitterPluginsByName) {
   EXPECT_DOUBLE_EQ(spot->irradiance_bound(desc->emitters[0], 2.0), 1.0);
 }
 
+// A plugin's error about the element as a whole is at the element's line, not at the line of an
+// unnamed object nested in it (its bsdf, its area emitter).
+TEST(SceneLoaderErrorTest, ElementErrorsPointAtTheElement) {
+  ExpectError(Load("  <shape type=\"cylinder\">\n"
+                   "    <bsdf type=\"diffuse\"/>\n"
+                   "    <point name=\"p1\" value=\"0, 0, 0\"/>\n"
+                   "  </shape>\n"),
+              "scene.xml:2:", "cylinder needs a positive radius and p0 != p1");
+  ExpectError(Load("\n  <emitter type=\"point\">\n"
+                   "    <point name=\"position\" value=\"0, 1, 0\"/>\n"
+                   "    <transform name=\"to_world\"><translate y=\"1\"/></transform>\n"
+                   "  </emitter>\n"),
+              "scene.xml:3:", "give either position or to_world for a point emitter, not both");
+}
+
 TEST(SceneLoaderTest, IntegratorAndSampler) {
   const auto scene = LoadSceneString(R"(<scene version="3.0.0">
   <integrator type="irrcache">
