@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/fast_trig.h"
+
 namespace irfarm {
 namespace {
 
@@ -88,11 +90,13 @@ bool ProjectedSolidAngleEdgeLocal(const LocalVertex& v0, const LocalVertex& v1, 
   // As ProjectedSolidAngleEdge (the same integrals, n the frame's z axis).
   if (!(q0 > 0) || !(q1 > 0) || !(c2 > 1e-24 * q0 * q1) || !std::isfinite(c2)) return false;
   const double len_c = std::sqrt(c2);
-  const double theta = std::atan2(len_c, Dot3(r0, r1));
+  // Atan2 (core/fast_trig.h): within 3e-14 of libm's, in half the time; this angle was a fifth
+  // of a record's Hessian.
+  const double theta = Atan2(len_c, Dot3(r0, r1));
   const double a = Dot3(e, e), b = Dot3(e, r0), er1 = Dot3(e, r1);
   const double inv_c2 = 1 / c2, inv_a = 1 / a;
   const double iq0 = v0.inv_q, iq1 = v1.inv_q;
-  const double I1 = theta / len_c;
+  const double I1 = theta * len_c * inv_c2;
   const double I2 = (er1 * iq1 - b * iq0 + a * I1) * (0.5 * inv_c2);
   const double J2 = ((iq0 - iq1) * 0.5 - b * I2) * inv_a;
   const double I3 = (er1 * iq1 * iq1 - b * iq0 * iq0 + 3 * a * I2) * (0.25 * inv_c2);
