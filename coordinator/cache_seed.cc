@@ -26,8 +26,8 @@ uint64_t RecordKey(const IrradianceRecord& r) {
 bool CanSeed(const v1::StoredJob& from, const v1::StoredJob& to) {
   const v1::Job& a = from.job();
   const v1::Job& b = to.job();
-  return a.id() != b.id() && a.scene_hash() == b.scene_hash() && IsIrrcache(a.settings()) &&
-         IsIrrcache(b.settings()) && b.settings().share_records() &&
+  return a.id() != b.id() && a.owner() == b.owner() && a.scene_hash() == b.scene_hash() &&
+         IsIrrcache(a.settings()) && IsIrrcache(b.settings()) && b.settings().share_records() &&
          from.max_accuracy() == to.max_accuracy() &&
          a.settings().record_rays() == b.settings().record_rays() &&
          a.settings().no_caustics() == b.settings().no_caustics();

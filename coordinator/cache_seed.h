@@ -1,7 +1,7 @@
 // Cache seeding across jobs: irradiance records do not depend on the view, so a job whose scene
-// differs from an earlier job's only in the sensor (same sensor-free scene hash, service/
-// scene_hash.h) and whose record settings match (integrator irrcache, accuracy a, record rays,
-// caustics: with the photon map a record leaves caustics out, without it a record holds them;
+// differs from an earlier job's of the same client only in the sensor (same sensor-free scene hash,
+// service/ scene_hash.h) and whose record settings match (integrator irrcache, accuracy a, record
+// rays, caustics: with the photon map a record leaves caustics out, without it a record holds them;
 // max_depth is part of the hash) can start from the records the earlier job merged, for
 // example the frames of a camera move submitted as one batch. CanSeed says whether a job may
 // take another's records; SeedSet collects the records of several such jobs without duplicates
@@ -17,7 +17,9 @@
 
 namespace irfarm {
 
-// True when `from`'s records are valid in `to`: both irradiance-cache jobs of the same
+// True when `from`'s records are valid in `to` and may go there: both irradiance-cache jobs of
+// the same client (a client's snapshot holds records that pass every bound yet are wrong, e.g.
+// black with wide radii: they must not reach another client's image) and of the same
 // sensor-free scene with the same accuracy, record rays and caustics setting, and `to` shares
 // records (a job submitted with sharing off is a measurement of isolated workers and takes none).
 bool CanSeed(const v1::StoredJob& from, const v1::StoredJob& to);

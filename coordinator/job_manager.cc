@@ -71,6 +71,46 @@ std::string Printable(const std::string& s, size_t max = 200) {
   return out;
 }
 
+// Why a job read back from the store cannot be resumed as it is ("" when it can): the limits a
+// submit is held to, on what sizes the job's tiles and cache (a store anyone else can write to,
+// or a damaged one, must not make a coordinator allocate tens of GB or overflow at start-up).
+std::string StoredJobProblem(const v1::StoredJob& s, const JobLimits& lim) {
+  const v1::Job& j = s.job();
+  const int64_t w = j.width(), h = j.height();
+  if (w < 1 || h < 1 || w > lim.max_film_side || h > lim.max_film_side ||
+      w * h > lim.max_film_pixels)
+    return "film " + std::to_string(w) + "x" + std::to_string(h) + " is outside the limits";
+  const int64_t tile = j.settings().tile_size();
+  if (tile < 0 || tile > 4096 || (tile > 0 && tile < 4))
+    return "tile size " + std::to_string(tile) + " is outside [4, 4096]";
+  const int64_t t = JobTileSize(j.settings());
+  if (((w + t - 1) / t) * ((h + t - 1) / t) > lim.max_tiles)
+    return "more than " + std::to_string(lim.max_tiles) + " tiles";
+  if (s.cache_bounds_size() != 0 && s.cache_bounds_size() != 6)
+    return std::to_string(s.cache_bounds_size()) + " cache bound values, expected 6";
+  for (int k = 0; k < s.cache_bounds_size(); ++k)
+    if (!std::isfinite(s.cache_bounds(k)) ||
+        (k < 3 && !(s.cache_bounds(k) <= s.cache_bounds(k + 3))))
+      return "cache bounds are not a finite box";
+  if (!(s.max_accuracy() >= 0 && s.max_accuracy() <= 1)) return "max_accuracy is outside [0, 1]";
+  if (!(s.record_max_radius() >= 0 && std::isfinite(s.record_max_radius())) ||
+      !(s.record_max_irradiance() >= 0 && std::isfinite(s.record_max_irradiance())))
+    return "record bounds are not finite and non-negative";
+  return "";
+}
+
+// Whether a finished tile read back from the store holds what CompleteTile accepts: its pixels
+// (the first `pixel_floats`) finite and non-negative, its guides finite.
+bool SaneTile(const std::string& bytes, size_t pixel_floats) {
+  const size_t n = bytes.size() / sizeof(float);
+  for (size_t i = 0; i < n; ++i) {
+    float v;
+    std::memcpy(&v, bytes.data() + i * sizeof(float), sizeof v);
+    if (!std::isfinite(v) || (i < pixel_floats && v < 0)) return false;
+  }
+  return true;
+}
+
 bool FinalState(v1::JobState s) {
   return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
 }
@@ -233,6 +273,12 @@ absl::Status JobManager::Resume() {
   for (size_t i = 0; i < stored->size(); ++i) {
     if (expired[i]) continue;
     v1::StoredJob& s = (*stored)[i];
+    if (const std::string why = StoredJobProblem(s, options_.limits); !why.empty()) {
+      // Left in the store for an operator to look at; its id is never reused (the counter).
+      spdlog::error("job {}: not resumed, its stored job is not sane: {}",
+                    Printable(s.job().id(), 64), why);
+      continue;
+    }
     auto job = std::make_unique<Job>();
     job->stored = s;
     const v1::Job& j = s.job();
@@ -252,7 +298,11 @@ absl::Status JobManager::Resume() {
       if (tile < 0 || tile >= job->tiles->num_tiles()) continue;
       const PixelRect& r = job->tiles->rect(tile);
       const size_t floats = size_t(r.width()) * r.height() * (j.settings().denoise() ? 9 : 3);
-      if (pixels.size() != floats * sizeof(float)) continue;
+      if (pixels.size() != floats * sizeof(float) ||
+          !SaneTile(pixels, size_t(r.width()) * r.height() * 3)) {
+        spdlog::error("job {}: stored tile {} is not sane, rendered again", j.id(), tile);
+        continue;
+      }
       job->tiles->MarkDone(tile);
       job->pixels[tile] = std::move(pixels);
     }
@@ -357,15 +407,40 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     return absl::InvalidArgumentError(
         "record_rays " + std::to_string(request.settings().record_rays()) +
         " is over the limit of " + std::to_string(lim.max_record_rays));
+  if (request.priority() < 0 || request.priority() > JobLimits::kMaxPriority)
+    return absl::InvalidArgumentError("priority must be in [0, " +
+                                      std::to_string(JobLimits::kMaxPriority) + "], got " +
+                                      std::to_string(request.priority()));
+  // This submit counts as a live job of its client from the check until it is in jobs_ (or
+  // refused): parallel submits see each other.
+  struct Submitting {
+    JobManager* m;
+    const std::string& owner;
+    bool counted = false;
+    void Done() {  // under mu_
+      if (!counted) return;
+      counted = false;
+      auto it = m->submitting_.find(owner);
+      if (--it->second == 0) m->submitting_.erase(it);
+    }
+    ~Submitting() {
+      if (!counted) return;
+      std::lock_guard<std::mutex> lock(m->mu_);
+      Done();
+    }
+  } submitting{this, caller.name};
   if (!caller.admin) {
     std::lock_guard<std::mutex> lock(mu_);
-    int live = 0;
+    auto pending = submitting_.find(caller.name);
+    int live = pending == submitting_.end() ? 0 : pending->second;
     for (const auto& [id, job] : jobs_)
       if (!IsFinal(*job) && job->stored.job().owner() == caller.name) ++live;
     if (live >= lim.max_live_jobs_per_client)
       return absl::ResourceExhaustedError("client '" + caller.name + "' has " +
                                           std::to_string(live) + " live jobs, the limit is " +
                                           std::to_string(lim.max_live_jobs_per_client));
+    ++submitting_[caller.name];
+    submitting.counted = true;
   }
   // Load the scene now, so that a bad scene is refused with the loader's file:line message.
   absl::StatusOr<SceneDesc> desc = absl::InvalidArgumentError("no scene given");
@@ -483,11 +558,20 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   if (!imported.empty()) {
     std::vector<IrradianceRecord> merged = job->cache->Merge(imported);
     st = store_->AppendRecords(j->id(), merged);
-    if (!st.ok()) return Unavailable(st);
+    if (!st.ok()) {
+      // Refused, so not stored either: a restart must not resume a job the client was told
+      // failed (without the records it was submitted with).
+      const absl::Status del = store_->DeleteJob(j->id());
+      if (!del.ok())
+        spdlog::error("job {}: refused (records not stored: {}), and deleting it failed: {}",
+                      j->id(), st.ToString(), del.ToString());
+      return Unavailable(st);
+    }
   }
   std::lock_guard<std::mutex> lock(mu_);
   const v1::Job view = View(*job);
   jobs_[j->id()] = std::move(job);
+  submitting.Done();
   metrics_.jobs_submitted->Add();
   Changed();
   return view;
@@ -906,6 +990,10 @@ absl::StatusOr<v1::Job> JobManager::SetPriority(const std::string& id, int prior
   if (IsFinal(job))
     return absl::FailedPreconditionError("job '" + id + "' is already " +
                                          v1::JobState_Name(job.stored.job().state()));
+  if (priority < 0 || priority > JobLimits::kMaxPriority)
+    return absl::InvalidArgumentError("priority must be in [0, " +
+                                      std::to_string(JobLimits::kMaxPriority) + "], got " +
+                                      std::to_string(priority));
   job.stored.mutable_job()->set_priority(priority);
   writer_->PutJob(job.stored);  // off the lock, retried until the store has it
   Changed();
@@ -1246,12 +1334,24 @@ absl::StatusOr<JobManager::HeldLease> JobManager::ReleaseHeldLease(uint32_t work
   Worker& w = wit->second;
   const absl::StatusOr<LeaseToken> token = TokenOf(worker_id, w, token_bytes, what);
   if (!token.ok()) return token.status();
-  ReleaseLease(w, *token);  // its lease is over, whether the report counts or not
+  // A report under the worker's current lease must name that lease's job and tile. Else it is a
+  // violation and the lease stays: released here, a worker could answer every lease with a
+  // made-up tile and be given the next one while the scheduler still held the last for it
+  // (each for the whole lease time, then failed back), one worker taking every pending tile.
+  const bool current = w.has_lease && w.lease == *token;
+  if (current && (job_id != w.lease_job || tile != w.lease_tile))
+    return Violation(worker_id, w,
+                     what + " names tile " + std::to_string(tile) + " of job '" +
+                         Printable(job_id, 64) + "', but its lease is tile " +
+                         std::to_string(w.lease_tile) + " of job '" + w.lease_job + "'",
+                     absl::StatusCode::kInvalidArgument);
   auto it = jobs_.find(job_id);
   const TileLeaseInfo* lease = it == jobs_.end() || IsFinal(*it->second) || tile < 0 ||
                                        tile >= it->second->tiles->num_tiles()
                                    ? nullptr
                                    : it->second->tiles->Current(tile, *token);
+  // Either way a report on the current lease ends it (expired, re-leased or done, it is over).
+  ReleaseLease(w, *token);
   if (lease == nullptr || lease->worker != worker_id) return NotHolder(worker_id, &w, *token, what);
   return HeldLease{&w, it->second.get(), lease, *token};
 }

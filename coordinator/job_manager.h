@@ -84,8 +84,11 @@ struct JobLimits {
   int max_defines = 256;                       // -D overrides per job
   size_t max_define_bytes = 4096;              // name + value of one -D
   int max_batch_records = 1 << 16;             // records per worker message
-  int max_live_jobs_per_client = 64;           // queued + running jobs of one client
+  // Queued + running jobs of one client, counting its submits still in progress.
+  int max_live_jobs_per_client = 64;
   size_t max_outbox_bytes = size_t(64) << 20;  // record fan-out queued for one worker
+  // A job's priority (higher runs first, across all clients' jobs) is in [0, kMaxPriority].
+  static constexpr int kMaxPriority = 100;
 };
 
 struct JobManagerOptions {
@@ -316,8 +319,10 @@ class JobManager {
   void ReleaseLease(Worker& worker, const LeaseToken& token);
   // A worker's report about its lease of a tile (`what`: "tile result", "tile failure"), under
   // mu_: the worker, the job and the lease the report names, the lease released whether or not
-  // the report counts. NOT_FOUND for an unknown worker, a violation for a malformed token, and
-  // NotHolder's answer when the tile is not (or no longer) under this worker's lease.
+  // the report counts. NOT_FOUND for an unknown worker; a violation (INVALID_ARGUMENT) for a
+  // malformed token, and for the token of its current lease with another job or tile (the lease
+  // is then kept); NotHolder's answer when the tile is not (or no longer) under this worker's
+  // lease.
   struct HeldLease {
     Worker* worker = nullptr;
     Job* job = nullptr;
@@ -391,6 +396,9 @@ class JobManager {
   uint32_t next_worker_ = 1;
   std::map<std::string, std::unique_ptr<Job>> jobs_;
   std::set<std::string> reserved_ids_;  // jobs being submitted (stored, not yet in jobs_)
+  // Submits in progress per client (past the live-job check, not yet in jobs_): they count
+  // against max_live_jobs_per_client, so parallel submits cannot pass the check together.
+  std::map<std::string, int> submitting_;
   std::map<uint32_t, Worker> workers_;
   std::map<std::string, WorkerHealth> health_;  // by worker name
   uint64_t violations_total_ = 0, expelled_total_ = 0;

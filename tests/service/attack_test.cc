@@ -18,6 +18,7 @@
 #include <fstream>
 #include <functional>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -866,6 +867,14 @@ TEST_F(AttackTest, ResourceLimits) {
     (*req.mutable_settings()->mutable_defines())["d" + std::to_string(i)] = "1";
   expect(req, grpc::StatusCode::INVALID_ARGUMENT, "300 defines");
   EXPECT_EQ(JobList(), list);
+  // A priority outside [0, 100]: across clients the highest runs first, so one client could
+  // otherwise put its jobs ahead of everyone's for good.
+  req = Request();
+  req.set_priority(2147483647);
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "priority 2^31 - 1");
+  req.set_priority(-1);
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "priority -1");
+  EXPECT_EQ(JobList(), list);
   // Live jobs per client (4 here): the fifth is refused, another client is not affected.
   for (int i = 0; i < 4; ++i) ASSERT_TRUE(Submit(kAlice, Request()).ok());
   expect(Request(), grpc::StatusCode::RESOURCE_EXHAUSTED, "fifth live job");
@@ -876,6 +885,136 @@ TEST_F(AttackTest, ResourceLimits) {
   std::vector<IrradianceRecord> flood(size_t(1 << 16) + 1, Record(Vec3(0, 0, 0), 0.1f, 1));
   ASSERT_TRUE(f.Send(Records("job-1", flood)));
   EXPECT_NE(f.NextRejection().find("over the limit"), std::string::npos);
+}
+
+// The live-job limit holds for submits made at the same time: each counts from its check on,
+// so 12 parallel submits of a client with a limit of 4 leave 4 jobs (before, the count was taken
+// and the lock released while the scene loaded, and all 12 could pass).
+TEST_F(AttackTest, ParallelSubmitsStayWithinTheLiveJobLimit) {
+  StartServer();
+  constexpr int kSubmits = 12;
+  std::vector<grpc::Status> status(kSubmits);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kSubmits; ++i)
+    threads.emplace_back([&, i] { status[size_t(i)] = Submit(kAlice, Request()); });
+  for (std::thread& t : threads) t.join();
+  int ok = 0, exhausted = 0;
+  for (const grpc::Status& st : status) {
+    ok += st.ok();
+    exhausted += st.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED;
+  }
+  std::printf("MEASURED parallel submits: %d accepted, %d refused\n", ok, exhausted);
+  EXPECT_EQ(ok, 4);
+  EXPECT_EQ(exhausted, kSubmits - 4);
+  grpc::ClientContext c;
+  Auth(&c, kAlice);
+  v1::ListJobsResponse r;
+  ASSERT_TRUE(stub_->ListJobs(&c, v1::ListJobsRequest(), &r).ok());
+  EXPECT_EQ(r.jobs_size(), 4);
+  // Refused submits leave no count behind: once the jobs are cancelled, the client may submit.
+  for (const v1::Job& j : r.jobs()) {
+    grpc::ClientContext cc;
+    Auth(&cc, kAlice);
+    v1::CancelJobRequest creq;
+    creq.set_job_id(j.id());
+    v1::CancelJobResponse cr;
+    ASSERT_TRUE(stub_->CancelJob(&cc, creq, &cr).ok());
+  }
+  for (int i = 0; i < 4; ++i) EXPECT_TRUE(Submit(kAlice, Request()).ok());
+}
+
+// A report under the lease a worker holds must be about that lease's tile. Answering a lease with
+// a made-up tile index released it while the scheduler still held the tile for the worker, so it
+// got the next lease, and the next: one session could take every pending tile of every job, each
+// for the lease time, and fail them all back. Now that is a violation and the lease stays.
+TEST_F(AttackTest, ReportsUnderTheCurrentLeaseMustNameItsTile) {
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  FakeWorker f(channel_, kWorker, "hoarder");
+  const std::optional<v1::TileLease> lease = f.NextLease();
+  ASSERT_TRUE(lease.has_value());
+  const int tile = lease->tile_index();
+  const int floats = LeaseFloats(*lease);
+  const auto answer = [&]() {  // the coordinator's next lease or rejection
+    return f.ReadUntil(
+        [](const v1::CoordinatorMessage& m) { return m.has_lease() || m.has_rejected(); });
+  };
+  for (const int bogus : {-1, tile == 0 ? 1 : 0, 1 << 20}) {
+    ASSERT_TRUE(f.Send(Result(a, bogus, lease->lease_token(), floats, 0.5f)));
+    const std::optional<v1::CoordinatorMessage> m = answer();
+    ASSERT_TRUE(m.has_value());
+    ASSERT_TRUE(m->has_rejected()) << "tile " << bogus << ": got another lease";
+    EXPECT_EQ(m->rejected().code(), int(grpc::StatusCode::INVALID_ARGUMENT));
+    EXPECT_NE(m->rejected().reason().find("its lease is tile " + std::to_string(tile)),
+              std::string::npos)
+        << m->rejected().reason();
+  }
+  v1::WorkerMessage fail;
+  fail.mutable_tile_failed()->set_job_id("job-0");
+  fail.mutable_tile_failed()->set_tile_index(tile);
+  fail.mutable_tile_failed()->set_lease_token(lease->lease_token());
+  ASSERT_TRUE(f.Send(fail));
+  std::optional<v1::CoordinatorMessage> m = answer();
+  ASSERT_TRUE(m.has_value() && m->has_rejected());
+  EXPECT_NE(m->rejected().reason().find("of job 'job-0'"), std::string::npos)
+      << m->rejected().reason();
+  const v1::GetClusterResponse cluster = Cluster();
+  EXPECT_EQ(cluster.worker_violations(), 4u);
+  ASSERT_EQ(cluster.workers_size(), 1);
+  EXPECT_TRUE(cluster.workers(0).has_lease());
+  EXPECT_EQ(cluster.workers(0).lease_tile(), tile);
+  // The lease was kept: its real result counts, and the next lease follows.
+  ASSERT_TRUE(f.Send(Result(a, tile, lease->lease_token(), floats, 0.5f)));
+  m = answer();
+  ASSERT_TRUE(m.has_value());
+  ASSERT_TRUE(m->has_lease()) << m->rejected().reason();
+  EXPECT_NE(m->lease().tile_index(), tile);
+  v1::Job job;
+  ASSERT_TRUE(Get(kAlice, a, &job).ok());
+  EXPECT_EQ(job.tiles_done(), 1);
+  f.Cancel();
+}
+
+// Records from a client's snapshot stay in that client's jobs. They pass every bound and can
+// still be wrong (here black, with radii as wide as the scene): a later job of the same scene
+// from another client starts without them, and the client's own next job starts with them.
+TEST_F(AttackTest, SnapshotRecordsDoNotSeedAnotherClientsJob) {
+  StartServer();
+  std::string probe;
+  ASSERT_TRUE(Submit(kAlice, Request(), &probe).ok());
+  v1::Job job;
+  ASSERT_TRUE(Get(kAlice, probe, &job).ok());
+  Snapshot snap;
+  snap.scene_hash = job.scene_hash();
+  for (int i = 0; i < 64; ++i)
+    snap.records.push_back(Record(Vec3(-0.9f + 0.028f * float(i), -0.5f, 0.1f), 1.5f, 0));
+  v1::SubmitJobRequest req = Request();
+  req.set_cache_snapshot(SerializeSnapshot(snap));
+  std::string poisoned;
+  ASSERT_TRUE(Submit(kAlice, req, &poisoned).ok());
+  ASSERT_TRUE(Get(kAlice, poisoned, &job).ok());
+  EXPECT_EQ(job.records_imported(), 64u);
+  std::string bobs, alices;
+  ASSERT_TRUE(Submit(kBob, Request(), &bobs).ok());
+  ASSERT_TRUE(Submit(kAlice, Request(), &alices).ok());
+  // Jobs are seeded when a worker first gets a lease of them: take one of each.
+  FakeWorker f(channel_, kWorker, "w");
+  std::set<std::string> leased;
+  while (!leased.count(bobs) || !leased.count(alices)) {
+    const std::optional<v1::TileLease> l = f.NextLease();
+    ASSERT_TRUE(l.has_value());
+    leased.insert(l->job_id());
+    ASSERT_TRUE(
+        f.Send(Result(l->job_id(), l->tile_index(), l->lease_token(), LeaseFloats(*l), 0.5f)));
+  }
+  ASSERT_TRUE(Get(kBob, bobs, &job).ok());
+  EXPECT_EQ(job.seeded_from(), "");
+  EXPECT_EQ(job.records_seeded(), 0u);
+  ASSERT_TRUE(Get(kAlice, alices, &job).ok());
+  EXPECT_NE(job.seeded_from().find(poisoned), std::string::npos) << job.seeded_from();
+  EXPECT_GE(job.records_seeded(), 64u);
+  f.Cancel();
 }
 
 // Part 5: a worker that stops reading its stream does not make the coordinator queue record

@@ -30,5 +30,18 @@ TEST(CacheSeedTest, RecordsCarryOverOnlyBetweenJobsWithTheSameCausticsSetting) {
   EXPECT_FALSE(CanSeed(Job("job-1", false), other_scene));
 }
 
+TEST(CacheSeedTest, RecordsStayWithTheClientWhoseJobHasThem) {
+  // A client's snapshot may hold records that pass every bound and are wrong: they must not
+  // reach another client's job of the same scene.
+  v1::StoredJob alice = Job("job-1", false), bob = Job("job-2", false);
+  alice.mutable_job()->set_owner("alice");
+  bob.mutable_job()->set_owner("bob");
+  EXPECT_FALSE(CanSeed(alice, bob));
+  EXPECT_FALSE(CanSeed(bob, alice));
+  v1::StoredJob alice2 = Job("job-3", false);
+  alice2.mutable_job()->set_owner("alice");
+  EXPECT_TRUE(CanSeed(alice, alice2));
+}
+
 }  // namespace
 }  // namespace irfarm
