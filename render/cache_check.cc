@@ -55,7 +55,7 @@ CacheErrorEstimate EstimateCacheError(const IrrcacheIntegrator& integrator, int 
                 kStreamCacheCheck + 16 * iteration);
         const float x = float(rect.x0) + rng.Next() * float(rect.width());
         const float y = float(rect.y0) + rng.Next() * float(rect.height());
-        const Ray ray{cam.origin(), cam.Direction(x, y), INFINITY};
+        const Ray ray = cam.PinholeRay(cam.Direction(x, y));
         double e = 0, nz = 0, oe = 0, onz = 0;
         ok[size_t(j)] = integrator.CacheError(ray, rng, counters.local(), &e, &nz, fraction,
                                               other_factor, &oe, &onz);

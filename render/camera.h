@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "core/ray.h"
 #include "render/pixel_filter.h"
 #include "render/sampling.h"
 #include "render/scene_desc.h"
@@ -30,6 +31,8 @@ class Camera {
     tan_x_ = std::tan(d.fov_x_deg * kPi / 360.0f);
     aperture_radius_ = d.aperture_radius;
     focus_distance_ = d.focus_distance;
+    near_clip_ = d.near_clip;
+    far_clip_ = d.far_clip;
     tan_y_ = tan_x_ * float(film_h_) / float(film_w_);
   }
   // Unit direction of the ray through image point (x, y) in pixels (of the crop window).
@@ -55,6 +58,22 @@ class Camera {
     ConcentricDisk(u, v, &dx, &dy);
     *origin = origin_ + right_ * (dx * aperture_radius_) + up_ * (dy * aperture_radius_);
     *direction = Normalize(focus - *origin);
+  }
+  // The camera ray from `origin` (the pinhole or a lens point) along unit `dir`, clipped as
+  // Mitsuba 3's sensors clip: it starts where the view axis reaches near_clip and ends where it
+  // reaches far_clip (t = clip / (dir . forward)). Geometry nearer or farther is not seen.
+  Ray Clip(const Vec3& origin, const Vec3& dir) const {
+    const float c = Dot(dir, forward_);
+    if (!(c > 0)) return Ray{origin, dir, INFINITY, 0};
+    return Ray{origin, dir, far_clip_ / c, near_clip_ / c};
+  }
+  // The pinhole's ray through film direction `dir` (from Direction), clipped.
+  Ray PinholeRay(const Vec3& dir) const { return Clip(origin_, dir); }
+  // The ray of film direction `dir` through the lens (LensRay), clipped.
+  Ray SampleRay(const Vec3& dir, Rng& rng) const {
+    Vec3 origin, direction;
+    LensRay(dir, rng, &origin, &direction);
+    return Clip(origin, direction);
   }
   // Unit direction of camera sample (u, v) in [0, 1)^2 of pixel (px, py) that stays in its pixel:
   // its film point is drawn from the pixel's filter (PixelFilter::FilmPoint), so the pixel's
@@ -97,6 +116,7 @@ class Camera {
   Vec3 origin_, forward_{0, 0, 1}, right_{-1, 0, 0}, up_{0, 1, 0};
   float tan_x_ = 1, tan_y_ = 1;
   float aperture_radius_ = 0, focus_distance_ = 1e4f;
+  float near_clip_ = 0, far_clip_ = INFINITY;
 };
 
 }  // namespace irfarm

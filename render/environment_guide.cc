@@ -111,8 +111,7 @@ EnvironmentGuide EnvironmentGuide::Learn(const Scene& scene) {
   tbb::parallel_for(0, kPaths, [&](int i) {
     Rng rng(kSeed, uint64_t(i));
     const float x = rng.Next() * float(camera.width()), y = rng.Next() * float(camera.height());
-    Ray ray;
-    camera.LensRay(camera.Direction(x, y), rng, &ray.origin, &ray.dir);
+    Ray ray = camera.SampleRay(camera.Direction(x, y), rng);
     for (int k = 0; k < kVertices; ++k) {
       SurfaceHit& hit = slots[size_t(i) * kVertices + size_t(k)];
       if (!scene.Intersect(ray, &hit)) break;

@@ -118,9 +118,8 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       ps.film.Get(s, &fu, &fv);
       const float fx = float(x) + fu, fy = float(y) + fv;
       // thinlens: the lens point from the pixel's stream (a pinhole draws nothing).
-      Ray ray;
-      cam.LensRay(splat ? cam.Direction(fx, fy) : cam.SampleDirection(x, y, fu, fv), ps.rng,
-                  &ray.origin, &ray.dir);
+      const Ray ray =
+          cam.SampleRay(splat ? cam.Direction(fx, fy) : cam.SampleDirection(x, y, fu, fv), ps.rng);
       ++c.camera_rays;
       Vec3 L;
       DirectTerms terms;
@@ -133,10 +132,12 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       } else {
         L = TracePath(scene, ray, 1, false, path, ps.rng, c, nullptr, aov);
       }
-      // A non-finite sample would poison the pixel: it is counted and left out (black).
-      if (!IsFinite(L)) {
+      // A non-finite sample would poison the pixel: it is counted and left out (black), with
+      // its direct-light terms (which hold the analytic light apart from L).
+      if (!IsFinite(L) || (irrcache && !terms.Finite())) {
         ++c.nonfinite_samples;
         L = Vec3();
+        terms = DirectTerms{};
         if (aov) *aov = SampleAov{};
       }
       const DirectTerms* t = irrcache ? &terms : nullptr;

@@ -618,6 +618,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
   // with its own reflectance, instead of with what it reflects (metal) or its base alone.
   bool albedo_set = false;
   if (aov) *aov = SampleAov{};
+  if (max_depth == 0) return L;  // as Mitsuba's path: nothing, not even emitters seen
   const auto add = [&](const Vec3& c, int d, bool cached) {
     L += c;
     if (!aov) return;

@@ -211,6 +211,13 @@ struct DirectTerms {
       unshadowed[j] += o.unshadowed[j];
     }
   }
+  // Whether every sum is finite (a NaN texel reaches the analytic term, which L does not hold).
+  bool Finite() const {
+    for (int j = 0; j < kMaxLights; ++j)
+      if (!IsFinite(analytic[j]) || !IsFinite(shadowed[j]) || !IsFinite(unshadowed[j]))
+        return false;
+    return true;
+  }
   // sum_j A_j * S_j / U_j, per channel (0 where U_j is 0).
   Vec3 Resolve() const;
   // s / u per channel, 0 where u is 0: the shadow ratio of one light's sums.

@@ -52,7 +52,7 @@ void RunOverture(const Camera& cam, const IrrcacheIntegrator& integrator, const 
           const int x = rect.x0 + std::min(rw - 1, gx * pass.stride + pass.stride / 2);
           Rng rng(HashCombine(seed, uint64_t(y) * w + x),
                   kStreamOverture + 8 * uint64_t(pass.stride) + 1024 * iteration);
-          const Ray ray{cam.origin(), cam.Direction(x + 0.5f, y + 0.5f), INFINITY};
+          const Ray ray = cam.PinholeRay(cam.Direction(x + 0.5f, y + 0.5f));
           ++c.camera_rays;
           if (integrator.Prime(ray, rng, c) && !marks->empty())
             (*marks)[size_t(y - rect.y0) * rw + (x - rect.x0)] = 1;

@@ -30,6 +30,8 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
   int diffuse_depth = -1;
   float path_length = 0;
   if (aov) *aov = SampleAov{};
+  // Mitsuba's path with max_depth 0 renders nothing, not even emitters seen by the camera.
+  if (settings.max_depth == 0) return L;
   const auto add = [&](const Vec3& c, int d) {
     L += c;
     if (!aov) return;

@@ -27,9 +27,7 @@ void RandomPixel(const PixelRect& rect, Rng& rng, int* x, int* y) {
 Ray PixelRay(const Camera& cam, int x, int y, const PixelSampler& points, int s, Rng& rng) {
   float fu, fv;
   points.Get(s, &fu, &fv);
-  Ray ray;
-  cam.LensRay(cam.SampleDirection(x, y, fu, fv), rng, &ray.origin, &ray.dir);
-  return ray;
+  return cam.SampleRay(cam.SampleDirection(x, y, fu, fv), rng);
 }
 
 // `spp` camera samples of pixel (x, y) taken as the final pass takes them (stratified film and
@@ -46,7 +44,10 @@ void SamplePixel(const IrrcacheIntegrator& integrator, const Camera& cam, int x,
     DirectTerms terms;
     Vec3 L =
         integrator.Li(ray, LightStrata{&light_points, s * light_samples}, rng, c, &shade, &terms);
-    if (!IsFinite(L)) L = Vec3();
+    if (!IsFinite(L) || !terms.Finite()) {  // left out, as the final pass does
+      L = Vec3();
+      terms = DirectTerms{};
+    }
     film->Add(i, s, L, &terms);
   }
 }
@@ -98,7 +99,7 @@ BalanceResult BalanceRecordRays(const Scene& scene, const RenderSettings& settin
       int x, y;
       RandomPixel(rect, rng, &x, &y);
       const double t0 = ThreadCpuSeconds();
-      const Ray centre{cam.origin(), cam.Direction(x + 0.5f, y + 0.5f), INFINITY};
+      const Ray centre = cam.PinholeRay(cam.Direction(x + 0.5f, y + 0.5f));
       pilot.pixels[size_t(i)].has_record = integrator.Pilot(centre, rng, c, &records[size_t(i)]);
       if (pilot.pixels[size_t(i)].has_record) scratch.Insert(records[size_t(i)].record);
       const double t1 = ThreadCpuSeconds();

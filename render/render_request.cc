@@ -101,6 +101,10 @@ absl::StatusOr<RenderSettings> SettingsFor(const SceneDesc& desc, const RenderRe
   }
   if (r.min_spacing_px > 0) ic.min_spacing_px = r.min_spacing_px;
   if (r.max_spacing_px > 0) ic.max_spacing_px = r.max_spacing_px;
+  if (ic.min_spacing_px > ic.max_spacing_px)
+    return absl::InvalidArgumentError(absl::StrCat("min_spacing (", ic.min_spacing_px,
+                                                   " px) must not exceed max_spacing (",
+                                                   ic.max_spacing_px, " px)"));
   if (r.lookup_factor > 0) ic.lookup_factor = r.lookup_factor;
   s.overture = r.overture;
   s.caustics = r.caustics;

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
 #include "render/cache_check.h"
 #include "render/cache_refinement.h"
 #include "render/caustic_map.h"
@@ -78,6 +79,10 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
     if (values.count("light_samples")) ic.light_samples = int(values["light_samples"]);
     if (values.count("min_spacing_px")) ic.min_spacing_px = float(values["min_spacing_px"]);
     if (values.count("max_spacing_px")) ic.max_spacing_px = float(values["max_spacing_px"]);
+    if (ic.min_spacing_px > ic.max_spacing_px)  // std::clamp's order, as the records use it
+      return absl::InvalidArgumentError(
+          desc.integrator.loc.ToString() + ": min_spacing_px (" + absl::StrCat(ic.min_spacing_px) +
+          ") must not exceed max_spacing_px (" + absl::StrCat(ic.max_spacing_px) + ")");
     if (values.count("spp")) spp = values["spp"];
     if (values.count("cache_levels")) {
       ic.cache_levels = int(values["cache_levels"]);

@@ -92,6 +92,10 @@ Light MakeAreaLight(const MeshView& m, const Vec3& radiance, unsigned geom) {
       lt.n0 = (*m.normals)[tri[0]];
       lt.n1 = (*m.normals)[tri[1]];
       lt.n2 = (*m.normals)[tri[2]];
+      // A lamp emits on its shading normals' side (Emitted); its samples, pdfs, tree and photons
+      // face where lt.ng does: the same side, where the winding disagrees (a mesh mirrored by
+      // its to_world keeps its triangles' order, its normals turn with the transform).
+      if (Dot(lt.ng, lt.n0 + lt.n1 + lt.n2) < 0) lt.ng = -lt.ng;
     } else {
       lt.n0 = lt.n1 = lt.n2 = lt.ng;
     }
@@ -339,7 +343,7 @@ RTCRayHit Scene::ToRtcRayHit(const Ray& ray) {
   rh.ray.dir_x = ray.dir.x;
   rh.ray.dir_y = ray.dir.y;
   rh.ray.dir_z = ray.dir.z;
-  rh.ray.tnear = 0;
+  rh.ray.tnear = ray.tnear;
   rh.ray.tfar = ray.tmax;
   rh.ray.mask = 0xFFFFFFFFu;
   rh.ray.flags = 0;
@@ -357,7 +361,7 @@ RTCRay Scene::ToRtcRay(const Ray& ray) {
   r.dir_x = ray.dir.x;
   r.dir_y = ray.dir.y;
   r.dir_z = ray.dir.z;
-  r.tnear = 0;
+  r.tnear = ray.tnear;
   r.tfar = ray.tmax;
   r.mask = 0xFFFFFFFFu;
   r.flags = 0;

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "core/ray.h"
 #include "render/bsdfs/bsdf.h"
 #include "render/camera.h"
 #include "render/environment_sun.h"
@@ -26,11 +27,6 @@
 namespace irfarm {
 
 constexpr float kOriginOffset = 1e-5f;
-
-struct Ray {
-  Vec3 origin, dir;
-  float tmax = INFINITY;
-};
 
 struct SurfaceHit {
   Vec3 p;              // position, recomputed from barycentrics (triangles) or projected (spheres)

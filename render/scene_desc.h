@@ -40,7 +40,7 @@ struct FilterDesc {
 struct CameraDesc {
   Mat4 to_world;         // camera space: +z forward, +y up, +x image left (Mitsuba)
   float fov_x_deg = 45;  // horizontal field of view over the whole image, after fov_axis
-  float near_clip = 0.01f, far_clip = 1e4f;  // accepted, not used for clipping
+  float near_clip = 0.01f, far_clip = 1e4f;  // camera rays see from near to far (Camera::Clip)
   int width = 768, height = 576;  // the rendered image: the film's crop window (all of it)
   // hdrfilm's crop_*: the full film is film_width x film_height (0 = width x height) and the
   // image is its window at (crop_x, crop_y), as Mitsuba 3 renders it.

@@ -54,6 +54,21 @@
 namespace irfarm {
 namespace {
 
+// How much a sphere placed by `m` grows: cbrt |det| of its 3x3 part where that part scales
+// uniformly (its columns' lengths agree within 1e-4). Else, as Mitsuba 3's sphere does, the x
+// scale (its first column's length: exact for to_world = translate rotate scale), and *uniform
+// false so that the caller warns: a sphere stays round, it is not made an ellipsoid.
+double SphereScale(const Mat4& m, bool* uniform) {
+  double len[3];
+  for (int k = 0; k < 3; ++k) {
+    const Vec3 c = m.ApplyVector(Vec3(k == 0, k == 1, k == 2));
+    len[k] = std::sqrt(double(c.x) * c.x + double(c.y) * c.y + double(c.z) * c.z);
+  }
+  const double lo = std::min({len[0], len[1], len[2]}), hi = std::max({len[0], len[1], len[2]});
+  *uniform = hi <= lo * (1 + 1e-4);
+  return *uniform ? std::cbrt(std::abs(m.Determinant3())) : len[0];
+}
+
 namespace fs = std::filesystem;
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
@@ -861,7 +876,11 @@ absl::Status Parser::ParseSensor(pugi::xml_node n) {
   if (!(fov > 0 && fov < 180)) {
     return Error(NodeOf(p, "fov"), absl::StrCat("fov must be in (0, 180) degrees, got ", fov));
   }
-  const std::optional<double> fov_x = FovX(fov, axis, double(cam.width) / cam.height);
+  // The whole film's aspect (Mitsuba's parse_fov takes film->size()), not a crop window's: a
+  // crop renders its part of the full image, at the full image's zoom.
+  const int film_w = cam.film_width > 0 ? cam.film_width : cam.width;
+  const int film_h = cam.film_height > 0 ? cam.film_height : cam.height;
+  const std::optional<double> fov_x = FovX(fov, axis, double(film_w) / film_h);
   if (!fov_x) {
     return Error(NodeOf(p, "fov_axis"), absl::StrCat("unknown fov_axis '", axis,
                                                      "' (supported: x, y, diagonal, smaller, "
@@ -1205,7 +1224,12 @@ absl::Status Parser::ParseInstance(pugi::xml_node n) {
     s.loc = Loc(n);
     if (s.type == ShapeType::kSphere) {
       s.center = to_world.ApplyPoint(s.center);
-      s.radius = float(s.radius * std::cbrt(std::abs(det)));
+      bool uniform = true;
+      s.radius = float(s.radius * SphereScale(to_world, &uniform));
+      if (!uniform)
+        Warn(n,
+             "a sphere's instance scales it unevenly: irfarm keeps it round (radius from the "
+             "x scale, as Mitsuba 3 does)");
     } else {
       TransformMesh(to_world, &s.mesh);
     }
@@ -1313,7 +1337,12 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     if (det == 0) return Error(NodeOf(p, "to_world"), "the sphere's to_world is singular");
     s.center =
         (to_world * Mat4::Translate(g.center[0], g.center[1], g.center[2])).ApplyPoint(Vec3(0.0f));
-    s.radius = float(g.radius * std::cbrt(std::abs(det)));
+    bool uniform = true;
+    s.radius = float(g.radius * SphereScale(to_world, &uniform));
+    if (!uniform)
+      Warn(NodeOf(p, "to_world"),
+           "the sphere's to_world scales it unevenly: irfarm keeps it "
+           "round (radius from the x scale, as Mitsuba 3 does)");
   } else {
     const Mat4 mesh_to_world = to_world * g.placement;
     s.mesh = std::move(g.mesh);

@@ -117,6 +117,34 @@ TEST(DirectLightTest, UnoccludedLampIsNoiseFreeAtOneSpp) {
   EXPECT_GT(CompareImages(plain.image, ref).relmse, 100 * c.relmse);
 }
 
+// A reflectance texture with a NaN texel (an EXR can hold one): the samples it poisons are
+// counted and left out, and no pixel of the image is NaN. The analytic direct light is kept
+// apart from the sample's radiance (DirectTerms), so it needs its own check: before it had one,
+// the pixels over the texel were NaN while the counter said their samples were dropped.
+TEST(DirectLightTest, NanTexelIsCountedAndKeptOutOfTheImage) {
+  Image tex(2, 2);
+  tex.at(0, 0) = tex.at(1, 0) = tex.at(0, 1) = Vec3(0.5f);
+  tex.at(1, 1) = Vec3(std::nanf(""));
+  const std::string path = ::testing::TempDir() + "/nan-texel.exr";
+  ASSERT_TRUE(WriteExr(tex, path).ok());
+  std::string xml = PlaneUnderLampXml(32, 24, "");
+  const std::string gray = R"(<rgb name="reflectance" value="0.5"/></bsdf>)";
+  xml.replace(xml.find(gray), gray.size(),
+              R"(<texture type="bitmap" name="reflectance"><string name="filename" value=")" +
+                  std::string("nan-texel.exr") + R"("/></texture></bsdf>)");
+  const Built b = Build(xml);
+  RenderSettings s = *SettingsForScene(b.desc, "irrcache");
+  s.spp = 4;
+  s.seed = 3;
+  const RenderOutput out = Render(*b.scene, s);
+  int nonfinite = 0;
+  for (const Vec3& v : out.image.pixels) nonfinite += !IsFinite(v);
+  std::printf("MEASURED non-finite samples %llu, non-finite pixels %d\n",
+              static_cast<unsigned long long>(out.stats.counters.nonfinite_samples), nonfinite);
+  EXPECT_EQ(nonfinite, 0);
+  EXPECT_GT(out.stats.counters.nonfinite_samples, 0u);
+}
+
 TEST(DirectLightTest, RatioEstimatorAgreesWithPlainEstimatorInPenumbrae) {
   // A box between lamp and plane casts a soft shadow. Direct light only (max_depth 2), so the
   // two estimators differ in nothing but how the rectangle's samples are combined.

@@ -6,6 +6,9 @@
 // differently, by as much as a lost or doubled share of a lamp's triangles would, must fail it.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
+
 #include "render_test_util.h"
 
 namespace irfarm {
@@ -43,6 +46,64 @@ TEST(MeshLampsTest, TargetErrorWidensTheLookupsWhereRecordsAreNoisy) {
   RecordProperty("relmse", std::to_string(err));
   EXPECT_GT(err, 0.5 * settings.target_error - ReferenceError(kScene));
   EXPECT_LT(err, 2 * settings.target_error + ReferenceError(kScene));
+}
+
+// A lamp mirrored by its to_world (a cube scaled by -0.2 along x: the same cube, its triangles'
+// winding reversed while its vertex normals still point out) lights the floor as the unmirrored
+// one does. It emits on its shading normals' side (Scene::Emitted, as Mitsuba 3), so its light
+// samples must face that side too; before, they faced the winding's side, inward, and the lamp
+// seen by the camera gave the floor the light of its far faces only.
+TEST(MeshLampsTest, AMirroredLampLightsAsTheSameLampUnmirrored) {
+  const auto lamp = [](const char* scale) {
+    return BuildLoaded(LoadSceneString(std::string(R"(<scene version="3.0.0">
+  <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="8"/>
+    <integer name="height" value="8"/></film></sensor>
+  <shape type="cube">
+    <transform name="to_world"><scale )") + scale +
+                                           R"(/><translate z="1"/></transform>
+    <emitter type="area"><rgb name="radiance" value="4"/></emitter>
+  </shape>
+</scene>
+)",
+                                       "lamp.xml", {}));
+  };
+  const LoadedScene plain = lamp(R"(x="0.2" y="0.2" z="0.2")");
+  const LoadedScene mirrored = lamp(R"(x="-0.2" y="0.2" z="0.2")");
+  ASSERT_TRUE(plain.scene && mirrored.scene);
+  const Vec3 up(0, 0, 1);
+  for (const Vec3& p : {Vec3(0, 0, 0), Vec3(0.7f, 0.1f, 0.3f), Vec3(-1, 0.5f, 1.1f)}) {
+    const float w = plain.scene->light_sampler().Weight(0, p, up);
+    EXPECT_GT(w, 0);
+    EXPECT_NEAR(mirrored.scene->light_sampler().Weight(0, p, up), w, 1e-4f * w) << p.x;
+    // The unoccluded irradiance its samples estimate (Le cos / pdf), each within 4 standard
+    // errors of the other (the estimates' own noise, from 16384 samples each).
+    constexpr int kN = 16384;
+    double mean[2], var[2];
+    for (int k = 0; k < 2; ++k) {
+      const LightSampler& ls = (k == 0 ? plain : mirrored).scene->light_sampler();
+      Rng rng(5, 6 + k);
+      double sum = 0, sum2 = 0;
+      for (int i = 0; i < kN; ++i) {
+        LightSample s;
+        const float u2 = rng.Next(), u3 = rng.Next();
+        const double v = ls.SampleOne(0, p, up, u2, u3, &s)
+                             ? Luminance(s.value) * std::max(0.0f, Dot(s.wi, up))
+                             : 0.0;
+        sum += v;
+        sum2 += v * v;
+      }
+      mean[k] = sum / kN;
+      var[k] = (sum2 / kN - mean[k] * mean[k]) / kN;
+    }
+    std::printf("MEASURED at (%g, %g, %g): E %.4g plain, %.4g mirrored (std. errors %.2g, %.2g)\n",
+                p.x, p.y, p.z, mean[0], mean[1], std::sqrt(var[0]), std::sqrt(var[1]));
+    EXPECT_GT(mean[0], 0);
+    EXPECT_NEAR(mean[1], mean[0], 4 * std::sqrt(var[0] + var[1])) << p.x;
+  }
+  // The camera-visible side agrees: a ray up from the floor meets an emitting face.
+  SurfaceHit hit;
+  ASSERT_TRUE(mirrored.scene->Intersect(Ray{Vec3(0, 0, 0), up, INFINITY}, &hit));
+  EXPECT_GT(Luminance(mirrored.scene->Emitted(hit, -up)), 0);
 }
 
 }  // namespace

@@ -77,6 +77,58 @@ TEST(RenderPropertiesTest, MaxDepthCountsVerticesLikeMitsuba) {
     for (const Vec3& p : emitters_only.image.pixels) black += IsBlack(p);
     EXPECT_GT(black, int(emitters_only.image.pixels.size() * 9 / 10)) << integrator;
     EXPECT_LT(black, int(emitters_only.image.pixels.size())) << integrator;
+    // max_depth 0: Mitsuba's path returns nothing at all, the lamp seen included.
+    desc = LoadSceneFile(TestScenePath("cornell-box"),
+                         LoadOptions{{{"resx", "32"}, {"resy", "32"}, {"max_depth", "0"}}});
+    ASSERT_TRUE(desc.ok());
+    scene = Scene::Build(*desc);
+    ASSERT_TRUE(scene.ok());
+    settings = *SettingsForScene(*desc, integrator);
+    settings.spp = 4;
+    const RenderOutput nothing = Render(**scene, settings);
+    black = 0;
+    for (const Vec3& p : nothing.image.pixels) black += IsBlack(p);
+    EXPECT_EQ(black, int(nothing.image.pixels.size())) << integrator;
+  }
+}
+
+// The sensor's near_clip and far_clip clip camera rays as Mitsuba 3's do: a black panel 0.005
+// in front of the camera hides a glowing wall at 2 unless near_clip passes it, and the wall is
+// not seen past far_clip. (Before, both were read and ignored.)
+TEST(RenderPropertiesTest, CameraRaysSeeFromNearClipToFarClip) {
+  const auto mean = [](const char* near_clip, const char* far_clip, const char* integrator) {
+    const std::string xml = std::string(R"(<scene version="3.0.0">
+  <sensor type="perspective"><float name="fov" value="30"/>
+    <float name="near_clip" value=")") +
+                            near_clip + R"("/>
+    <float name="far_clip" value=")" +
+                            far_clip + R"("/>
+    <transform name="to_world"><lookat origin="0, 0, 0" target="0, 0, -1" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/>
+      <rfilter type="box"/></film>
+  </sensor>
+  <shape type="rectangle">
+    <transform name="to_world"><scale value="10"/><translate z="-2"/></transform>
+    <emitter type="area"><rgb name="radiance" value="1"/></emitter>
+  </shape>
+  <shape type="rectangle">
+    <transform name="to_world"><translate z="-0.005"/></transform>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+  </shape>
+</scene>
+)";
+    const LoadedScene s = BuildLoaded(LoadSceneString(xml, "clip.xml", {}));
+    RenderSettings settings = *SettingsForScene(s.desc, integrator);
+    settings.spp = 2;
+    const RenderOutput out = Render(*s.scene, settings);
+    double sum = 0;
+    for (const Vec3& p : out.image.pixels) sum += p.y;
+    return sum / double(out.image.pixels.size());
+  };
+  for (const char* integrator : {"path", "irrcache"}) {
+    EXPECT_NEAR(mean("0.01", "1e4", integrator), 1.0, 1e-4) << integrator;  // past the panel
+    EXPECT_EQ(mean("0.001", "1e4", integrator), 0.0) << integrator;         // the panel
+    EXPECT_EQ(mean("0.01", "1.5", integrator), 0.0) << integrator;          // the wall too far
   }
 }
 

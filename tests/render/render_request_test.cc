@@ -71,6 +71,33 @@ TEST(RenderRequestTest, EachValueOutOfRangeIsRefusedByName) {
   EXPECT_EQ(ValidateRequest(r).message(), "accuracy must be in (0, 1], got 3");
 }
 
+// The spacing floor above the ceiling is refused (std::clamp, which the records' radius goes
+// through, requires floor <= ceiling: undefined behaviour otherwise), whether the two come from
+// a request, from one of them and the defaults (16 px ceiling), or from the scene's integrator.
+TEST(RenderRequestTest, MinSpacingAboveMaxSpacingIsRefused) {
+  const SceneDesc desc = CornellDesc();
+  RenderRequest r;
+  r.min_spacing_px = 20;
+  r.max_spacing_px = 10;
+  absl::StatusOr<RenderSettings> s = SettingsFor(desc, r);
+  EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(s.status().message(), "min_spacing (20 px) must not exceed max_spacing (10 px)");
+  r.max_spacing_px = 0;  // the default ceiling
+  r.min_spacing_px = 1000;
+  EXPECT_EQ(SettingsFor(desc, r).status().code(), absl::StatusCode::kInvalidArgument);
+  r.min_spacing_px = 10;
+  r.max_spacing_px = 10;
+  EXPECT_TRUE(SettingsFor(desc, r).ok());
+  SceneDesc scene = desc;
+  scene.integrator.type = "irrcache";
+  scene.integrator.params = {{"min_spacing_px", "20"}};
+  s = SettingsForScene(scene, "irrcache");
+  EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(s.status().message().find("min_spacing_px (20) must not exceed max_spacing_px (16)"),
+            std::string::npos)
+      << s.status();
+}
+
 TEST(RenderRequestTest, AnEmptyRequestIsTheScenesDefaults) {
   const SceneDesc desc = CornellDesc();
   const absl::StatusOr<RenderSettings> s = SettingsFor(desc, RenderRequest{});

@@ -489,18 +489,34 @@ TEST(SceneLoaderTest, TransformsApplyInDocumentOrder) {
              Vec3(5, 6, 7));
 }
 
-TEST(SceneLoaderTest, SphereRadiusScalesWithCubeRootOfDeterminant) {
-  const auto scene = Load(R"(  <shape type="sphere">
-    <point name="center" value="1, 0, 0"/>
+TEST(SceneLoaderTest, SphereRadiusScalesWithItsToWorld) {
+  // Uniform scale (with a rotation): the radius grows by it, no warning.
+  auto scene = Load(R"(  <shape type="sphere">
     <float name="radius" value="0.5"/>
-    <transform name="to_world"><scale x="2" y="4" z="1"/><translate z="3"/></transform>
+    <transform name="to_world"><scale value="3"/><rotate x="1" angle="30"/></transform>
   </shape>
 )");
   ASSERT_TRUE(scene.ok()) << scene.status();
-  const ShapeDesc& s = scene->shapes.at(0);
-  EXPECT_EQ(s.type, ShapeType::kSphere);
-  ExpectNear(s.center, Vec3(2, 0, 3));
-  EXPECT_NEAR(s.radius, 0.5f * 2, 1e-5f);
+  EXPECT_NEAR(scene->shapes.at(0).radius, 1.5f, 1e-5f);
+  EXPECT_TRUE(scene->warnings.empty());
+  // Uneven scale: kept round, with the x scale as Mitsuba 3 takes it (not cbrt |det|, which
+  // would be 0.5 * 2^(1/3) for x = 2 alone), and a warning at the to_world's line.
+  for (const char* scale : {R"(x="2" y="4" z="1")", R"(x="2")"}) {
+    scene = Load(std::string(R"(  <shape type="sphere">
+    <point name="center" value="1, 0, 0"/>
+    <float name="radius" value="0.5"/>
+    <transform name="to_world"><scale )") +
+                 scale + R"(/><translate z="3"/></transform>
+  </shape>
+)");
+    ASSERT_TRUE(scene.ok()) << scene.status();
+    const ShapeDesc& s = scene->shapes.at(0);
+    EXPECT_EQ(s.type, ShapeType::kSphere);
+    ExpectNear(s.center, Vec3(2, 0, 3));
+    EXPECT_NEAR(s.radius, 0.5f * 2, 1e-5f) << scale;
+    ASSERT_EQ(scene->warnings.size(), 1u) << scale;
+    EXPECT_NE(scene->warnings[0].find("unevenly"), std::string::npos) << scene->warnings[0];
+  }
 }
 
 TEST(SceneLoaderTest, LookAtBuildsMitsubaCameraFrame) {
@@ -532,7 +548,8 @@ TEST(SceneLoaderTest, LookAtBuildsMitsubaCameraFrame) {
   EXPECT_EQ(scene->warnings.size(), 1u);
 }
 
-float FovXFor(const std::string& axis, float fov, int width, int height) {
+float FovXFor(const std::string& axis, float fov, int width, int height,
+              const std::string& crop = "") {
   const std::string xml =
       "<scene version=\"3.0.0\"><sensor type=\"perspective\">"
       "<float name=\"fov\" value=\"" +
@@ -543,7 +560,8 @@ float FovXFor(const std::string& axis, float fov, int width, int height) {
       "\"/>"
       "<film type=\"hdrfilm\"><integer name=\"width\" value=\"" +
       std::to_string(width) + "\"/><integer name=\"height\" value=\"" + std::to_string(height) +
-      "\"/><rfilter type=\"box\"/></film>"
+      "\"/>" + crop +
+      "<rfilter type=\"box\"/></film>"
       "</sensor></scene>";
   const auto scene = LoadSceneString(xml, "s.xml", {});
   EXPECT_TRUE(scene.ok()) << scene.status();
@@ -561,6 +579,15 @@ TEST(SceneLoaderTest, FovAxisConvertsToHorizontal) {
   EXPECT_FLOAT_EQ(FovXFor("smaller", 45, 100, 200), 45);
   EXPECT_FLOAT_EQ(FovXFor("larger", 45, 200, 100), 45);
   EXPECT_NEAR(FovXFor("larger", 45, 100, 200), deg(2 * std::atan(t / 2)), 1e-4);  // y is larger
+  // A crop window takes the whole film's fov (Mitsuba's parse_fov uses the film's size): a 16 x 32
+  // crop of a 64 x 32 film with fov_axis y is rendered at the full film's zoom, 98.2 degrees
+  // across the film, not 2 atan(tan 22.5 / 2) across the crop's own aspect.
+  const std::string crop = "<integer name=\"crop_width\" value=\"16\"/>";
+  EXPECT_NEAR(FovXFor("y", 60, 64, 32, crop), FovXFor("y", 60, 64, 32), 1e-5);
+  EXPECT_NEAR(FovXFor("y", 60, 64, 32, crop),
+              deg(2 * std::atan(std::tan(3.14159265358979 / 6) * 2)), 1e-4);
+  EXPECT_NEAR(FovXFor("diagonal", 45, 300, 400, "<integer name=\"crop_height\" value=\"100\"/>"),
+              deg(2 * std::atan(t * 3 / 5)), 1e-4);
   ExpectError(LoadSceneString("<scene version=\"3.0.0\"><sensor type=\"perspective\">\n"
                               "<string name=\"fov_axis\" value=\"z\"/></sensor></scene>",
                               "s.xml", {}),
