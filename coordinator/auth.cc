@@ -104,12 +104,13 @@ absl::StatusOr<Caller> Authenticator::HttpClient(const std::string& authorizatio
                        peer);
 }
 
-absl::Status Authenticator::Worker(const grpc::ServerContext& context) {
-  if (workers_open()) return absl::OkStatus();
+absl::StatusOr<std::string> Authenticator::Worker(const grpc::ServerContext& context) {
+  if (workers_open()) return std::string();
   const std::string token = BearerToken(context);
   if (token.empty()) return Refuse(context, "no bearer token (authorization: Bearer <token>)");
-  if (Match(workers_, token) == nullptr) return Refuse(context, "not a valid worker token");
-  return absl::OkStatus();
+  const NamedToken* match = Match(workers_, token);
+  if (match == nullptr) return Refuse(context, "not a valid worker token");
+  return match->name;
 }
 
 }  // namespace irfarm

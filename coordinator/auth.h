@@ -48,8 +48,10 @@ class Authenticator {
   // The same for an HTTP request (the dashboard): `authorization` is its Authorization header
   // ("Bearer <token>"), `peer` its remote address for the log.
   absl::StatusOr<Caller> HttpClient(const std::string& authorization, const std::string& peer);
-  // OK for a worker token, else UNAUTHENTICATED (logged and counted).
-  absl::Status Worker(const grpc::ServerContext& context);
+  // The name of the worker token the caller presented ("" when workers need none), else
+  // UNAUTHENTICATED (logged and counted). A worker's own name is whatever it registers with; the
+  // token's is what the coordinator knows it by (failure history, quarantine).
+  absl::StatusOr<std::string> Worker(const grpc::ServerContext& context);
 
   uint64_t failures() const { return failures_.load(); }
 

@@ -1091,12 +1091,13 @@ uint64_t JobManager::WaitForChange(uint64_t seen, std::chrono::milliseconds time
 }
 
 uint32_t JobManager::RegisterWorker(const std::string& name, const std::string& peer, int threads,
-                                    bool reports_regions) {
+                                    bool reports_regions, const std::string& token) {
   std::lock_guard<std::mutex> lock(mu_);
   const uint32_t id = next_worker_++;
   Worker& w = workers_[id];
   w.reports_regions = reports_regions;
   w.name = Printable(name, options_.limits.max_name_bytes);
+  w.health_key = token.empty() ? w.name : token + "/" + w.name;
   w.peer = peer;
   w.threads = threads;
   w.last_heard = std::chrono::steady_clock::now();
@@ -1121,7 +1122,7 @@ void JobManager::WorkerGone(uint32_t worker, const std::string& reason) {
     if (!st.ok()) FinishJob(*job, v1::JOB_STATE_FAILED, std::string(st.message()));
   }
   // Forget the health of a name with nothing against it (bounded by live workers then).
-  auto h = health_.find(wit->second.name);
+  auto h = health_.find(wit->second.health_key);
   if (h != health_.end() && h->second.consecutive_failures == 0 &&
       h->second.quarantined_until <= std::chrono::steady_clock::now())
     health_.erase(h);
@@ -1197,12 +1198,12 @@ void JobManager::ReleaseLease(Worker& worker, const LeaseToken& token) {
 
 void JobManager::TileFailedOn(const Worker& worker) {
   constexpr size_t kMaxHealthEntries = 4096;  // names with failures (a bound against renaming)
-  if (health_.size() >= kMaxHealthEntries && !health_.count(worker.name)) {
+  if (health_.size() >= kMaxHealthEntries && !health_.count(worker.health_key)) {
     const SteadyTime now = std::chrono::steady_clock::now();
     for (auto it = health_.begin(); it != health_.end();)
       it = it->second.quarantined_until <= now ? health_.erase(it) : std::next(it);
   }
-  WorkerHealth& h = health_[worker.name];
+  WorkerHealth& h = health_[worker.health_key];
   if (++h.consecutive_failures >= options_.quarantine_after) {
     h.consecutive_failures = 0;
     h.quarantined_until = std::chrono::steady_clock::now() + options_.quarantine_time;
@@ -1212,7 +1213,7 @@ void JobManager::TileFailedOn(const Worker& worker) {
 }
 
 bool JobManager::Quarantined(const Worker& worker, SteadyTime now) const {
-  auto it = health_.find(worker.name);
+  auto it = health_.find(worker.health_key);
   return it != health_.end() && it->second.quarantined_until > now;
 }
 
@@ -1254,6 +1255,15 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
                          "', which this worker holds no lease of");
   }
   Job& job = *it->second;
+  // The job's record budget: a worker holding a lease could otherwise send valid records without
+  // end (memory, the store, and every other worker's share). Batches in flight to the store are
+  // not counted, so a job may pass the limit by a few batches.
+  if (int64_t(job.cache->size() + decoded->size()) > options_.limits.max_job_records)
+    return Violation(worker, w,
+                     std::to_string(decoded->size()) + " more records for job " +
+                         job.stored.job().id() + ", which holds " +
+                         std::to_string(job.cache->size()) + ": over the record limit of " +
+                         std::to_string(options_.limits.max_job_records) + " per job");
   v1::WorkerJobStats& ws = job.worker_stats[worker];
   ws.set_worker_id(worker);
   ws.set_records_sent(ws.records_sent() + decoded->size());
@@ -1441,7 +1451,7 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   if (!st.ok()) return st;
   auto wit = workers_.find(worker);
   const std::string worker_name = wit == workers_.end() ? std::string() : wit->second.name;
-  if (wit != workers_.end()) health_[worker_name].consecutive_failures = 0;
+  if (wit != workers_.end()) health_[wit->second.health_key].consecutive_failures = 0;
   done.pixels[tile] = std::move(bytes);
   v1::WorkerJobStats& ws = done.worker_stats[worker];
   ws.set_worker_id(worker);
@@ -1503,7 +1513,7 @@ v1::GetClusterResponse JobManager::Cluster() const {
       i->set_records_computed(i->records_computed() + s->second.records_computed());
       i->set_records_received(i->records_received() + s->second.records_received());
     }
-    auto h = health_.find(w.name);
+    auto h = health_.find(w.health_key);
     if (h != health_.end()) {
       i->set_consecutive_failures(uint32_t(h->second.consecutive_failures));
       if (h->second.quarantined_until > now) {

@@ -84,6 +84,10 @@ struct JobLimits {
   int max_defines = 256;                       // -D overrides per job
   size_t max_define_bytes = 4096;              // name + value of one -D
   int max_batch_records = 1 << 16;             // records per worker message
+  // Records one job's cache holds, from all its workers (64 bytes each in memory, and each is in
+  // the store and sent to the other workers): 2^24 is about 1 GiB, some 30x the records of a
+  // default render of an 8192 x 8192 image. A worker sending past it is refused (Rejected).
+  int64_t max_job_records = int64_t(1) << 24;
   // Queued + running jobs of one client, counting its submits still in progress.
   int max_live_jobs_per_client = 64;
   size_t max_outbox_bytes = size_t(64) << 20;  // record fan-out queued for one worker
@@ -180,8 +184,12 @@ class JobManager {
   // message (a result for a lease this worker lost, records for a job that just ended),
   // UNAVAILABLE when the store failed, or PERMISSION_DENIED / INVALID_ARGUMENT for an invalid
   // message (counted against the worker and answered with a Rejected message).
+  // `token`: the name of the worker token it presented (Authenticator::Worker; "" without
+  // tokens). Its failure history (WorkerHealth) is kept under token and name together, so a
+  // worker cannot take the name of a worker with another token to have that one quarantined.
+  // Workers sharing one token are told apart by their names alone, as before.
   uint32_t RegisterWorker(const std::string& name, const std::string& peer = "", int threads = 0,
-                          bool reports_regions = false);
+                          bool reports_regions = false, const std::string& token = "");
   void WorkerGone(uint32_t worker, const std::string& reason);
   // The worker will finish its tile and leave: give it no new lease.
   void Drain(uint32_t worker);
@@ -258,6 +266,7 @@ class JobManager {
   };
   struct Worker {
     std::string name, peer;
+    std::string health_key;  // "token/name" (RegisterWorker): where its failures are counted
     std::shared_ptr<Wake> wake = std::make_shared<Wake>();
     // Messages to send; consecutive record batches of one job are appended to one message (up
     // to sync_batch_records records).
@@ -282,8 +291,8 @@ class JobManager {
     // all its jobs (the Prometheus per-worker counters).
     uint64_t records_delivered = 0, records_withheld = 0;
   };
-  // Failure history of a worker name (survives reconnects, so a broken worker that reconnects
-  // stays quarantined).
+  // Failure history of a worker token and name (Worker::health_key; survives reconnects, so a
+  // broken worker that reconnects stays quarantined).
   struct WorkerHealth {
     int consecutive_failures = 0;
     SteadyTime quarantined_until;

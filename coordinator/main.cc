@@ -129,6 +129,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-define-bytes", lim.max_define_bytes, "bytes of one -D (4096)");
   app.add_option("--max-batch-records", lim.max_batch_records,
                  "records per worker message (65536)");
+  app.add_option("--max-job-records", lim.max_job_records,
+                 "records one job's cache holds, from all its workers (16777216)");
   app.add_option("--max-outbox-mib", max_outbox_mib,
                  "record fan-out queued per worker before batches are dropped (64)");
   std::string fanout = "region";

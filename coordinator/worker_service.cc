@@ -26,9 +26,11 @@ WorkerServiceImpl::WorkerServiceImpl(JobManager* manager, Authenticator* auth)
 grpc::Status WorkerServiceImpl::Session(
     grpc::ServerContext* context,
     grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>* stream) {
+  std::string token_name;
   if (auth_ != nullptr) {
-    absl::Status st = auth_->Worker(*context);
-    if (!st.ok()) return ToGrpcStatus(st);
+    absl::StatusOr<std::string> who = auth_->Worker(*context);
+    if (!who.ok()) return ToGrpcStatus(who.status());
+    token_name = *who;
   }
   v1::WorkerMessage msg;
   if (!stream->Read(&msg) || !msg.has_register_())
@@ -37,7 +39,7 @@ grpc::Status WorkerServiceImpl::Session(
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "worker name too long");
   const uint32_t id =
       manager_->RegisterWorker(msg.register_().name(), context->peer(), msg.register_().threads(),
-                               msg.register_().reports_regions());
+                               msg.register_().reports_regions(), token_name);
   sessions_->Add();
   spdlog::info("worker {} connected from {}", id, context->peer());
   {

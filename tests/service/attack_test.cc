@@ -58,6 +58,7 @@ const std::string kAlice = "alice-token-0123456789abcdef";
 const std::string kBob = "bob-token-0123456789abcdef";
 const std::string kAdmin = "admin-token-0123456789abcdef";
 const std::string kWorker = "worker-token-0123456789abcdef";
+const std::string kWorker2 = "worker-token-fedcba9876543210";
 constexpr int kMaxViolations = 12;
 
 std::string WriteTemp(const std::string& dir, const std::string& name, const std::string& text) {
@@ -204,10 +205,12 @@ class AttackTest : public ::testing::Test {
     options.max_violations = kMaxViolations;
     options.limits.max_live_jobs_per_client = 4;
     options.limits.max_outbox_bytes = size_t(1) << 20;
+    options.limits.max_job_records = max_job_records_;
     manager_ = std::move(*JobManager::Create(options, &store_));
-    auth_ = std::make_unique<Authenticator>(
-        std::vector<NamedToken>{{"alice", kAlice}, {"bob", kBob}},
-        std::vector<NamedToken>{{"w", kWorker}}, std::vector<NamedToken>{{"root", kAdmin}});
+    auth_ =
+        std::make_unique<Authenticator>(std::vector<NamedToken>{{"alice", kAlice}, {"bob", kBob}},
+                                        std::vector<NamedToken>{{"w", kWorker}, {"w2", kWorker2}},
+                                        std::vector<NamedToken>{{"root", kAdmin}});
     jobs_ = std::make_unique<JobServiceImpl>(manager_.get(), auth_.get());
     workers_ = std::make_unique<WorkerServiceImpl>(manager_.get(), auth_.get());
     std::shared_ptr<grpc::ServerCredentials> creds = grpc::InsecureServerCredentials();
@@ -352,6 +355,7 @@ class AttackTest : public ::testing::Test {
   }
 
   std::string dir_, worker_token_file_;
+  int64_t max_job_records_ = int64_t(1) << 24;
   InMemoryJobStore store_;
   std::unique_ptr<JobManager> manager_;
   std::unique_ptr<Authenticator> auth_;
@@ -699,6 +703,70 @@ TEST_F(AttackTest, FailingWorkerIsQuarantinedAndJobsSucceed) {
   EXPECT_TRUE(quarantined);
   f.Cancel();
   broken.join();
+}
+
+// A worker holding a lease cannot send valid records without end: past the job's record limit
+// (1000 here) it is refused, and what the job holds stops there.
+TEST_F(AttackTest, RecordsPastTheJobsLimitAreRefused) {
+  max_job_records_ = 1000;
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  FakeWorker f(channel_, kWorker, "flood");
+  ASSERT_TRUE(f.NextLease().has_value());
+  const auto batch = [](int from) {
+    std::vector<IrradianceRecord> recs;
+    for (int i = from; i < from + 400; ++i)
+      recs.push_back(
+          Record(Vec3(-0.9f + 1.8f * float(i % 97) / 97, -0.5f, -0.9f + 1.8f * float(i / 97) / 20),
+                 0.05f, 0.3f));
+    return recs;
+  };
+  ASSERT_TRUE(f.Send(Records(a, batch(0))));
+  ASSERT_TRUE(f.Send(Records(a, batch(400))));
+  ASSERT_TRUE(f.Send(Records(a, batch(800))));  // 1200 > 1000
+  EXPECT_NE(f.NextRejection().find("over the record limit of 1000 per job"), std::string::npos);
+  v1::Job job;
+  ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+  EXPECT_EQ(job.records_merged(), 800u);
+  EXPECT_EQ(Cluster().worker_violations(), 1u);
+  f.Cancel();
+}
+
+// A worker's failures count against its token and name together: one with another token that
+// registers under an honest worker's name and fails three tiles is quarantined alone (before,
+// failures counted by the name a worker gives itself, and the honest worker was quarantined too).
+TEST_F(AttackTest, AWorkerCannotGetAnotherTokensWorkerQuarantined) {
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  FakeWorker honest(channel_, kWorker, "honest");
+  ASSERT_TRUE(honest.NextLease().has_value());  // holds it
+  FakeWorker mallory(channel_, kWorker2, "honest");
+  for (int k = 0; k < 3; ++k) {
+    const std::optional<v1::TileLease> l = mallory.NextLease();
+    ASSERT_TRUE(l.has_value());
+    v1::WorkerMessage m;
+    m.mutable_tile_failed()->set_job_id(l->job_id());
+    m.mutable_tile_failed()->set_tile_index(l->tile_index());
+    m.mutable_tile_failed()->set_lease_token(l->lease_token());
+    m.mutable_tile_failed()->set_reason("cannot open the scene");
+    ASSERT_TRUE(mallory.Send(m));
+  }
+  int quarantined = 0, named = 0;
+  for (int i = 0; i < 100 && quarantined == 0; ++i) {
+    quarantined = named = 0;
+    const v1::GetClusterResponse cluster = Cluster();
+    for (const v1::WorkerInfo& w : cluster.workers()) {
+      named += w.name() == "honest";
+      quarantined += w.name() == "honest" && w.quarantined();
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(named, 2);
+  EXPECT_EQ(quarantined, 1);
+  honest.Cancel();
+  mallory.Cancel();
 }
 
 // Part 3: a tile fails the job only once it failed on 3 distinct workers.
