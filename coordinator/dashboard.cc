@@ -78,9 +78,10 @@ std::vector<HttpRoute> DashboardRoutes(JobManager* manager, Authenticator* auth)
                       }
                       return Json(resp);
                     })});
-  routes.push_back({"GET", "/api/workers", api(false, [manager](const HttpRequest&, const Caller&) {
-                      return Json(manager->Cluster());
-                    })});
+  routes.push_back(
+      {"GET", "/api/workers", api(false, [manager](const HttpRequest&, const Caller& c) {
+         return Json(manager->Cluster(c));
+       })});
   routes.push_back(
       {"GET", "/api/image.png", api(false, [manager](const HttpRequest& r, const Caller& c) {
          absl::StatusOr<Image> image = manager->Preview(Param(r, "job"), c);

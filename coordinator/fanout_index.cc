@@ -121,6 +121,7 @@ void FanoutIndex::Query(const IrradianceRecord& r, float max_accuracy, std::vect
     QueryAll(r, max_accuracy, out);
     return;
   }
+  ++grid_queries_;
   if (++query_ == 0) {  // wrapped: forget every mark
     std::fill(seen_.begin(), seen_.end(), 0);
     query_ = 1;

@@ -43,8 +43,11 @@ class FanoutIndex {
   // Replaces *out with the slots whose box `r` reaches at `max_accuracy` (every slot for a
   // level > 0 record), in no particular order, each once.
   void Query(const IrradianceRecord& r, float max_accuracy, std::vector<uint32_t>* out);
-  // The same answer by testing every slot (the reference of the tests, and the fallback).
+  // The same answer by testing every slot (the fallback for huge reaches).
   void QueryAll(const IrradianceRecord& r, float max_accuracy, std::vector<uint32_t>* out) const;
+  // Level-0 queries answered from the grid, not by QueryAll (what the tests need to know they
+  // tested the grid).
+  uint64_t grid_queries() const { return grid_queries_; }
 
  private:
   // The cell coordinate of `v` on axis k, clamped to the grid: monotone in v, so a point of a box
@@ -60,6 +63,7 @@ class FanoutIndex {
   std::vector<uint32_t> always_;  // slots of boxes spanning more than kMaxCellsPerBox cells
   std::vector<uint32_t> seen_;    // per slot: the query number that last listed it
   uint32_t query_ = 0;
+  uint64_t grid_queries_ = 0;
 };
 
 }  // namespace irfarm

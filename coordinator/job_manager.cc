@@ -1492,7 +1492,7 @@ absl::Status JobManager::FailTile(uint32_t worker, const v1::TileFailed& failed)
   return absl::OkStatus();
 }
 
-v1::GetClusterResponse JobManager::Cluster() const {
+v1::GetClusterResponse JobManager::Cluster(const Caller& caller) const {
   std::lock_guard<std::mutex> lock(mu_);
   v1::GetClusterResponse out;
   const SteadyTime now = std::chrono::steady_clock::now();
@@ -1500,9 +1500,11 @@ v1::GetClusterResponse JobManager::Cluster() const {
     v1::WorkerInfo* i = out.add_workers();
     i->set_id(id);
     i->set_name(w.name);
-    i->set_peer(w.peer);
+    if (caller.admin) i->set_peer(w.peer);
     i->set_has_lease(w.has_lease);
-    if (w.has_lease) {
+    auto lease_job = w.has_lease ? jobs_.find(w.lease_job) : jobs_.end();
+    if (lease_job != jobs_.end() &&
+        (caller.admin || lease_job->second->stored.job().owner() == caller.name)) {
       i->set_lease_job(w.lease_job);
       i->set_lease_tile(w.lease_tile);
     }

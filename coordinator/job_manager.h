@@ -175,7 +175,9 @@ class JobManager {
   absl::StatusOr<std::string> ExportSnapshot(const std::string& id,
                                              const Caller& caller = Caller()) const;
   // Connected workers and the worker-side counters (auth_failures is the caller's to fill).
-  v1::GetClusterResponse Cluster() const;
+  // Workers and counters. A caller other than an admin sees no worker's address, and a worker's
+  // lease only when it is of one of the caller's own jobs (another client's job ids stay hidden).
+  v1::GetClusterResponse Cluster(const Caller& caller = Caller{}) const;
   // Waits until anything changes after `seen` (a value returned before) or the timeout passes;
   // returns the current change counter.
   uint64_t WaitForChange(uint64_t seen, std::chrono::milliseconds timeout) const;

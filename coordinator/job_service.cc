@@ -133,8 +133,7 @@ grpc::Status JobServiceImpl::GetCluster(grpc::ServerContext* context, const v1::
                                         v1::GetClusterResponse* response) {
   ScopedTimer timer(latency_[kCluster]);
   IRFARM_AUTHENTICATE(caller);
-  (void)caller;
-  *response = manager_->Cluster();
+  *response = manager_->Cluster(caller);
   if (auth_ != nullptr) response->set_auth_failures(auth_->failures());
   return grpc::Status::OK;
 }

@@ -705,6 +705,37 @@ TEST_F(AttackTest, FailingWorkerIsQuarantinedAndJobsSucceed) {
   broken.join();
 }
 
+// The cluster view shows workers to every client, but a worker's address only to admins and its
+// lease only to the client whose job it is: Bob cannot learn Alice's job ids (which GetJob would
+// refuse him anyway) or where the workers run.
+TEST_F(AttackTest, ClusterViewHidesOtherClientsJobsAndWorkerAddresses) {
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  FakeWorker f(channel_, kWorker, "w");
+  const std::optional<v1::TileLease> lease = f.NextLease();
+  ASSERT_TRUE(lease.has_value());
+  const auto view = [&](const std::string& token) {
+    grpc::ClientContext c;
+    Auth(&c, token);
+    v1::GetClusterResponse r;
+    EXPECT_TRUE(stub_->GetCluster(&c, v1::GetClusterRequest(), &r).ok());
+    EXPECT_EQ(r.workers_size(), 1);
+    return r.workers_size() == 1 ? r.workers(0) : v1::WorkerInfo();
+  };
+  const v1::WorkerInfo admin = view(kAdmin), alice = view(kAlice), bob = view(kBob);
+  EXPECT_EQ(admin.lease_job(), a);
+  EXPECT_NE(admin.peer(), "");
+  EXPECT_EQ(alice.lease_job(), a);
+  EXPECT_EQ(alice.lease_tile(), lease->tile_index());
+  EXPECT_EQ(alice.peer(), "");
+  EXPECT_TRUE(bob.has_lease());
+  EXPECT_EQ(bob.lease_job(), "");
+  EXPECT_EQ(bob.peer(), "");
+  EXPECT_EQ(bob.name(), "w");
+  f.Cancel();
+}
+
 // A worker holding a lease cannot send valid records without end: past the job's record limit
 // (1000 here) it is refused, and what the job holds stops there.
 TEST_F(AttackTest, RecordsPastTheJobsLimitAreRefused) {

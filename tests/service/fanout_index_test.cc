@@ -22,9 +22,11 @@ Vec3 Lerp(const Bounds3& b, const Vec3& t) {
               b.lo.z + t.z * (b.hi.z - b.lo.z));
 }
 
-// Compares Query with the brute force for `records` random records over `workers` random
-// regions in `scene`; returns the mean number of workers a level-0 record reached.
-double Compare(std::mt19937& rng, const Bounds3& scene, int workers, int records) {
+// Compares Query with the brute force (RecordReachesBox against every region, here) for
+// `records` random records over `workers` random regions in `scene`. Returns the mean number of
+// workers a level-0 record reached, -1 on a mismatch; *grid: level-0 queries the grid answered.
+double Compare(std::mt19937& rng, const Bounds3& scene, int workers, int records,
+               uint64_t* grid = nullptr) {
   std::uniform_real_distribution<float> u(0, 1);
   const auto point = [&](float margin) {
     const Vec3 t(u(rng) * (1 + 2 * margin) - margin, u(rng) * (1 + 2 * margin) - margin,
@@ -78,7 +80,9 @@ double Compare(std::mt19937& rng, const Bounds3& scene, int workers, int records
       }
     }
     index.Query(r, a, &got);
-    index.QueryAll(r, a, &want);
+    want.clear();
+    for (size_t s = 0; s < entries.size(); ++s)
+      if (RecordReachesBox(r, entries[s].box, a)) want.push_back(uint32_t(s));
     std::sort(got.begin(), got.end());
     EXPECT_TRUE(std::adjacent_find(got.begin(), got.end()) == got.end()) << "a slot twice";
     EXPECT_EQ(got, want) << "record " << i << " level " << int(r.level) << " R " << r.radius;
@@ -88,6 +92,7 @@ double Compare(std::mt19937& rng, const Bounds3& scene, int workers, int records
       ++level0;
     }
   }
+  if (grid) *grid = index.grid_queries();
   return level0 ? double(reached) / level0 : 0;
 }
 
@@ -97,20 +102,38 @@ TEST_P(FanoutIndexTest, SelectsExactlyTheBruteForceWorkers) {
   Bounds3 scene;
   scene.Extend(Vec3(-3, 0, -1));
   scene.Extend(Vec3(5, 2.5f, 4));
-  const double mean = Compare(rng, scene, workers, 3000);
-  EXPECT_GE(mean, 0);
-  std::printf("MEASURED %d workers: a level-0 record reached %.2f of them on average\n", workers,
-              mean);
+  uint64_t grid = 0;
+  const double mean = Compare(rng, scene, workers, 3000, &grid);
+  std::printf(
+      "MEASURED %d workers: a level-0 record reached %.2f of them on average; the grid "
+      "answered %llu queries\n",
+      workers, mean, static_cast<unsigned long long>(grid));
+  EXPECT_NE(mean, -1.0);
+  if (workers > 0) {
+    // The grid answered most level-0 queries (not the brute-force fallback the comparison is
+    // against), some records reached a worker, and with many workers most were not reached.
+    EXPECT_GT(grid, 3000u / 2);
+    EXPECT_GT(mean, 0);
+  }
+  if (workers >= 64) {
+    EXPECT_LT(mean, 0.5 * workers);
+  }
   // Far from the origin (large coordinates, float rounding of boxes and positions).
   Bounds3 far;
   far.Extend(Vec3(1e5f, -2e5f, 3e4f));
   far.Extend(Vec3(1e5f + 40, -2e5f + 10, 3e4f + 25));
-  EXPECT_GE(Compare(rng, far, workers, 1000), 0);
+  EXPECT_NE(Compare(rng, far, workers, 1000, &grid), -1.0);
+  if (workers > 0) {
+    EXPECT_GT(grid, 0u);
+  }
   // Flat: no extent along y.
   Bounds3 flat;
   flat.Extend(Vec3(0, 1, 0));
   flat.Extend(Vec3(10, 1, 10));
-  EXPECT_GE(Compare(rng, flat, workers, 1000), 0);
+  EXPECT_NE(Compare(rng, flat, workers, 1000, &grid), -1.0);
+  if (workers > 0) {
+    EXPECT_GT(grid, 0u);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Workers, FanoutIndexTest, ::testing::Values(0, 1, 2, 7, 64, 256, 1000));
