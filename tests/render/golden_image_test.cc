@@ -5,9 +5,12 @@
 //     of one render against the truth. An unbiased renderer's relMSE against the reference is
 //     noise + the reference's own error; we allow 1.5x noise plus the reference's error (scaled
 //     to the low resolution). A bias of a few percent in any region fails this.
+//   - ... and within Mitsuba's own noise at the same size and spp (mitsuba_quarter_64spp_noise in
+//     reference.json, with the same 1.5x): a bound that does not come from irfarm.
 //   - irrcache (biased by design: interpolation): its relMSE must stay below that expected of
-//     the path tracer at 256 spp (noise at N spp scales as N/256), the claim the issue makes for
-//     full resolution, with the same 1.5x allowance.
+//     Mitsuba's path tracer at 256 spp (its noise at 64 spp x 64 / 256), the claim the issue
+//     makes for full resolution, with the same 1.5x allowance. (glazed-room: Mitsuba's figure is
+//     fireflies, and irfarm's own path noise stands in; see kMitsubaFireflies.)
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -22,17 +25,30 @@
 namespace irfarm {
 namespace {
 
-// mitsuba_quarter_64spp_noise from reference.json when the reference recorded it: Mitsuba's own
-// noise at 1/4 size and 64 spp (relMSE of two Mitsuba renders / 2); -1 when absent.
+// mitsuba_quarter_64spp_noise from reference.json: Mitsuba's own noise at 1/4 size and 64 spp
+// (relMSE of two Mitsuba renders / 2; make_reference.py's quarter_noise or
+// tests/data/scenes/mitsuba_quarter_noise.py). Every golden scene has it: a missing one fails.
 double MitsubaNoise(const std::string& name) {
   std::ifstream f(std::string(IRFARM_TEST_DATA) + "/scenes/" + name + "/reference.json");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  const std::string s = ss.str();
-  const std::string key = "\"mitsuba_quarter_64spp_noise\":";
-  const size_t at = s.find(key);
-  if (at == std::string::npos) return -1;
-  return std::atof(s.c_str() + at + key.size());
+  const nlohmann::json j = nlohmann::json::parse(f, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object() || !j.contains("mitsuba_quarter_64spp_noise")) {
+    ADD_FAILURE() << name << "/reference.json has no mitsuba_quarter_64spp_noise";
+    return -1;
+  }
+  return j["mitsuba_quarter_64spp_noise"].get<double>();
+}
+
+// Above this, Mitsuba's figure is its fireflies, not a noise level: on glazed-room (1.4) its path
+// tracer finds the sun behind the glass only by BSDF sampling. There the bounds fall back to
+// irfarm's own path noise (measured in the test, GoldenCase::noise), the one scene where they do.
+constexpr double kMitsubaFireflies = 0.1;
+
+// The expected relMSE of a path-traced render at `spp` at 1/4 size: Mitsuba's (noise scales as
+// 1/spp), or irfarm's own where Mitsuba's is fireflies.
+double PathNoise(const std::string& name, double irfarm_noise_64, int spp) {
+  const double m = MitsubaNoise(name);
+  const double at64 = m > 0 && m < kMitsubaFireflies ? m : irfarm_noise_64;
+  return at64 * 64.0 / spp;
 }
 
 // The test scene at 1/4 resolution, its reference, and two path renders with different seeds,
@@ -74,14 +90,14 @@ TEST_P(GoldenImageTest, PathMatchesReferenceWithinMeasuredNoise) {
   RecordProperty("noise", std::to_string(noise));
   RecordProperty("relmse", std::to_string(err));
   EXPECT_LT(err, 1.5 * noise + ref_err) << name << ": noise " << noise << " ref " << ref_err;
-  // Where the reference recorded Mitsuba's noise at this size and spp (kPathSpp = 64): within
-  // that too, so irfarm is not just consistent with its own noise but no noisier than Mitsuba
-  // by more than the same 1.5x.
-  const double mitsuba_noise = MitsubaNoise(name);
-  if (mitsuba_noise > 0) {
-    RecordProperty("mitsuba_noise", std::to_string(mitsuba_noise));
-    EXPECT_LT(err, 1.5 * mitsuba_noise + ref_err) << name << ": Mitsuba noise " << mitsuba_noise;
-  }
+  // Within Mitsuba's own noise at this size and spp (kPathSpp = 64) too, by the same 1.5x: irfarm
+  // is not just consistent with its own noise but no noisier than Mitsuba (a bound that does not
+  // come from irfarm; where Mitsuba's figure is fireflies, PathNoise is irfarm's own).
+  const double mitsuba_noise = PathNoise(name, noise, kPathSpp);
+  RecordProperty("mitsuba_noise", std::to_string(mitsuba_noise));
+  std::printf("MEASURED %s path 64 spp: relMSE %.3g, irfarm noise %.3g, Mitsuba noise %.3g\n",
+              name.c_str(), err, noise, MitsubaNoise(name));
+  EXPECT_LT(err, 1.5 * mitsuba_noise + ref_err) << name << ": Mitsuba noise " << mitsuba_noise;
   // Image means: within 4 standard errors of the mean of render a, estimated from the two
   // renders' per-pixel differences (var(a_p) ~ (a_p - b_p)^2 / 2, pixels independent): a
   // many-degree-of-freedom estimate, where the difference of the two means alone has one and
@@ -104,7 +120,7 @@ TEST_P(GoldenImageTest, IrrcacheBeatsPathAt256Spp) {
   if (name == "principledthin") GTEST_SKIP() << "irrcache is not claimed for " << name;
   const GoldenCase& g = Case(name);
   const Image& ref = g.ref;
-  const double path256 = g.noise * kPathSpp / 256.0;
+  const double path256 = PathNoise(name, g.noise, 256);
   // materials and principled: their error is the glass and metal spheres' specular and glossy
   // chains, which irrcache path traces too. At a uniform 64 spp (before adaptive sampling had a
   // budget) path at 256 spp was below irrcache on materials (full size: 2.5e-3 in 17 s against
@@ -134,7 +150,7 @@ TEST_P(GoldenImageTest, IrrcacheBeatsPathAt256Spp) {
 // 7.1e-3).
 TEST(GoldenImageTest, CausticMapOnSpecularBeatsPathAt256Spp) {
   const GoldenCase& g = Case("specular");
-  const double path256 = g.noise * kPathSpp / 256.0;
+  const double path256 = PathNoise("specular", g.noise, 256);
   RenderSettings s = *SettingsForScene(g.scene.desc, "irrcache");
   s.seed = 3;
   s.caustics = true;
@@ -179,7 +195,7 @@ TEST_P(GoldenImageTest, TwoCacheLevelsBeatPathAt256Spp) {
   if (name == "principledthin")
     GTEST_SKIP() << "the second cache level is not claimed for " << name;
   const GoldenCase& g = Case(name);
-  const double path256 = g.noise * kPathSpp / 256.0;
+  const double path256 = PathNoise(name, g.noise, 256);
   RenderSettings s = *SettingsForScene(g.scene.desc, "irrcache");
   s.seed = 3;
   s.irrcache.cache_levels = 2;
