@@ -370,16 +370,30 @@ TEST(GoldenImageTest, TargetErrorTakesTwoLevelsWhereOneLevelIsTooNoisy) {
 }
 
 // veach-ajar's reference is too noisy for pixel statistics at this size (see its README); it
-// must render clean with both integrators and land near the reference's mean.
+// must render clean with both integrators and land on the reference's mean. Path: within 4
+// standard errors of its mean (from two renders' per-pixel differences, as
+// PathMatchesReferenceWithinMeasuredNoise, plus MeanStandardError's 0.1% for the reference's own:
+// its pixels' relative error, about 4%, over 57,600 full-size pixels is 0.02%). irrcache: as
+// close as the path render at the same spp can tell (its 4 standard errors, about 10% here): the
+// cache's error is correlated across pixels, so its own per-pixel differences understate the
+// spread of its mean (measured 1-4% below the reference's in two runs, against 1.2% from them).
 TEST(GoldenImageTest, VeachAjarRendersClean) {
   const LoadedScene s = LoadQuarter("veach-ajar");
   const Image ref = QuarterReference("veach-ajar");
+  Vec3 path_se;
   for (const char* integrator : {"path", "irrcache"}) {
-    const RenderOutput out = RenderWith(s, integrator, integrator[0] == 'p' ? 16 : 16, 4);
-    EXPECT_EQ(out.stats.nonfinite_pixels, 0) << integrator;
-    const ImageError e = CompareImages(out.image, ref);
-    for (int c = 0; c < 3; ++c)
-      EXPECT_NEAR(e.mean_test[c], e.mean_ref[c], 0.15 * e.mean_ref[c]) << integrator;
+    const RenderOutput a = RenderWith(s, integrator, 16, 4), b = RenderWith(s, integrator, 16, 5);
+    EXPECT_EQ(a.stats.nonfinite_pixels, 0) << integrator;
+    const ImageError e = CompareImages(a.image, ref);
+    const Vec3 own_se = MeanStandardError(a.image, b.image, e.mean_ref);
+    const bool path = integrator[0] == 'p';
+    if (path) path_se = own_se;
+    for (int c = 0; c < 3; ++c) {
+      const float tol = 4 * std::max(own_se[c], path_se[c]);
+      std::printf("MEASURED veach-ajar %s channel %d: mean %.4g, reference %.4g, bound %.3g\n",
+                  integrator, c, e.mean_test[c], e.mean_ref[c], tol);
+      EXPECT_NEAR(e.mean_test[c], e.mean_ref[c], tol) << integrator;
+    }
   }
 }
 
