@@ -304,7 +304,7 @@ absl::Status JobManager::Resume() {
         continue;
       }
       job->tiles->MarkDone(tile);
-      job->pixels[tile] = std::move(pixels);
+      job->pixels[tile] = std::make_shared<const std::string>(std::move(pixels));
     }
     absl::StatusOr<std::vector<IrradianceRecord>> records = store_->LoadRecords(j.id());
     if (!records.ok() && !absl::IsDataLoss(records.status())) return Unavailable(records.status());
@@ -650,7 +650,7 @@ void JobManager::FinishJob(Job& job, v1::JobState state, const std::string& erro
   if (job.stored.scene().has_bundle())
     for (v1::BundleFile& f : *job.stored.mutable_scene()->mutable_bundle()->mutable_files())
       std::string().swap(*f.mutable_content());
-  if (state != v1::JOB_STATE_SUCCEEDED) std::map<int, std::string>().swap(job.pixels);
+  if (state != v1::JOB_STATE_SUCCEEDED) decltype(job.pixels)().swap(job.pixels);
   writer_->PutJob(job.stored);  // if this never lands the job resumes after a restart
   for (uint32_t w : job.workers) {
     auto it = workers_.find(w);
@@ -937,24 +937,38 @@ absl::StatusOr<const Denoiser*> JobManager::GetDenoiser() const {
   return denoiser_.get();
 }
 
-absl::StatusOr<Image> JobManager::Preview(const std::string& id, const Caller& caller) const {
+absl::StatusOr<JobManager::FinishedTiles> JobManager::TilesOf(const std::string& id,
+                                                              const Caller& caller,
+                                                              bool succeeded_only) const {
   std::lock_guard<std::mutex> lock(mu_);
   absl::StatusOr<Job*> found = Find(id, caller);
   if (!found.ok()) return found.status();
   const Job& job = **found;
   const v1::JobState state = job.stored.job().state();
-  if (state == v1::JOB_STATE_FAILED || state == v1::JOB_STATE_CANCELLED)
+  if (state == v1::JOB_STATE_FAILED || state == v1::JOB_STATE_CANCELLED ||
+      (succeeded_only && state != v1::JOB_STATE_SUCCEEDED))
     return absl::FailedPreconditionError("job '" + id + "' has no image: it is " +
                                          v1::JobState_Name(state));
-  Image image(job.stored.job().width(), job.stored.job().height());
-  for (const auto& [tile, bytes] : job.pixels) {
-    const PixelRect& r = job.tiles->rect(tile);
+  FinishedTiles t;
+  t.width = job.stored.job().width();
+  t.height = job.stored.job().height();
+  t.denoise = job.stored.job().settings().denoise();
+  t.tiles.reserve(job.pixels.size());
+  for (const auto& [tile, bytes] : job.pixels) t.tiles.emplace_back(job.tiles->rect(tile), bytes);
+  return t;
+}
+
+absl::StatusOr<Image> JobManager::Preview(const std::string& id, const Caller& caller) const {
+  absl::StatusOr<FinishedTiles> t = TilesOf(id, caller, false);  // under mu_; the rest without
+  if (!t.ok()) return t.status();
+  Image image(t->width, t->height);
+  for (const auto& [r, bytes] : t->tiles) {
     for (int y = r.y0; y < r.y1; ++y)
       for (int x = r.x0; x < r.x1; ++x) {
         // RGB floats first (guides follow for denoised jobs); sizes were checked on the way in.
         float rgb[3];
         const size_t i = 3 * (size_t(y - r.y0) * r.width() + (x - r.x0));
-        std::memcpy(rgb, bytes.data() + i * sizeof(float), sizeof rgb);
+        std::memcpy(rgb, bytes->data() + i * sizeof(float), sizeof rgb);
         image.at(x, y) = Vec3(rgb[0], rgb[1], rgb[2]);
       }
   }
@@ -1002,28 +1016,19 @@ absl::StatusOr<v1::Job> JobManager::SetPriority(const std::string& id, int prior
 
 absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
                                                   const Caller& caller) const {
-  Image image;
+  absl::StatusOr<FinishedTiles> t = TilesOf(id, caller, true);  // under mu_; the rest without
+  if (!t.ok()) return t.status();
+  Image image(t->width, t->height);
   AovImages guides;  // albedo and normal only, for denoised jobs
-  bool denoise = false;
+  const bool denoise = t->denoise;
+  if (denoise) {
+    guides = AovImages(t->width, t->height);
+    guides.variance = Image();  // not carried by the tiles: the denoiser cannot judge the noise
+  }
   {
-    std::lock_guard<std::mutex> lock(mu_);
-    absl::StatusOr<Job*> found = Find(id, caller);
-    if (!found.ok()) return found.status();
-    const Job& job = **found;
-    if (job.stored.job().state() != v1::JOB_STATE_SUCCEEDED)
-      return absl::FailedPreconditionError("job '" + id + "' has no image: it is " +
-                                           v1::JobState_Name(job.stored.job().state()));
-    const int w = job.stored.job().width(), h = job.stored.job().height();
-    image = Image(w, h);
-    denoise = job.stored.job().settings().denoise();
-    if (denoise) {
-      guides = AovImages(w, h);
-      guides.variance = Image();  // not carried by the tiles: the denoiser cannot judge the noise
-    }
-    for (const auto& [tile, bytes] : job.pixels) {
-      const PixelRect& r = job.tiles->rect(tile);
-      std::vector<float> px(bytes.size() / sizeof(float));
-      std::memcpy(px.data(), bytes.data(), px.size() * sizeof(float));
+    for (const auto& [r, bytes] : t->tiles) {
+      std::vector<float> px(bytes->size() / sizeof(float));
+      std::memcpy(px.data(), bytes->data(), px.size() * sizeof(float));
       const size_t n = size_t(r.width()) * r.height();
       const bool has_guides = px.size() == 9 * n;  // checked when the tile came in
       for (int y = r.y0; y < r.y1; ++y)
@@ -1452,7 +1457,7 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   auto wit = workers_.find(worker);
   const std::string worker_name = wit == workers_.end() ? std::string() : wit->second.name;
   if (wit != workers_.end()) health_[wit->second.health_key].consecutive_failures = 0;
-  done.pixels[tile] = std::move(bytes);
+  done.pixels[tile] = std::make_shared<const std::string>(std::move(bytes));
   v1::WorkerJobStats& ws = done.worker_stats[worker];
   ws.set_worker_id(worker);
   ws.set_worker_name(worker_name);

@@ -225,8 +225,9 @@ class JobManager {
     std::unique_ptr<TileScheduler> tiles;
     std::unique_ptr<GlobalCache> cache;
     // Finished tiles: float RGB bytes, followed for denoised jobs by the guides (albedo RGB and
-    // normal XYZ per pixel, as in TileResult.guides).
-    std::map<int, std::string> pixels;
+    // normal XYZ per pixel, as in TileResult.guides). Shared and never changed once stored, so
+    // that a result or a preview takes them under mu_ and assembles the image without it.
+    std::map<int, std::shared_ptr<const std::string>> pixels;
     std::map<uint32_t, v1::WorkerJobStats> worker_stats;
     std::set<uint32_t> workers;  // have the spec (and get the job's records)
     // Filtered fan-out: per worker, the union of its TileRegion boxes (empty: none yet) and the
@@ -313,6 +314,17 @@ class JobManager {
   bool IsFinal(const Job& job) const;
   // The job `id` if `caller` may see it, else NOT_FOUND (the same answer as for no such job).
   absl::StatusOr<Job*> Find(const std::string& id, const Caller& caller) const;
+  // A job's finished tiles, taken under mu_ (their bytes shared, not copied), for assembling an
+  // image without it: GetResult and the dashboard's preview of a large job no longer hold every
+  // worker message and lease while they build the image. FAILED_PRECONDITION for a failed or
+  // cancelled job, and with `succeeded_only` for one not finished.
+  struct FinishedTiles {
+    int width = 0, height = 0;
+    bool denoise = false;
+    std::vector<std::pair<PixelRect, std::shared_ptr<const std::string>>> tiles;
+  };
+  absl::StatusOr<FinishedTiles> TilesOf(const std::string& id, const Caller& caller,
+                                        bool succeeded_only) const;
   // PERMISSION_DENIED unless `caller` may load the coordinator-side scene file `path`.
   absl::Status CheckScenePath(const std::string& path, const Caller& caller) const;
   // Counts an invalid message of `worker`, queues a Rejected notice (with `code`); returns
