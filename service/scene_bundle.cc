@@ -86,6 +86,10 @@ absl::StatusOr<std::string> WriteBundle(const v1::SceneBundle& bundle, const std
   const std::string main = bundle.main_file().empty() ? "scene.xml" : bundle.main_file();
   absl::Status st = CheckBundlePath(main);
   if (!st.ok()) return st;
+  if (bundle.files_size() > kMaxBundleFiles)
+    return absl::InvalidArgumentError("bundle has " + std::to_string(bundle.files_size()) +
+                                      " files, over the limit of " +
+                                      std::to_string(kMaxBundleFiles));
   bool has_main = false;
   for (const v1::BundleFile& f : bundle.files()) {
     st = CheckBundlePath(f.path());
@@ -99,7 +103,10 @@ absl::StatusOr<std::string> WriteBundle(const v1::SceneBundle& bundle, const std
     fs::create_directories(p.parent_path(), ec);
     std::ofstream out(p, std::ios::binary | std::ios::trunc);
     out.write(f.content().data(), std::streamsize(f.content().size()));
-    if (!out) return absl::InternalError(p.string() + ": cannot write");
+    if (!out)
+      return absl::InvalidArgumentError("bundle file '" + f.path() +
+                                        "' cannot be written: its path is also a folder or a file "
+                                        "of the bundle, or a name in it is too long");
   }
   return (fs::path(dir) / main).string();
 }

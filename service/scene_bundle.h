@@ -25,7 +25,10 @@ size_t BundleBytes(const v1::SceneBundle& bundle);
 absl::StatusOr<v1::SceneBundle> MakeBundle(const std::string& scene_path);
 
 // Checks every path, then writes the files under `dir` (created if needed). Returns the path of
-// the main scene file. INVALID_ARGUMENT for a bad path or a missing main file.
+// the main scene file. INVALID_ARGUMENT, naming the bundle's path (never `dir`), for a bad path,
+// a missing main file, more than kMaxBundleFiles files, or a file that cannot be written where
+// the client put it (a path that is a file and a folder at once, a name too long).
+inline constexpr int kMaxBundleFiles = 16384;
 absl::StatusOr<std::string> WriteBundle(const v1::SceneBundle& bundle, const std::string& dir);
 
 // A fresh private temporary directory (mkdtemp) whose name starts with `prefix`.
