@@ -472,14 +472,21 @@ uint64_t Scene::PassThroughHash(const Vec3& origin, const Vec3& dir) {
 }
 
 float Scene::PassProbability(unsigned geom, unsigned prim, float bu, float bv, const Vec3& p,
-                             float cos_theta, bool delta_light) const {
+                             const Vec3& d, float cos_theta, bool delta_light) const {
   const Mesh& m = meshes_[geom];
   float u = bu, v = bv;  // without uvs, as Intersect: u = b1, v = b2
-  if (m.sphere)
-    SphereUv(Normalize(p - m.center), &u, &v);
-  else if (!m.uvs.empty())
-    TriangleUv(m.uvs, &m.indices[3 * size_t(prim)], 1 - bu - bv, bu, bv, &u, &v);
-  return materials_[size_t(m.material)]->PassThrough(BsdfContext{u, v}, cos_theta, delta_light);
+  Vec3 ng;               // the front side's normal, as Intersect gives it (SurfaceHit::ng)
+  if (m.sphere) {
+    const Vec3 n = Normalize(p - m.center);
+    SphereUv(n, &u, &v);
+    ng = m.flip ? -n : n;
+  } else {
+    if (!m.uvs.empty())
+      TriangleUv(m.uvs, &m.indices[3 * size_t(prim)], 1 - bu - bv, bu, bv, &u, &v);
+    ng = m.tri_info[prim].ng;
+  }
+  return materials_[size_t(m.material)]->PassThrough(BsdfContext{u, v}, cos_theta, Dot(d, ng) < 0,
+                                                     delta_light);
 }
 
 void Scene::PassThroughFilter(const RTCFilterFunctionNArguments* args) {
@@ -500,7 +507,7 @@ void Scene::PassThroughFilter(const RTCFilterFunctionNArguments* args) {
                   RTCHitN_Ng_z(args->hit, args->N, i));
     const float pass =
         s->PassProbability(geom, prim, RTCHitN_u(args->hit, args->N, i),
-                           RTCHitN_v(args->hit, args->N, i), p, AbsCos(d, ng), delta_light);
+                           RTCHitN_v(args->hit, args->N, i), p, d, AbsCos(d, ng), delta_light);
     if (!(pass > 0)) continue;  // blocks: the hit stands and the query ends
     // A sphere is hit twice by a ray through it: the way out is a surface of its own.
     const Scene::Mesh& m = s->meshes_[geom];
@@ -522,7 +529,7 @@ bool Scene::OccludedPassThrough(Ray ray, bool delta_light) const {
     SurfaceHit hit;
     if (!Intersect(ray, &hit)) return false;
     const float pass = materials_[size_t(hit.material)]->PassThrough(
-        BsdfContext{hit.u, hit.v}, AbsCos(ray.dir, hit.ng), delta_light);
+        BsdfContext{hit.u, hit.v}, AbsCos(ray.dir, hit.ng), Dot(ray.dir, hit.ng) < 0, delta_light);
     if (!(pass > 0)) return true;
     h = HashCombine(h, (uint64_t(hit.geom) << 32) | hit.prim);
     if (Rng::ToUnitFloat(uint32_t(h >> 32)) >= pass) return true;

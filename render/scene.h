@@ -167,8 +167,9 @@ class Scene {
   // The chance that a shadow ray passes the surface of geometry `geom` at the hit (primitive
   // prim, Embree's barycentrics bu, bv, point p), meeting it at |cos| = cos_theta to its
   // geometric normal.
+  // `d`: the ray's direction (which side of the surface it meets: Bsdf::PassThrough's front).
   float PassProbability(unsigned geom, unsigned prim, float bu, float bv, const Vec3& p,
-                        float cos_theta, bool delta_light) const;
+                        const Vec3& d, float cos_theta, bool delta_light) const;
   static uint64_t PassThroughHash(const Vec3& origin, const Vec3& dir);
   bool OccludedPassThrough(Ray ray, bool delta_light) const;
 

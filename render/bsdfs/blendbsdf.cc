@@ -74,10 +74,11 @@ class BlendBsdf final : public Bsdf {
   Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {
     return nested_[nested_[0]->HasDiffuse() ? 0 : 1]->ShadingNormal(ctx, wo);
   }
-  float PassThrough(const BsdfContext& ctx, float cos_theta, bool delta_light) const override {
+  float PassThrough(const BsdfContext& ctx, float cos_theta, bool front,
+                    bool delta_light) const override {
     const float w = Weight(ctx);
-    return nested_[0]->PassThrough(ctx, cos_theta, delta_light) * (1 - w) +
-           nested_[1]->PassThrough(ctx, cos_theta, delta_light) * w;
+    return nested_[0]->PassThrough(ctx, cos_theta, front, delta_light) * (1 - w) +
+           nested_[1]->PassThrough(ctx, cos_theta, front, delta_light) * w;
   }
 
  private:

@@ -121,9 +121,10 @@ class Bsdf {
 
   // Probability that a shadow ray passes straight through (the kNullTransmission lobe: a mask, a
   // thin pane of glass) when it meets the surface at |cos theta| = cos_theta to its normal, on
-  // its way to a delta light (point, spot, directional) or not; 0 for ordinary surfaces. Sample's
-  // null lobe is chosen with the same probability and weight 1 (a grey weight may be folded in).
-  virtual float PassThrough(const BsdfContext& /*ctx*/, float /*cos_theta*/,
+  // its front side (against the geometric normal) or its back, on its way to a delta light
+  // (point, spot, directional) or not; 0 for ordinary surfaces. Sample's null lobe is chosen
+  // with the same probability and weight 1 (a grey weight may be folded in).
+  virtual float PassThrough(const BsdfContext& /*ctx*/, float /*cos_theta*/, bool /*front*/,
                             bool /*delta_light*/) const {
     return 0;
   }

@@ -44,7 +44,9 @@ class MaskBsdf final : public Bsdf {
   Vec3 DiffuseAlbedo(const BsdfContext& ctx, const Vec3& wo) const override {
     return nested_->DiffuseAlbedo(ctx, wo) * Opacity(ctx);
   }
-  float PassThrough(const BsdfContext& ctx, float, bool) const override { return 1 - Opacity(ctx); }
+  float PassThrough(const BsdfContext& ctx, float, bool, bool) const override {
+    return 1 - Opacity(ctx);
+  }
   Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {
     return nested_->ShadingNormal(ctx, wo);
   }

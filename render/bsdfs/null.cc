@@ -22,7 +22,7 @@ class NullBsdf final : public Bsdf {
     s.lobe = kNullTransmission;
     return s;
   }
-  float PassThrough(const BsdfContext&, float, bool) const override { return 1; }
+  float PassThrough(const BsdfContext&, float, bool, bool) const override { return 1; }
 };
 
 absl::Status Parse(BsdfParams&) { return absl::OkStatus(); }

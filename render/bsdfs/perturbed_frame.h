@@ -98,8 +98,9 @@ class PerturbedFrameBsdf : public Bsdf {
     return nested_->DiffuseAlbedo(ctx, Frame(ctx, wo).ToFrame(wo));
   }
 
-  float PassThrough(const BsdfContext& ctx, float cos_theta, bool delta_light) const override {
-    return nested_->PassThrough(ctx, cos_theta, delta_light);
+  float PassThrough(const BsdfContext& ctx, float cos_theta, bool front,
+                    bool delta_light) const override {
+    return nested_->PassThrough(ctx, cos_theta, front, delta_light);
   }
 
   Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {

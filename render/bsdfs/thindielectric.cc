@@ -78,7 +78,7 @@ class ThinDielectricBsdf final : public Bsdf {
     return s;
   }
 
-  float PassThrough(const BsdfContext&, float cos_theta, bool delta_light) const override {
+  float PassThrough(const BsdfContext&, float cos_theta, bool, bool delta_light) const override {
     // Not towards a delta light (see the top).
     return grey_ && !delta_light ? transmit_.value.x * (1 - Reflectance(cos_theta)) : 0.0f;
   }

@@ -37,8 +37,12 @@ class TwoSidedBsdf final : public Bsdf {
     return wo.z >= 0 ? front_->DiffuseAlbedo(ctx, wo) : back_->DiffuseAlbedo(ctx, FlipZ(wo));
   }
 
-  float PassThrough(const BsdfContext& ctx, float cos_theta, bool delta_light) const override {
-    return front_->PassThrough(ctx, cos_theta, delta_light);
+  // The side the shadow ray meets answers, as Sample's side does for paths (a mask on one side
+  // only lets light through from that side).
+  float PassThrough(const BsdfContext& ctx, float cos_theta, bool front,
+                    bool delta_light) const override {
+    return front ? front_->PassThrough(ctx, cos_theta, true, delta_light)
+                 : back_->PassThrough(ctx, cos_theta, true, delta_light);
   }
 
   Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {

@@ -3,6 +3,9 @@
 // max_depth counts vertices as Mitsuba does; the record map marks computed records.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
+
 #include "render_test_util.h"
 
 namespace irfarm {
@@ -130,6 +133,39 @@ TEST(RenderPropertiesTest, CameraRaysSeeFromNearClipToFarClip) {
     EXPECT_EQ(mean("0.001", "1e4", integrator), 0.0) << integrator;         // the panel
     EXPECT_EQ(mean("0.01", "1.5", integrator), 0.0) << integrator;          // the wall too far
   }
+}
+
+// A twosided surface with a mask on its back only: shadow rays that meet its back pass with the
+// mask's probability (0.75 here), those that meet its front (a plain diffuse) never do, as paths
+// sampling its sides do (Bsdf::PassThrough's side). Before, the front answered for both sides.
+TEST(RenderPropertiesTest, ShadowRaysPassATwosidedSurfaceByTheSideTheyMeet) {
+  const LoadedScene s = BuildLoaded(LoadSceneString(R"(<scene version="3.0.0">
+  <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="8"/>
+    <integer name="height" value="8"/></film></sensor>
+  <shape type="rectangle">
+    <transform name="to_world"><scale value="10"/><translate z="0.5"/></transform>
+    <bsdf type="twosided">
+      <bsdf type="diffuse"/>
+      <bsdf type="mask"><float name="opacity" value="0.25"/><bsdf type="diffuse"/></bsdf>
+    </bsdf>
+  </shape>
+</scene>
+)",
+                                                    "twosided.xml", {}));
+  ASSERT_TRUE(s.scene);
+  constexpr int kN = 4000;
+  int up = 0, down = 0;  // shadow rays through the panel from below (its back) and from above
+  Rng rng(3, 4);
+  for (int i = 0; i < kN; ++i) {
+    const float x = 8 * rng.Next() - 4, y = 8 * rng.Next() - 4;
+    up += !s.scene->Occluded(Ray{Vec3(x, y, 0), Vec3(0, 0, 1), 1.0f});
+    down += !s.scene->Occluded(Ray{Vec3(x, y, 1), Vec3(0, 0, -1), 1.0f});
+  }
+  const double pass = double(up) / kN, sigma = std::sqrt(0.75 * 0.25 / kN);
+  std::printf("MEASURED through the back %.4f (expected 0.75 +- %.4f), the front %d of %d\n", pass,
+              sigma, down, kN);
+  EXPECT_NEAR(pass, 0.75, 4 * sigma);
+  EXPECT_EQ(down, 0);
 }
 
 TEST(RenderPropertiesTest, RecordMapMarksComputedRecords) {
