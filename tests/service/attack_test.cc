@@ -166,6 +166,17 @@ v1::WorkerMessage Result(const std::string& job, int tile, const std::string& le
   return m;
 }
 
+v1::WorkerMessage Failed(const std::string& job, int tile, const std::string& lease_token,
+                         const std::string& reason) {
+  v1::WorkerMessage m;
+  v1::TileFailed* f = m.mutable_tile_failed();
+  f->set_job_id(job);
+  f->set_tile_index(tile);
+  f->set_lease_token(lease_token);
+  f->set_reason(reason);
+  return m;
+}
+
 // A guessed lease token: 16 bytes holding a small counter (what sequential lease ids gave).
 std::string GuessedToken(uint64_t n) {
   std::string t(16, '\0');
@@ -586,12 +597,7 @@ TEST_F(AttackTest, ForgedLeaseTokensAreRefusedAndTheLeaseIsUnaffected) {
     EXPECT_EQ(r.code(), int(f.code)) << f.what << ": " << r.reason();
     EXPECT_EQ(r.reason().find("does not hold") != std::string::npos, denied) << r.reason();
     EXPECT_EQ(r.violations(), ++sent) << f.what;
-    v1::WorkerMessage failed;
-    failed.mutable_tile_failed()->set_job_id(a);
-    failed.mutable_tile_failed()->set_tile_index(tile);
-    failed.mutable_tile_failed()->set_lease_token(f.token);
-    failed.mutable_tile_failed()->set_reason("forged");
-    ASSERT_TRUE(mallory.Send(failed));
+    ASSERT_TRUE(mallory.Send(Failed(a, tile, f.token, "forged")));
     r = mallory.NextRejected();
     EXPECT_EQ(r.code(), int(f.code)) << f.what << " (failure): " << r.reason();
     EXPECT_EQ(r.violations(), ++sent) << f.what;
@@ -670,12 +676,7 @@ TEST_F(AttackTest, FailingWorkerIsQuarantinedAndJobsSucceed) {
   std::optional<v1::TileLease> lease = f.NextLease();
   ASSERT_TRUE(lease.has_value());
   for (int t = 0; t < 3; ++t) {  // forged: other tiles, guessed lease ids
-    v1::WorkerMessage m;
-    m.mutable_tile_failed()->set_job_id(ids[0]);
-    m.mutable_tile_failed()->set_tile_index(t + 5);
-    m.mutable_tile_failed()->set_lease_token(GuessedToken(uint64_t(t + 1)));
-    m.mutable_tile_failed()->set_reason("forged");
-    ASSERT_TRUE(f.Send(m));
+    ASSERT_TRUE(f.Send(Failed(ids[0], t + 5, GuessedToken(uint64_t(t + 1)), "forged")));
     EXPECT_NE(f.NextRejection().find("does not hold"), std::string::npos);
   }
   StartHonestWorker();
@@ -683,12 +684,8 @@ TEST_F(AttackTest, FailingWorkerIsQuarantinedAndJobsSucceed) {
   std::thread broken([&] {
     std::optional<v1::TileLease> l = lease;
     while (l) {
-      v1::WorkerMessage m;
-      m.mutable_tile_failed()->set_job_id(l->job_id());
-      m.mutable_tile_failed()->set_tile_index(l->tile_index());
-      m.mutable_tile_failed()->set_lease_token(l->lease_token());
-      m.mutable_tile_failed()->set_reason("cannot open the scene");
-      if (!f.Send(m)) break;
+      if (!f.Send(Failed(l->job_id(), l->tile_index(), l->lease_token(), "cannot open the scene")))
+        break;
       l = f.NextLease();
     }
   });
@@ -777,12 +774,8 @@ TEST_F(AttackTest, AWorkerCannotGetAnotherTokensWorkerQuarantined) {
   for (int k = 0; k < 3; ++k) {
     const std::optional<v1::TileLease> l = mallory.NextLease();
     ASSERT_TRUE(l.has_value());
-    v1::WorkerMessage m;
-    m.mutable_tile_failed()->set_job_id(l->job_id());
-    m.mutable_tile_failed()->set_tile_index(l->tile_index());
-    m.mutable_tile_failed()->set_lease_token(l->lease_token());
-    m.mutable_tile_failed()->set_reason("cannot open the scene");
-    ASSERT_TRUE(mallory.Send(m));
+    ASSERT_TRUE(mallory.Send(
+        Failed(l->job_id(), l->tile_index(), l->lease_token(), "cannot open the scene")));
   }
   int quarantined = 0, named = 0;
   for (int i = 0; i < 100 && quarantined == 0; ++i) {
@@ -813,13 +806,10 @@ TEST_F(AttackTest, JobFailsOnlyWhenATileFailedOnThreeWorkers) {
   for (int i = 0; i < 3; ++i)
     threads.emplace_back([&, i] {
       while (std::optional<v1::TileLease> l = fakes[size_t(i)]->NextLease()) {
-        v1::WorkerMessage m;
-        m.mutable_tile_failed()->set_job_id(l->job_id());
-        m.mutable_tile_failed()->set_tile_index(l->tile_index());
-        m.mutable_tile_failed()->set_lease_token(l->lease_token());
-        m.mutable_tile_failed()->set_reason("broken " + std::to_string(i));
         ++failed[size_t(i)];
-        if (!fakes[size_t(i)]->Send(m)) break;
+        if (!fakes[size_t(i)]->Send(Failed(l->job_id(), l->tile_index(), l->lease_token(),
+                                           "broken " + std::to_string(i))))
+          break;
       }
     });
   const v1::Job job = WaitFinal(a, 30);
@@ -1049,11 +1039,7 @@ TEST_F(AttackTest, ReportsUnderTheCurrentLeaseMustNameItsTile) {
               std::string::npos)
         << m->rejected().reason();
   }
-  v1::WorkerMessage fail;
-  fail.mutable_tile_failed()->set_job_id("job-0");
-  fail.mutable_tile_failed()->set_tile_index(tile);
-  fail.mutable_tile_failed()->set_lease_token(lease->lease_token());
-  ASSERT_TRUE(f.Send(fail));
+  ASSERT_TRUE(f.Send(Failed("job-0", tile, lease->lease_token(), "")));
   std::optional<v1::CoordinatorMessage> m = answer();
   ASSERT_TRUE(m.has_value() && m->has_rejected());
   EXPECT_NE(m->rejected().reason().find("of job 'job-0'"), std::string::npos)
