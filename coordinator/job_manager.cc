@@ -74,18 +74,31 @@ std::string Printable(const std::string& s, size_t max = 200) {
 // Why a job read back from the store cannot be resumed as it is ("" when it can): the limits a
 // submit is held to, on what sizes the job's tiles and cache (a store anyone else can write to,
 // or a damaged one, must not make a coordinator allocate tens of GB or overflow at start-up).
-std::string StoredJobProblem(const v1::StoredJob& s, const JobLimits& lim) {
-  const v1::Job& j = s.job();
-  const int64_t w = j.width(), h = j.height();
+// Why a job of a w x h film with these settings is too large for the limits ("" when it is
+// not): its film, then its tile count. Submit and Resume both hold jobs to it.
+std::string JobSizeProblem(int64_t w, int64_t h, const v1::RenderSettings& settings,
+                           const JobLimits& lim) {
+  // The film, before anything is sized by it (a 2^31-pixel-wide film must not get to the tiles).
   if (w < 1 || h < 1 || w > lim.max_film_side || h > lim.max_film_side ||
       w * h > lim.max_film_pixels)
-    return "film " + std::to_string(w) + "x" + std::to_string(h) + " is outside the limits";
+    return "film " + std::to_string(w) + "x" + std::to_string(h) +
+           " is outside the limits (sides 1.." + std::to_string(lim.max_film_side) + ", at most " +
+           std::to_string(lim.max_film_pixels) + " pixels)";
+  const int64_t tile = JobTileSize(settings);
+  const int64_t tiles = ((w + tile - 1) / tile) * ((h + tile - 1) / tile);
+  if (tiles > lim.max_tiles)
+    return std::to_string(tiles) + " tiles of " + std::to_string(tile) +
+           " px is over the limit of " + std::to_string(lim.max_tiles) + " tiles per job";
+  return "";
+}
+
+std::string StoredJobProblem(const v1::StoredJob& s, const JobLimits& lim) {
+  const v1::Job& j = s.job();
   const int64_t tile = j.settings().tile_size();
   if (tile < 0 || tile > 4096 || (tile > 0 && tile < 4))
     return "tile size " + std::to_string(tile) + " is outside [4, 4096]";
-  const int64_t t = JobTileSize(j.settings());
-  if (((w + t - 1) / t) * ((h + t - 1) / t) > lim.max_tiles)
-    return "more than " + std::to_string(lim.max_tiles) + " tiles";
+  if (std::string why = JobSizeProblem(j.width(), j.height(), j.settings(), lim); !why.empty())
+    return why;
   if (s.cache_bounds_size() != 0 && s.cache_bounds_size() != 6)
     return std::to_string(s.cache_bounds_size()) + " cache bound values, expected 6";
   for (int k = 0; k < s.cache_bounds_size(); ++k)
@@ -469,20 +482,10 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     return absl::InvalidArgumentError("job name is " + std::to_string(name.size()) +
                                       " bytes, over the limit of " +
                                       std::to_string(lim.max_name_bytes));
-  // The film, before anything is sized by it (a 2^31-pixel-wide film must not get to the tiles).
   const int w = desc->camera.width, h = desc->camera.height;
-  if (w < 1 || h < 1 || w > lim.max_film_side || h > lim.max_film_side ||
-      int64_t(w) * h > lim.max_film_pixels)
-    return absl::InvalidArgumentError("film " + std::to_string(w) + "x" + std::to_string(h) +
-                                      " is outside the limits (sides 1.." +
-                                      std::to_string(lim.max_film_side) + ", at most " +
-                                      std::to_string(lim.max_film_pixels) + " pixels)");
+  if (std::string why = JobSizeProblem(w, h, request.settings(), lim); !why.empty())
+    return absl::InvalidArgumentError(why);
   const int64_t tile = JobTileSize(request.settings());
-  const int64_t tiles = ((w + tile - 1) / tile) * ((h + tile - 1) / tile);
-  if (tiles > lim.max_tiles)
-    return absl::InvalidArgumentError(std::to_string(tiles) + " tiles of " + std::to_string(tile) +
-                                      " px is over the limit of " + std::to_string(lim.max_tiles) +
-                                      " tiles per job");
   absl::StatusOr<RenderSettings> settings = MakeRenderSettings(*desc, request.settings(), 0);
   if (!settings.ok()) return settings.status();
   if (double(settings->spp) * double(w) * double(h) > double(lim.max_samples))
