@@ -806,15 +806,28 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
   const float a = job.cache->max_accuracy();
   const GlobalCache::Near near = job.cache->RecordsNear(grown);
   const std::string job_id = region.job_id();
+  // What the outbox bound leaves room for now (collected past it, the backlog would be a copy of
+  // every record in memory); the rest is dropped below.
+  constexpr size_t kRecordBytes = (kFloatsPerRecord + 1) * sizeof(float);
+  const size_t room = (options_.limits.max_outbox_bytes -
+                       std::min(options_.limits.max_outbox_bytes, w.outbox_bytes)) /
+                      kRecordBytes;
   lock.unlock();
   std::vector<IrradianceRecord> backlog;
+  size_t over = 0;
   near.ForEach(
       [&](const GlobalCache::Entry& e) {
         if (e.origin == worker_id || (!share && e.origin != kSnapshotOrigin)) return false;
         return ReachesBox(e.position, e.radius, e.level, grown, a) &&
                !ReachesBox(e.position, e.radius, e.level, old, a);
       },
-      [&](const IrradianceRecord& rec) { backlog.push_back(rec); });
+      [&](const IrradianceRecord& rec) {
+        if (backlog.size() < room) {
+          backlog.push_back(rec);
+        } else {
+          ++over;
+        }
+      });
   // Packed into messages without the lock too; only handing them over takes it.
   std::vector<v1::CoordinatorMessage> messages;
   std::vector<size_t> counts;
@@ -836,8 +849,16 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
   Job& job2 = *jit->second;
   if (!job2.workers.count(worker_id)) return absl::OkStatus();
   const bool was_empty = w2.outbox.empty();
+  size_t queued = 0, dropped_batches = over > 0 ? 1 : 0;
   for (size_t k = 0; k < messages.size(); ++k) {
     const size_t bytes = BatchBytes(messages[k].records().batch());
+    // The backlog is fan-out too: past max_outbox_bytes the rest is dropped and counted, as
+    // Deliver drops batches (the worker computes those records itself).
+    if (w2.outbox_bytes + bytes > options_.limits.max_outbox_bytes) {
+      dropped_batches += messages.size() - k;
+      break;
+    }
+    ++queued;
     w2.outbox.push_back(std::move(messages[k]));
     w2.outbox_bytes += bytes;
     v1::WorkerJobStats& ws = job2.worker_stats[worker_id];
@@ -846,7 +867,11 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
     metrics_.record_bytes_sent->Add(bytes);
     CountFanout(job2, worker_id, w2, counts[k], 0, counts[k]);
   }
-  if (was_empty && !messages.empty()) w2.records_queued_at = std::chrono::steady_clock::now();
+  if (was_empty && queued > 0) w2.records_queued_at = std::chrono::steady_clock::now();
+  if (dropped_batches > 0) {
+    w2.batches_dropped += dropped_batches;
+    metrics_.fanout_batches_dropped->Add(double(dropped_batches));
+  }
   ready(w2);
   Touched(&w2);
   return absl::OkStatus();
@@ -1617,7 +1642,10 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
     // backlog then brings the records that reach it.
     const bool share = job.stored.job().settings().share_records();
     const bool filtered = Filtered(worker);
-    size_t withheld = 0;
+    // The copy is bounded like fan-out (max_outbox_bytes, less what the outbox holds): it goes
+    // out with this Poll, and a worker that does not read would hold it in its stream's writer;
+    // batches past the bound are dropped and counted.
+    size_t withheld = 0, dropped = 0, copied_bytes = worker.outbox_bytes;
     const RecordLog& all = job.cache->records();
     std::vector<IrradianceRecord> chunk;
     for (size_t i = 0; i <= all.size(); ++i) {
@@ -1626,13 +1654,19 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
           v1::CoordinatorMessage m;
           m.mutable_records()->set_job_id(id);
           PackRecords(chunk, kSnapshotOrigin, m.mutable_records()->mutable_batch());
-          v1::WorkerJobStats& ws = job.worker_stats[worker_id];
-          ws.set_worker_id(worker_id);
-          ws.set_bytes_received(ws.bytes_received() + BatchBytes(m.records().batch()));
-          metrics_.records_sent->Add(chunk.size());
-          metrics_.record_bytes_sent->Add(BatchBytes(m.records().batch()));
-          CountFanout(job, worker_id, worker, chunk.size(), 0, 0);
-          out->push_back(std::move(m));
+          const size_t bytes = BatchBytes(m.records().batch());
+          if (copied_bytes + bytes > options_.limits.max_outbox_bytes) {
+            dropped += chunk.size();
+          } else {
+            copied_bytes += bytes;
+            v1::WorkerJobStats& ws = job.worker_stats[worker_id];
+            ws.set_worker_id(worker_id);
+            ws.set_bytes_received(ws.bytes_received() + bytes);
+            metrics_.records_sent->Add(chunk.size());
+            metrics_.record_bytes_sent->Add(bytes);
+            CountFanout(job, worker_id, worker, chunk.size(), 0, 0);
+            out->push_back(std::move(m));
+          }
           chunk.clear();
         }
         if (i == all.size()) break;
@@ -1642,7 +1676,21 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
         ++withheld;
         continue;
       }
+      if (dropped > 0) {  // the bound was reached: the rest is dropped unpacked
+        ++dropped;
+        continue;
+      }
       chunk.push_back(all[i]);
+    }
+    if (dropped > 0) {
+      const size_t batches = (dropped + options_.sync_batch_records - 1) /
+                             std::max<size_t>(1, options_.sync_batch_records);
+      worker.batches_dropped += batches;
+      metrics_.fanout_batches_dropped->Add(double(batches));
+      spdlog::warn(
+          "job {}: worker {} joined late; {} of the job's records past the outbox bound "
+          "({} bytes) were not sent to it",
+          id, worker_id, dropped, options_.limits.max_outbox_bytes);
     }
     if (withheld > 0) CountFanout(job, worker_id, worker, 0, withheld, 0);
     job.workers.insert(worker_id);

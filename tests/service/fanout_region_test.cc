@@ -47,15 +47,19 @@ v1::TileRegion Region(const v1::TileLease& lease, float x0, float x1) {
 
 class FanoutRegionTest : public ::testing::Test {
  protected:
-  void Start(bool filter) {
+  // `outbox_bytes` bounds the record fan-out queued for one worker; 100 records per catch-up
+  // batch, so that a small bound still lets some batches through.
+  void Start(bool filter, size_t outbox_bytes = size_t(64) << 20, int tile_size = 48) {
     JobManagerOptions options;
     options.filter_fanout = filter;
+    options.limits.max_outbox_bytes = outbox_bytes;
+    options.sync_batch_records = 100;
     manager_ = std::move(*JobManager::Create(options, &store_));
     v1::SubmitJobRequest req;
     *req.mutable_scene()->mutable_bundle() = *MakeBundle(kScene);
     (*req.mutable_settings()->mutable_defines())["resx"] = "96";
     (*req.mutable_settings()->mutable_defines())["resy"] = "48";
-    req.mutable_settings()->set_tile_size(48);
+    req.mutable_settings()->set_tile_size(tile_size);
     req.mutable_settings()->set_share_records(true);
     ASSERT_TRUE(manager_->Submit(req).ok());
     a_ = manager_->RegisterWorker("a", "", 1, true);
@@ -98,6 +102,23 @@ class FanoutRegionTest : public ::testing::Test {
     for (const v1::WorkerJobStats& s : job->workers())
       if (s.worker_id() == worker) return s;
     return v1::WorkerJobStats();
+  }
+
+  uint64_t BatchesDropped(uint32_t worker) {
+    const v1::GetClusterResponse cluster = manager_->Cluster();
+    for (const v1::WorkerInfo& w : cluster.workers())
+      if (w.id() == worker) return w.batches_dropped();
+    ADD_FAILURE() << "no worker " << worker;
+    return 0;
+  }
+  // `n` left-room floor records (x in [-2.4, -0.6]), published by B in batches of 100.
+  void PublishLeftRoom(int n) {
+    for (int b = 0; b < n; b += 100) {
+      std::vector<IrradianceRecord> batch;
+      for (int i = b; i < std::min(n, b + 100); ++i)
+        batch.push_back(FloorRecord(-2.4f + 1.8f * float(i) / float(n), 1));
+      ASSERT_TRUE(Publish(b_, lease_b_, batch).ok());
+    }
   }
 
   InMemoryJobStore store_;
@@ -208,6 +229,53 @@ TEST_F(FanoutRegionTest, UnfilteredSendsEverything) {
   EXPECT_EQ(Received(a_).size(), 3u);
   EXPECT_EQ(Stats(a_).records_withheld(), 0u);
   EXPECT_EQ(Stats(a_).records_delivered(), 3u);
+}
+
+// The backlog a region brings is fan-out, and bounded like it: 3000 withheld records (168 kB)
+// against a 16 KiB outbox bound; A gets what fits and the rest is dropped and counted.
+TEST_F(FanoutRegionTest, TheBacklogStaysWithinTheOutboxBound) {
+  const size_t kBound = 16 << 10;
+  Start(true, kBound);
+  Received(a_);
+  PublishLeftRoom(3000);
+  EXPECT_TRUE(Received(a_).empty());
+  EXPECT_EQ(BatchesDropped(a_), 0u);
+  ASSERT_TRUE(manager_->AddTileRegion(a_, Region(lease_a_, -2.5f, -0.5f)).ok());
+  size_t bytes = 0, records = 0;
+  for (const v1::CoordinatorMessage& m : manager_->Poll(a_, std::chrono::milliseconds(0))) {
+    if (!m.has_records()) continue;
+    bytes += BatchBytes(m.records().batch());
+    records += size_t(m.records().batch().origins_size());
+  }
+  std::printf("MEASURED backlog: %zu records, %zu bytes queued against a bound of %zu\n", records,
+              bytes, kBound);
+  EXPECT_GT(records, 0u);
+  EXPECT_LE(bytes, kBound);
+  EXPECT_GT(BatchesDropped(a_), 0u);
+}
+
+// A worker that joins a job late gets the job's records so far with its first lease (unfiltered
+// fan-out): that copy is bounded too, or a worker that does not read would hold every record of
+// the job in its stream's writer. C joins after 3000 records against a 16 KiB bound.
+TEST_F(FanoutRegionTest, ALateJoinersCopyStaysWithinTheOutboxBound) {
+  const size_t kBound = 16 << 10;
+  Start(false, kBound, 24);  // 8 tiles: one left for C
+  PublishLeftRoom(3000);
+  const uint32_t c = manager_->RegisterWorker("c", "", 1, true);
+  size_t bytes = 0, records = 0;
+  bool leased = false;
+  for (const v1::CoordinatorMessage& m : manager_->Poll(c, std::chrono::milliseconds(0))) {
+    leased |= m.has_lease();
+    if (!m.has_records()) continue;
+    bytes += BatchBytes(m.records().batch());
+    records += size_t(m.records().batch().origins_size());
+  }
+  std::printf("MEASURED late join: %zu records, %zu bytes sent against a bound of %zu\n", records,
+              bytes, kBound);
+  EXPECT_TRUE(leased);
+  EXPECT_GT(records, 0u);
+  EXPECT_LE(bytes, kBound);
+  EXPECT_GT(BatchesDropped(c), 0u);
 }
 
 TEST(RecordReachesBoxTest, DistanceAgainstReach) {
