@@ -1149,9 +1149,11 @@ void JobManager::WorkerGone(uint32_t worker, const std::string& reason) {
     const std::vector<uint32_t> holders = job->tiles->LeaseHolders();
     metrics_.lease_lost_disconnect->Add(
         uint64_t(std::count(holders.begin(), holders.end(), worker)));
+    // A worker that said it drains (stopped by its operator) ends its session with whatever it
+    // was leased meanwhile: not a failure of those tiles. One that vanished is counted.
     absl::Status st = job->tiles->ReleaseWorker(
         worker, "worker " + std::to_string(worker) + " (" + wit->second.name + ") " + reason,
-        /*count_failure=*/true);
+        /*count_failure=*/!wit->second.draining);
     if (!st.ok()) FinishJob(*job, v1::JOB_STATE_FAILED, std::string(st.message()));
   }
   // Forget the health of a name with nothing against it (bounded by live workers then).

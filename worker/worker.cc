@@ -198,10 +198,20 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       }
     }
   };
+  // Drain goes out as soon as the worker is stopped (not after its tile): the coordinator then
+  // leases it nothing more while the tile in progress finishes and is reported.
+  std::atomic<bool> drain_sent{false};
+  const auto send_drain = [&] {
+    if (!stop_ || drain_sent.exchange(true)) return;
+    v1::WorkerMessage drain;
+    drain.mutable_drain();
+    write(drain);
+  };
   std::thread publisher([&] {
     auto last_heartbeat = std::chrono::steady_clock::now();
     while (!session_done) {
       std::this_thread::sleep_for(options_.flush_interval);
+      send_drain();
       publish_all();
       if (std::chrono::steady_clock::now() - last_heartbeat >= heartbeat) {
         v1::WorkerMessage hb;
@@ -320,9 +330,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
   session_done = true;
   publisher.join();
   if (stop_) {
-    v1::WorkerMessage drain;
-    drain.mutable_drain();
-    write(drain);
+    send_drain();
     stream->WritesDone();
   }
   context.TryCancel();

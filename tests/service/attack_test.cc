@@ -820,6 +820,76 @@ TEST_F(AttackTest, JobFailsOnlyWhenATileFailedOnThreeWorkers) {
   EXPECT_EQ(failed, std::vector<int>({1, 1, 1}));  // each failed it once: never the same twice
 }
 
+// A worker stopped by its operator (Drain) ends its session with what it was leased meanwhile:
+// that is not a failure of the tile. Three workers in turn take the job's one tile, say they
+// drain and leave; the job does not fail (it failed "on 3 workers" when every lease of a
+// drained worker counted), and a fourth worker gets the tile.
+TEST_F(AttackTest, ADrainedWorkersLeaseIsNotATileFailure) {
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(/*tile_size=*/64), &a).ok());  // one tile
+  v1::WorkerMessage drain;
+  drain.mutable_drain();
+  for (int i = 0; i < 3; ++i) {
+    FakeWorker f(channel_, kWorker, "stopped" + std::to_string(i));
+    ASSERT_TRUE(f.NextLease().has_value()) << i;
+    ASSERT_TRUE(f.Send(drain));
+    f.Close();
+    v1::Job job;
+    for (int k = 0; k < 100; ++k) {  // until the coordinator saw the session end
+      ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+      if (job.state() == v1::JOB_STATE_FAILED || Cluster().workers_size() == 0) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    EXPECT_NE(job.state(), v1::JOB_STATE_FAILED) << i << ": " << job.error();
+  }
+  FakeWorker last(channel_, kWorker, "last");
+  const std::optional<v1::TileLease> l = last.NextLease();
+  ASSERT_TRUE(l.has_value());
+  ASSERT_TRUE(
+      last.Send(Result(l->job_id(), l->tile_index(), l->lease_token(), LeaseFloats(*l), 0.5f)));
+  EXPECT_EQ(WaitFinal(a, 30).state(), v1::JOB_STATE_SUCCEEDED);
+}
+
+// A real worker stopped mid-tile (SIGTERM's path: Worker::Stop) finishes and reports that tile
+// and is leased nothing more: its Drain goes out when it is stopped, not after the tile, so the
+// coordinator has no lease of it to take back when the session ends (the tile leased on the
+// heels of the result was lost to the disconnect before).
+TEST_F(AttackTest, AStoppedWorkerFinishesItsTileAndTakesNoOther) {
+  StartServer();
+  v1::SubmitJobRequest req = Request(/*tile_size=*/32);  // 4 tiles
+  req.mutable_settings()->set_integrator("path");        // fixed spp, no adaptive stop
+  req.mutable_settings()->set_spp(4096);                 // seconds a tile
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, req, &a).ok());
+  StartHonestWorker();
+  bool leased = false;
+  for (int k = 0; k < 500 && !leased; ++k) {
+    const v1::GetClusterResponse cluster = Cluster();
+    for (const v1::WorkerInfo& w : cluster.workers()) leased |= w.has_lease();
+    if (!leased) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_TRUE(leased);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the tile is rendering
+  const auto stopped = std::chrono::steady_clock::now();
+  StopHonestWorker();  // Stop(), then Run() returns when the session has ended
+  std::printf("MEASURED the stopped worker left %.2f s after Stop\n",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - stopped).count());
+  v1::Job job;
+  for (int k = 0; k < 100; ++k) {
+    ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+    if (Cluster().workers_size() == 0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+  EXPECT_EQ(job.tiles_done(), 1);
+  const std::string metrics = manager_->metrics_registry()->Render();
+  const std::string lost = "irfarm_lease_expiries_total{reason=\"disconnected\"} ";
+  const size_t at = metrics.find(lost);
+  ASSERT_NE(at, std::string::npos) << metrics;
+  EXPECT_EQ(metrics.substr(at + lost.size(), 1), "0") << metrics.substr(at, 60);
+}
+
 // Why 3: no token, a wrong token, a worker token on the job API, a client token as a worker
 // token, client B on client A's job. UNAUTHENTICATED / NOT_FOUND, nothing changes, counted.
 TEST_F(AttackTest, AccessControl) {
