@@ -338,6 +338,10 @@ int main(int argc, char** argv) {
   // one already listens on would bind it too, and the kernel would share the connections out
   // between the two; it must fail to start instead.
   builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
+  // Workers ping (keepalive, at least 2 s apart) to find out that a coordinator hung; allow that
+  // (gRPC's default refuses pings more often than every 5 minutes when it sends no data, which an
+  // idle worker's coordinator does not). Closer pings still count as strikes.
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 1000);
   builder.AddListeningPort(listen, credentials, &port);
   builder.SetMaxReceiveMessageSize(int(options.max_upload_bytes + (size_t(1) << 20)));
   builder.RegisterService(&job_service);

@@ -16,13 +16,19 @@ int main(int argc, char** argv) {
   CLI::App app{"irfarm-worker: renders tiles leased by an irfarm coordinator"};
   irfarm::WorkerOptions options;
   int flush_ms = 50;
+  int keepalive_seconds = 10;
   std::string metrics_address;
   app.add_option("--coordinator", options.coordinator,
                  "coordinator address (127.0.0.1:50051), or several separated by commas (an "
                  "active and its standbys, --ha): the one accepting connections is used");
   app.add_option("--threads", options.threads, "render threads (default: all cores)");
   app.add_option("--name", options.name, "name shown in job stats (default: host:pid)");
-  app.add_option("--flush-ms", flush_ms, "publish new records at least this often (50)");
+  app.add_option("--flush-ms", flush_ms, "publish new records at least this often (50)")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--keepalive-seconds", keepalive_seconds,
+                 "a coordinator that answers no HTTP/2 ping within this time is left for another "
+                 "(or reconnected to) (10)")
+      ->check(CLI::Range(2, 3600));
   app.add_option("--token-file", options.auth.token_file,
                  "worker token file (default: $IRFARM_TOKEN)");
   app.add_option("--tls-ca", options.auth.tls_ca, "use TLS, trusting this CA (PEM)");
@@ -32,6 +38,7 @@ int main(int argc, char** argv) {
                  "serve Prometheus metrics on HOST:PORT at /metrics (default: off)");
   CLI11_PARSE(app, argc, argv);
   options.flush_interval = std::chrono::milliseconds(flush_ms);
+  options.keepalive = std::chrono::seconds(keepalive_seconds);
   if (options.name.empty()) {
     char host[256] = "worker";
     gethostname(host, sizeof host - 1);

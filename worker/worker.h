@@ -31,6 +31,12 @@ struct WorkerOptions {
   std::string name;
   int threads = 0;  // 0 = all cores
   std::chrono::milliseconds flush_interval{50};
+  // HTTP/2 keepalive pings to the coordinator: a coordinator that does not answer one within
+  // this time (hung, frozen, cut off without a reset) ends the session, and the worker
+  // reconnects, to a standby if there is one. The coordinator sends nothing to an idle worker,
+  // so without them a read would wait forever. At least 2 s (the coordinator refuses pings more
+  // often than once a second).
+  std::chrono::seconds keepalive{10};
   size_t max_batch_records = 4096;
   ClientAuthOptions auth;
 };
