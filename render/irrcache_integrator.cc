@@ -589,7 +589,7 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
       cone = std::min(kPi / 2, cone + 1.0f / std::sqrt(kPi * bs.pdf));
     prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
     prev_p = hit.p;
-    prev_n = wo_l.z >= 0 ? hit.ns : -hit.ns;
+    prev_n = LightSelectionNormal(bsdf.Flags(), wo_l.z >= 0 ? hit.ns : -hit.ns);
   }
   return L;
 }
@@ -719,7 +719,7 @@ Vec3 IrrcacheIntegrator::Li(const Ray& camera_ray, const LightStrata& strata, Rn
       cone_extra = std::min(kPi / 2, cone_extra + 1.0f / std::sqrt(kPi * bs.pdf));
     prev_pdf = bs.IsDelta() ? 0.0f : bs.pdf;
     prev_p = hit.p;
-    prev_n = wo_l.z >= 0 ? hit.ns : -hit.ns;
+    prev_n = LightSelectionNormal(bsdf.Flags(), wo_l.z >= 0 ? hit.ns : -hit.ns);
     ray = Scene::SpawnRay(hit.p, hit.ng, hit.error_scale, wi);
     ++counters.bounce_rays;
   }
@@ -735,11 +735,12 @@ Vec3 IrrcacheIntegrator::GlossyDirect(const Bsdf& bsdf, const BsdfContext& ctx,
                                       const Vec3& wo, const Vec3& wo_l, const Vec3& beta,
                                       const Vec3& beta_caustic, uint32_t caustic_lobes, Rng& rng,
                                       RenderCounters& counters) const {
-  const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;  // as prev_n in Li (light selection)
+  // As prev_n in Li and CachedRayRadiance (light selection).
+  const Vec3 n_select = LightSelectionNormal(bsdf.Flags(), wo_l.z >= 0 ? hit.ns : -hit.ns);
   Vec3 L;
   scene_.light_sampler().SampleForNee(
-      settings_.path.all_lights, kGlossyEnvImportance, hit.p, nf, rng, &counters.lights_skipped,
-      [&](const LightSample& ls) {
+      settings_.path.all_lights, kGlossyEnvImportance, hit.p, n_select, rng,
+      &counters.lights_skipped, [&](const LightSample& ls) {
         const Vec3 wi_l = frame.ToLocal(ls.wi);
         if (!SidesAgree(wo, ls.wi, hit.ng, wo_l.z, wi_l.z)) return;
         const Vec3 f = bsdf.Eval(ctx, wo_l, wi_l, kNonDiffuseLobes);

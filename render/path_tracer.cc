@@ -85,11 +85,10 @@ Vec3 TracePath(const Scene& scene, Ray ray, int depth, bool skip_first_local_emi
     const Vec3 wo_l = frame.ToLocal(wo);
     const bool can_extend = settings.max_depth < 0 || depth + 1 <= settings.max_depth;
     if (!can_extend) break;
-    // The facing normal: the side wo is on (light selection weighs lights by it). A diffuse
-    // transmitter (principledthin) takes light from both sides alike: it selects lights with no
-    // normal (all directions), so lamps behind it are sampled too.
+    // The facing normal: the side wo is on (light selection weighs lights by it, unless the
+    // BSDF transmits: LightSelectionNormal).
     const Vec3 nf = wo_l.z >= 0 ? hit.ns : -hit.ns;
-    const Vec3 n_select = (bsdf.Flags() & kDiffuseTransmission) ? Vec3() : nf;
+    const Vec3 n_select = LightSelectionNormal(bsdf.Flags(), nf);
 
     if (aov && diffuse_depth < 0 && bsdf.HasSmooth()) {  // the first non-specular surface
       diffuse_depth = depth;

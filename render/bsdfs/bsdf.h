@@ -54,6 +54,17 @@ constexpr uint32_t kTransmissionLobes =
 // The lobes besides kDiffuseReflection that Eval sees (next-event estimation helps them).
 constexpr uint32_t kSmoothNonDiffuseLobes =
     kGlossyReflection | kGlossyTransmission | kDiffuseTransmission;
+// Lobes Eval sees on the other side of the surface: a BSDF with one takes light from both sides.
+constexpr uint32_t kSmoothTransmissionLobes = kGlossyTransmission | kDiffuseTransmission;
+
+// The normal next-event estimation selects lights with at a vertex whose facing normal is `nf`
+// (LightSampler::SampleForNee; the same normal goes into the MIS weight of the light the next
+// bounce hits): `nf` for a BSDF that only reflects, none (every direction) for one that
+// transmits with lobes Eval sees, so that lamps behind it (a point light in a frosted bulb, the
+// sun behind rough glass) are sampled too; a delta light is found by nothing else.
+inline Vec3 LightSelectionNormal(uint32_t flags, const Vec3& nf) {
+  return (flags & kSmoothTransmissionLobes) != 0 ? Vec3() : nf;
+}
 
 // Where the BSDF is evaluated: texture coordinates for textured parameters and, for normal and
 // bump mapping, the surface's tangents (world space, per unit of u and v) with the shading
