@@ -39,7 +39,7 @@
 #include "bench/sim_worker.h"
 #include "cache/snapshot.h"
 #include "coordinator/fanout_region.h"
-#include "coordinator/record_bounds.h"
+#include "render/record_bounds.h"
 #include "irfarm/v1/jobs.grpc.pb.h"
 #include "render/scene.h"
 #include "service/job_settings.h"

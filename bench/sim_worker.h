@@ -34,7 +34,7 @@
 #include "bench/latency_histogram.h"
 #include "bench/record_tag.h"
 #include "cache/irradiance_record.h"
-#include "coordinator/record_bounds.h"
+#include "render/record_bounds.h"
 #include "core/math.h"
 #include "irfarm/v1/worker.grpc.pb.h"
 #include "render/renderer.h"

@@ -513,6 +513,9 @@ void IrradianceCache::LowerNeighbours(const IrradianceRecord& r) const {
 void IrradianceCache::Insert(const IrradianceRecord& in) {
   if (!IsValidRecord(in)) return;
   IrradianceRecord r = in;
+  // Unit normals only (valid ones are within 1e-3 of it): the normal term 1 - n . n_i and the
+  // octree's normal classes assume it. Records made here are unit already and kept bit for bit.
+  if (std::abs(LengthSquared(r.normal) - 1.0f) > 1e-6f) r.normal = Normalize(r.normal);
   if (neighbour_slope_ > 0) r.radius = ClampToNeighbours(r);
   InsertUnclamped(r);
   if (neighbour_slope_ > 0) LowerNeighbours(r);

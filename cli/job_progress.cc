@@ -39,11 +39,17 @@ std::string FormatDuration(double seconds) {
   return buf;
 }
 
+std::string StateName(v1::JobState state) {
+  const std::string n = v1::JobState_Name(state);
+  const std::string prefix = "JOB_STATE_";
+  if (n.compare(0, prefix.size(), prefix) != 0) return "STATE_" + std::to_string(int(state));
+  return n.substr(prefix.size());
+}
+
 std::string ProgressLine(const v1::Job& job, int bar_width) {
   const JobProgress p = ProgressOf(job);
   const int filled = std::clamp(int(p.fraction * bar_width), 0, bar_width);
-  std::string state = v1::JobState_Name(job.state());
-  state = state.substr(std::min(state.size(), std::string("JOB_STATE_").size()));
+  const std::string state = StateName(job.state());
   std::string timing;
   if (IsFinal(job.state())) {
     if (job.elapsed_seconds() > 0) timing = "took " + FormatDuration(job.elapsed_seconds());

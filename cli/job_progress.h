@@ -19,6 +19,10 @@ struct JobProgress {
 
 JobProgress ProgressOf(const v1::Job& job);
 
+// "RUNNING" for JOB_STATE_RUNNING; a state this build does not know (a newer coordinator's)
+// has no name: "STATE_7".
+std::string StateName(v1::JobState state);
+
 // "45s", "3m05s", "2h07m"; "?" for a negative time.
 std::string FormatDuration(double seconds);
 

@@ -12,10 +12,12 @@
 #include <string>
 
 #include "cache/snapshot.h"
+#include "cli/paths.h"
 #include "cli/service_commands.h"
 #include "render/denoiser.h"
 #include "render/image.h"
 #include "render/pipeline.h"
+#include "render/record_bounds.h"
 #include "render/renderer.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
@@ -23,13 +25,6 @@
 
 namespace irfarm {
 namespace {
-
-std::string StripExtension(const std::string& path) {
-  const size_t dot = path.find_last_of('.');
-  const size_t slash = path.find_last_of('/');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return path;
-  return path.substr(0, dot);
-}
 
 // `irfarm render`'s flags: the request (render/render_request.h, validated there, as a job's
 // settings are) and what only the command has (files, the denoiser, the scene's -D defines).
@@ -102,6 +97,13 @@ int RunRender(const RenderArgs& args) {
     absl::StatusOr<Snapshot> snap = ReadSnapshotFile(args.cache_in);
     absl::Status st =
         snap.ok() ? CheckSnapshotScene(*snap, SceneHash(desc), args.cache_in) : snap.status();
+    if (!st.ok()) {
+      std::fprintf(stderr, "error: %s\n", std::string(st.message()).c_str());
+      return 1;
+    }
+    // The same bounds the coordinator holds a snapshot's records to: a record with R = 1e30
+    // or a huge irradiance passes IsValidRecord and would shade every lookup.
+    st = SnapshotRecordsProblem(RecordBoundsForScene(desc), snap->records, args.cache_in);
     if (!st.ok()) {
       std::fprintf(stderr, "error: %s\n", std::string(st.message()).c_str());
       return 1;

@@ -5,8 +5,10 @@
 #include <grpcpp/grpcpp.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <functional>
 #include <optional>
@@ -14,6 +16,7 @@
 
 #include "cache/snapshot.h"
 #include "cli/job_progress.h"
+#include "cli/paths.h"
 #include "irfarm/v1/jobs.grpc.pb.h"
 #include "service/coordinator_list.h"
 #include "service/scene_bundle.h"
@@ -126,19 +129,16 @@ int Fail(const absl::Status& st) {
   return 1;
 }
 
-std::string StateName(v1::JobState s) {
-  std::string n = v1::JobState_Name(s);
-  return n.substr(std::string("JOB_STATE_").size());
-}
-
 void PrintProgress(const v1::Job& job, bool tty) {
   // "\033[K" clears what a longer previous line left on the terminal.
   std::fprintf(stderr, "%s%s%s", tty ? "\r" : "", ProgressLine(job).c_str(), tty ? "\033[K" : "\n");
 }
 
-// Streams a file-like response (GetResult / ExportCache) into `path` via a temporary name.
+// Streams a file-like response (GetResult / ExportCache) into `path` via a temporary name, which
+// is removed when anything fails; `check` (when given) judges the bytes before they are written.
 template <typename Response, typename Call>
-int StreamToFile(Call call, const std::string& path, const std::string& token) {
+int StreamToFile(Call call, const std::string& path, const std::string& token,
+                 const std::function<absl::Status(const std::string&)>& check = nullptr) {
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(600));
   AddToken(&context, token);
@@ -148,14 +148,23 @@ int StreamToFile(Call call, const std::string& path, const std::string& token) {
   while (reader->Read(&r)) bytes += r.chunk();
   const grpc::Status st = reader->Finish();
   if (!st.ok()) return Fail(st);
+  if (check) {
+    if (absl::Status ok = check(bytes); !ok.ok()) return Fail(ok);
+  }
   const std::string tmp = path + ".tmp." + std::to_string(getpid());
+  const auto failed = [&](const std::string& what) {
+    const std::string why = std::strerror(errno);
+    std::remove(tmp.c_str());
+    return Fail(absl::InternalError(path + ": " + what + ": " + why));
+  };
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) return failed("cannot create " + tmp);
     out.write(bytes.data(), std::streamsize(bytes.size()));
-    if (!out) return Fail(absl::InternalError(path + ": cannot write"));
+    out.close();
+    if (!out) return failed("cannot write " + tmp);
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0)
-    return Fail(absl::InternalError(path + ": cannot rename into place"));
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) return failed("cannot rename into place");
   return 0;
 }
 
@@ -240,11 +249,7 @@ int RunSubmit(const SubmitArgs& args) {
     }
     if (!args.output.empty()) {
       std::string out = args.output;
-      if (ids.size() > 1) {
-        const size_t dot = out.rfind('.');
-        out = out.substr(0, dot) + "-" + std::to_string(i) +
-              (dot == std::string::npos ? "" : out.substr(dot));
-      }
+      if (ids.size() > 1) out = NumberedPath(out, i);
       const int code = RunFetch(args.coordinator, ids[i], out);
       if (code != 0) return code;
     }
@@ -396,7 +401,12 @@ int RunSnapshot(const ServiceConnection& coordinator, const std::string& job_id,
   req.set_job_id(job_id);
   return StreamToFile<v1::ExportCacheResponse>(
       [&](grpc::ClientContext* c) { return client.stub->ExportCache(c, req); }, output,
-      client.token);
+      client.token,
+      [&](const std::string& bytes) {
+        // What `render --cache-in` and a job's snapshot upload will read: checked now, so a
+        // snapshot that cannot be read back is not written.
+        return ParseSnapshot(bytes, "snapshot of " + job_id).status();
+      });
 }
 
 }  // namespace irfarm

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "cache/irradiance_cache.h"
-#include "coordinator/record_bounds.h"
+#include "render/record_bounds.h"
 #include "coordinator/record_log.h"
 
 namespace irfarm {

@@ -510,10 +510,8 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     if (!st.ok()) return st;
     imported = std::move(snap->records);
     // The same checks as a worker's records: a snapshot is as untrusted as a worker.
-    for (size_t i = 0; i < imported.size(); ++i)
-      if (const char* why = RecordProblem(record_bounds, imported[i]))
-        return absl::InvalidArgumentError("cache snapshot: record " + std::to_string(i) + ": " +
-                                          why);
+    st = SnapshotRecordsProblem(record_bounds, imported, "cache snapshot");
+    if (!st.ok()) return st;
     for (IrradianceRecord& r : imported) r.origin = kSnapshotOrigin;
   }
 

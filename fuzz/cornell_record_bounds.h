@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "coordinator/record_bounds.h"
+#include "render/record_bounds.h"
 #include "render/scene_loader.h"
 
 namespace irfarm {

@@ -6,7 +6,7 @@
 #include <cstring>
 #include <string>
 
-#include "coordinator/record_bounds.h"
+#include "render/record_bounds.h"
 #include "fuzz/cornell_record_bounds.h"
 #include "service/record_codec.h"
 

@@ -18,7 +18,7 @@
 #include <string>
 
 #include "cache/snapshot.h"
-#include "coordinator/record_bounds.h"
+#include "render/record_bounds.h"
 #include "fuzz/cornell_record_bounds.h"
 
 namespace {

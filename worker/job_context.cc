@@ -34,6 +34,7 @@ absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec
   c->caustics_ = BuildCausticMap(*c->scene_, c->settings_, &caustic_stats);
   c->settings_.irrcache.caustics = c->caustics_.get();
   c->cache_ = std::make_unique<IrradianceCache>(CacheSettingsFor(*c->scene_, c->settings_));
+  c->record_bounds_ = RecordBoundsForScene(prepared->desc);
   c->warm_ = spec.warm_cache();
   // Default rays: balanced once per job over the whole image, so every tile uses the same; a
   // seeded job keeps the settings' rays (its cache is mostly there already).
@@ -51,7 +52,10 @@ JobContext::~JobContext() {
 size_t JobContext::InsertRemote(const std::vector<IrradianceRecord>& records) {
   size_t n = 0;
   for (IrradianceRecord r : records) {
-    if (!IsValidRecord(r)) continue;
+    if (RecordProblem(record_bounds_, r) != nullptr) {  // as the coordinator checks them
+      ++rejected_;
+      continue;
+    }
     if (r.origin == 0) r.origin = kUnknownRemoteOrigin;
     cache_->Insert(r);
     ++n;

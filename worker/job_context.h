@@ -14,6 +14,7 @@
 #include "absl/status/statusor.h"
 #include "cache/irradiance_cache.h"
 #include "irfarm/v1/worker.pb.h"
+#include "render/record_bounds.h"
 #include "render/renderer.h"
 #include "render/scene.h"
 
@@ -41,6 +42,8 @@ class JobContext {
   std::vector<IrradianceRecord> TakeNewOwnRecords(size_t max);
   // Records received since the last call (for the next tile's stats).
   uint64_t TakeReceivedCount() { return received_since_.exchange(0); }
+  // Records from the coordinator dropped by InsertRemote (outside the scene's RecordBounds).
+  uint64_t rejected() const { return rejected_.load(); }
 
   // Adaptive sampling's budget (RenderSettings::budget_carry): what this worker's earlier tiles
   // left unspent (tiles of walls stop at the sampling goal), offered whole to its next tile,
@@ -65,6 +68,8 @@ class JobContext {
   std::mutex publish_mu_;
   size_t own_published_ = 0;  // own records already taken by TakeNewOwnRecords
   std::atomic<uint64_t> received_since_{0};
+  std::atomic<uint64_t> rejected_{0};
+  RecordBounds record_bounds_;
   std::atomic<double> budget_carry_{0};
 };
 

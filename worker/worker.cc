@@ -244,6 +244,19 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       auto f = s.failed_jobs.find(lease.job_id());
       failure = f != s.failed_jobs.end() ? f->second : "job spec not received";
     }
+    const PixelRect rect{lease.rect().x0(), lease.rect().y0(), lease.rect().x1(),
+                         lease.rect().y1()};
+    // The rectangle comes over the network: inside the film and not empty, or the tile fails
+    // (a negative or huge one would reach the image allocation).
+    if (job && !(0 <= rect.x0 && rect.x0 < rect.x1 && rect.x1 <= job->scene().camera().width() &&
+                 0 <= rect.y0 && rect.y0 < rect.y1 && rect.y1 <= job->scene().camera().height())) {
+      failure = "lease rectangle [" + std::to_string(rect.x0) + ", " + std::to_string(rect.x1) +
+                ") x [" + std::to_string(rect.y0) + ", " + std::to_string(rect.y1) +
+                ") is empty or outside the " + std::to_string(job->scene().camera().width()) +
+                " x " + std::to_string(job->scene().camera().height()) + " film";
+      spdlog::error("job {}: {}", lease.job_id(), failure);
+      job.reset();
+    }
     if (!job) {
       v1::WorkerMessage m;
       v1::TileFailed* tf = m.mutable_tile_failed();
@@ -255,8 +268,6 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       metrics_.tiles_failed->Add();
       continue;
     }
-    const PixelRect rect{lease.rect().x0(), lease.rect().y0(), lease.rect().x1(),
-                         lease.rect().y1()};
     // What the tile sees, before rendering it: the coordinator then sends the records that
     // reach it (filtered fan-out), while the tile renders.
     if (std::optional<Bounds3> box = TileRegionOf(job->scene(), rect)) {

@@ -110,5 +110,27 @@ TEST(JobContextTest, JobSettingsAreValidatedAndAppliedAsTheCommandsAre) {
   EXPECT_EQ(a.tile_size, kJobSubTileSize);  // the job's own: sub-tiles of its tiles
 }
 
+// Records from the coordinator are held to the scene's bounds, as the coordinator holds them:
+// one with R = 1e30 (it would shade every lookup), one far outside the scene and one brighter
+// than the scene's emitters allow are dropped and counted; a plausible one is inserted.
+TEST(JobContextTest, RemoteRecordsOutsideTheScenesBoundsAreDropped) {
+  absl::StatusOr<std::unique_ptr<JobContext>> job =
+      JobContext::Create(Spec("cornell-box", true), 1);
+  ASSERT_TRUE(job.ok()) << job.status();
+  IrradianceRecord good;
+  good.position = Vec3(0, 0, 0);
+  good.normal = Vec3(0, 1, 0);
+  good.irradiance = Vec3(0.5f);
+  good.radius = 0.2f;
+  good.origin = 7;
+  IrradianceRecord wide = good, far = good, bright = good;
+  wide.radius = 1e30f;
+  far.position = Vec3(1e6f, 0, 0);
+  bright.irradiance = Vec3(3e38f);
+  EXPECT_EQ((*job)->InsertRemote({good, wide, far, bright}), 1u);
+  EXPECT_EQ((*job)->rejected(), 3u);
+  EXPECT_EQ((*job)->cache()->size(), 1u);
+}
+
 }  // namespace
 }  // namespace irfarm

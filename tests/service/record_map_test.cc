@@ -11,7 +11,7 @@
 
 #include "coordinator/in_memory_job_store.h"
 #include "coordinator/job_manager.h"
-#include "coordinator/record_bounds.h"
+#include "render/record_bounds.h"
 #include "service/job_settings.h"
 #include "service/record_codec.h"
 #include "service/scene_bundle.h"

@@ -1,5 +1,5 @@
 // RecordBounds: scene-derived limits on records (see record_bounds.h).
-#include "coordinator/record_bounds.h"
+#include "render/record_bounds.h"
 
 #include <algorithm>
 #include <cmath>
@@ -66,6 +66,15 @@ const char* RecordProblem(const RecordBounds& b, const IrradianceRecord& r) {
   if (MaxComponent(r.irradiance) > b.max_irradiance)
     return "irradiance above the bound from the scene's emitters";
   return nullptr;
+}
+
+absl::Status SnapshotRecordsProblem(const RecordBounds& b,
+                                    const std::vector<IrradianceRecord>& records,
+                                    const std::string& name) {
+  for (size_t i = 0; i < records.size(); ++i)
+    if (const char* why = RecordProblem(b, records[i]))
+      return absl::InvalidArgumentError(name + ": record " + std::to_string(i) + ": " + why);
+  return absl::OkStatus();
 }
 
 }  // namespace irfarm

@@ -3,11 +3,15 @@
 // its position inside the scene's bounds (with a margin), its radius R at most the scene's size
 // and its irradiance at most a bound derived from the scene's emitters. A record outside them
 // cannot come from rendering the scene and would poison the job's cache (a record with R = 1e30
-// covers every lookup), so the coordinator drops it and counts the sender.
+// covers every lookup), so the coordinator drops it and counts the sender, a worker drops one
+// that reaches it, and `irfarm render --cache-in` refuses a snapshot holding one.
 #pragma once
 
 #include <limits>
+#include <string>
+#include <vector>
 
+#include "absl/status/status.h"
 #include "cache/irradiance_record.h"
 #include "core/math.h"
 #include "render/scene_desc.h"
@@ -45,5 +49,13 @@ float EmitterIrradianceBound(const SceneDesc& desc);
 
 // nullptr when `r` is valid (IsValidRecord) and within `b`, else why not (a static string).
 const char* RecordProblem(const RecordBounds& b, const IrradianceRecord& r);
+
+// OK when every one of `records` (a snapshot's, named `name`) is within `b`; else
+// INVALID_ARGUMENT naming the first record that is not and why ("NAME: record 12: radius larger
+// than the scene"). A snapshot is as untrusted as a worker: the coordinator refuses a job whose
+// snapshot fails this, and `irfarm render --cache-in` such a file.
+absl::Status SnapshotRecordsProblem(const RecordBounds& b,
+                                    const std::vector<IrradianceRecord>& records,
+                                    const std::string& name);
 
 }  // namespace irfarm

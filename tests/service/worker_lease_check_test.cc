@@ -1,0 +1,120 @@
+// A real irfarm Worker against a coordinator that sends it bad leases (a stand-in service over
+// gRPC on loopback, in this process): a lease's rectangle comes over the network, and one that is
+// empty, inverted, negative or past the film is answered with TileFailed naming it, without
+// rendering and without ending the session; a good lease after them is rendered and reported.
+// (A rectangle of width -16 reached the image allocation, whose length_error ended the process.)
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <thread>
+
+#include "irfarm/v1/worker.grpc.pb.h"
+#include "service/scene_bundle.h"
+#include "worker/worker.h"
+
+namespace irfarm {
+namespace {
+
+v1::PixelRect Rect(int x0, int y0, int x1, int y1) {
+  v1::PixelRect r;
+  r.set_x0(x0);
+  r.set_y0(y0);
+  r.set_x1(x1);
+  r.set_y1(y1);
+  return r;
+}
+
+// Registers the worker, sends a 32 x 32 cornell-box job and `leases` in order (tile index = the
+// lease's position), then reads until the worker answered every one; keeps what it answered.
+class BadLeaseCoordinator final : public v1::WorkerService::Service {
+ public:
+  explicit BadLeaseCoordinator(std::vector<v1::PixelRect> leases) : leases_(std::move(leases)) {}
+
+  grpc::Status Session(
+      grpc::ServerContext*,
+      grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>* stream) override {
+    v1::WorkerMessage in;
+    if (!stream->Read(&in) || !in.has_register_()) return grpc::Status::CANCELLED;
+    v1::CoordinatorMessage out;
+    out.mutable_registered()->set_worker_id(1);
+    out.mutable_registered()->set_heartbeat_ms(5000);
+    stream->Write(out);
+    out.Clear();
+    v1::JobSpec* spec = out.mutable_job_spec();
+    spec->set_job_id("job-1");
+    *spec->mutable_scene()->mutable_bundle() =
+        *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+    (*spec->mutable_settings()->mutable_defines())["resx"] = "32";
+    (*spec->mutable_settings()->mutable_defines())["resy"] = "32";
+    spec->mutable_settings()->set_integrator("path");
+    spec->mutable_settings()->set_spp(4);
+    stream->Write(out);
+    for (size_t i = 0; i < leases_.size(); ++i) {
+      out.Clear();
+      v1::TileLease* l = out.mutable_lease();
+      l->set_job_id("job-1");
+      l->set_tile_index(int32_t(i));
+      l->set_lease_token(std::string(16, char('a' + i)));
+      *l->mutable_rect() = leases_[i];
+      stream->Write(out);
+    }
+    size_t answered = 0;
+    while (answered < leases_.size() && stream->Read(&in)) {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (in.has_tile_failed()) {
+        failed_.push_back({in.tile_failed().tile_index(), in.tile_failed().reason()});
+        ++answered;
+      } else if (in.has_tile_result()) {
+        results_.push_back({in.tile_result().tile_index(), in.tile_result().pixels_size()});
+        ++answered;
+      }
+    }
+    done_ = true;
+    return grpc::Status::OK;
+  }
+
+  std::vector<v1::PixelRect> leases_;
+  std::mutex mu_;
+  std::vector<std::pair<int, std::string>> failed_;
+  std::vector<std::pair<int, int>> results_;
+  std::atomic<bool> done_{false};
+};
+
+TEST(WorkerLeaseCheckTest, BadLeaseRectanglesFailTheTileAndTheSessionGoesOn) {
+  BadLeaseCoordinator service({Rect(0, 0, -16, 16), Rect(-16, -16, -32, -32), Rect(8, 0, 8, 16),
+                               Rect(0, 0, 64, 16), Rect(0, 0, 2147483647, 16), Rect(0, 0, 16, 8)});
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&service);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  ASSERT_GT(port, 0);
+  WorkerOptions options;
+  options.coordinator = "127.0.0.1:" + std::to_string(port);
+  options.name = "checker";
+  options.threads = 1;
+  Worker worker(options);
+  std::thread run([&] { worker.Run(); });
+  for (int i = 0; i < 600 && !service.done_; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  worker.Stop();
+  run.join();
+  server->Shutdown(std::chrono::system_clock::now());
+  ASSERT_TRUE(service.done_);
+  std::lock_guard<std::mutex> lock(service.mu_);
+  ASSERT_EQ(service.failed_.size(), 5u);
+  for (size_t i = 0; i < 5; ++i) {
+    EXPECT_EQ(service.failed_[i].first, int(i));
+    EXPECT_NE(service.failed_[i].second.find("lease rectangle"), std::string::npos)
+        << service.failed_[i].second;
+  }
+  EXPECT_NE(service.failed_[0].second.find("outside the 32 x 32 film"), std::string::npos)
+      << service.failed_[0].second;
+  ASSERT_EQ(service.results_.size(), 1u);
+  EXPECT_EQ(service.results_[0].first, 5);
+  EXPECT_EQ(service.results_[0].second, 16 * 8 * 3);
+}
+
+}  // namespace
+}  // namespace irfarm
