@@ -1,9 +1,9 @@
 // `mask`: an opacity-masked BSDF (Mitsuba 3). With probability `opacity` (rgb/float or a
 // bitmap, read as a grey value, default 0.5) the nested BSDF scatters; otherwise the ray passes
 // straight through (the null lobe: wi = -wo, weight 1). Eval and Pdf are opacity times the
-// nested ones. Shadow rays pass through stochastically with the same probability (see
-// Scene::Occluded), and the integrators do not count a pass-through as a scattering vertex
-// for MIS.
+// nested ones. Shadow rays pass through stochastically with the same probability, and through
+// the nested BSDF's own pass-through where the mask is opaque (see Scene::Occluded), and the
+// integrators do not count a pass-through as a scattering vertex for MIS.
 #include "render/bsdfs/registry.h"
 
 namespace irfarm {
@@ -44,8 +44,12 @@ class MaskBsdf final : public Bsdf {
   Vec3 DiffuseAlbedo(const BsdfContext& ctx, const Vec3& wo) const override {
     return nested_->DiffuseAlbedo(ctx, wo) * Opacity(ctx);
   }
-  float PassThrough(const BsdfContext& ctx, float, bool, bool) const override {
-    return 1 - Opacity(ctx);
+  // Through the mask's hole, or through the nested BSDF where it lets light straight through
+  // (Mitsuba's 1 - opacity (1 - nested)): Sample passes through the nested null lobe as well.
+  float PassThrough(const BsdfContext& ctx, float cos_theta, bool front,
+                    bool delta_light) const override {
+    const float a = Opacity(ctx);
+    return 1 - a + a * nested_->PassThrough(ctx, cos_theta, front, delta_light);
   }
   Vec3 ShadingNormal(const BsdfContext& ctx, const Vec3& wo) const override {
     return nested_->ShadingNormal(ctx, wo);

@@ -168,6 +168,45 @@ TEST(RenderPropertiesTest, ShadowRaysPassATwosidedSurfaceByTheSideTheyMeet) {
   EXPECT_EQ(down, 0);
 }
 
+// A mask over a BSDF that itself lets light straight through (here another mask) passes shadow
+// rays where either does: 1 - a (1 - nested) = 1 - 0.25 (1 - 0.5) = 0.875, as often as its Sample
+// takes the null lobe (Mitsuba's eval_null_transmission). It passed 1 - a = 0.75 before, while
+// paths passed 0.875: light sampling and BSDF sampling disagreed under MIS.
+TEST(RenderPropertiesTest, ShadowRaysPassAMaskAndWhatItMasks) {
+  const LoadedScene s = BuildLoaded(LoadSceneString(R"(<scene version="3.0.0">
+  <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="8"/>
+    <integer name="height" value="8"/></film></sensor>
+  <shape type="rectangle">
+    <transform name="to_world"><scale value="10"/><translate z="0.5"/></transform>
+    <bsdf type="mask"><float name="opacity" value="0.25"/>
+      <bsdf type="mask"><float name="opacity" value="0.5"/><bsdf type="diffuse"/></bsdf>
+    </bsdf>
+  </shape>
+</scene>
+)",
+                                                    "masks.xml", {}));
+  ASSERT_TRUE(s.scene);
+  constexpr int kN = 4000;
+  int passed = 0, null_lobe = 0;
+  Rng rng(5, 6);
+  SurfaceHit hit;
+  ASSERT_TRUE(s.scene->Intersect(Ray{Vec3(0, 0, 0), Vec3(0, 0, 1), INFINITY}, &hit));
+  const Bsdf& m = s.scene->material(hit.material);
+  for (int i = 0; i < kN; ++i) {
+    const float x = 8 * rng.Next() - 4, y = 8 * rng.Next() - 4;
+    passed += !s.scene->Occluded(Ray{Vec3(x, y, 0), Vec3(0, 0, 1), 1.0f});
+    const BsdfSample b =
+        m.Sample(BsdfContext{}, Vec3(0, 0, 1), rng.Next(), rng.Next(), rng.Next(), kAllLobes);
+    null_lobe += b.lobe == kNullTransmission;
+  }
+  const double pass = double(passed) / kN, sigma = std::sqrt(0.875 * 0.125 / kN);
+  std::printf(
+      "MEASURED shadow rays through %.4f, Sample's null lobe %.4f (expected 0.875 +- %.4f)\n", pass,
+      double(null_lobe) / kN, sigma);
+  EXPECT_NEAR(pass, 0.875, 4 * sigma);
+  EXPECT_NEAR(double(null_lobe) / kN, 0.875, 4 * sigma);
+}
+
 TEST(RenderPropertiesTest, RecordMapMarksComputedRecords) {
   const LoadedScene s = LoadQuarter("cornell-box");
   RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
