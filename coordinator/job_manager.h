@@ -57,7 +57,6 @@
 #include "coordinator/global_cache.h"
 #include "coordinator/job_store.h"
 #include "coordinator/lease_token.h"
-#include "coordinator/record_bounds.h"
 #include "coordinator/store_writer.h"
 #include "coordinator/tile_scheduler.h"
 #include "irfarm/v1/jobs.pb.h"
@@ -65,6 +64,7 @@
 #include "render/camera.h"
 #include "render/denoiser.h"
 #include "render/image.h"
+#include "render/record_bounds.h"
 
 namespace irfarm {
 
@@ -91,6 +91,9 @@ struct JobLimits {
   // Queued + running jobs of one client, counting its submits still in progress.
   int max_live_jobs_per_client = 64;
   size_t max_outbox_bytes = size_t(64) << 20;  // record fan-out queued for one worker
+  // GetResult and ExportCache calls in progress at once (each holds a whole image or snapshot,
+  // and its file, in memory); past it RESOURCE_EXHAUSTED, to be retried.
+  int max_downloads = 4;
   // A job's priority (higher runs first, across all clients' jobs) is in [0, kMaxPriority].
   static constexpr int kMaxPriority = 100;
 };

@@ -22,6 +22,19 @@ grpc::Status StreamBytes(const absl::StatusOr<std::string>& bytes,
   return grpc::Status::OK;
 }
 
+// Gives a download slot (JobServiceImpl::TakeDownloadSlot) back when the call ends.
+struct DownloadSlot {
+  std::atomic<int>* in_use;
+  ~DownloadSlot() { in_use->fetch_sub(1); }
+};
+
+grpc::Status DownloadsBusy(int limit) {
+  return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                      std::to_string(limit) +
+                          " result and snapshot downloads are in progress (--max-downloads); "
+                          "retry when one has finished");
+}
+
 bool IsFinal(v1::JobState s) {
   return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
 }
@@ -113,11 +126,22 @@ grpc::Status JobServiceImpl::CancelJob(grpc::ServerContext* context,
   return grpc::Status::OK;
 }
 
+bool JobServiceImpl::TakeDownloadSlot() {
+  const int limit = manager_->options().limits.max_downloads;
+  int n = downloads_.load();
+  do {
+    if (n >= limit) return false;
+  } while (!downloads_.compare_exchange_weak(n, n + 1));
+  return true;
+}
+
 grpc::Status JobServiceImpl::GetResult(grpc::ServerContext* context,
                                        const v1::GetResultRequest* request,
                                        grpc::ServerWriter<v1::GetResultResponse>* writer) {
   ScopedTimer timer(latency_[kResult]);
   IRFARM_AUTHENTICATE(caller);
+  if (!TakeDownloadSlot()) return DownloadsBusy(manager_->options().limits.max_downloads);
+  const DownloadSlot slot{&downloads_};
   return StreamBytes(manager_->ResultExr(request->job_id(), caller), writer);
 }
 
@@ -126,6 +150,8 @@ grpc::Status JobServiceImpl::ExportCache(grpc::ServerContext* context,
                                          grpc::ServerWriter<v1::ExportCacheResponse>* writer) {
   ScopedTimer timer(latency_[kExport]);
   IRFARM_AUTHENTICATE(caller);
+  if (!TakeDownloadSlot()) return DownloadsBusy(manager_->options().limits.max_downloads);
+  const DownloadSlot slot{&downloads_};
   return StreamBytes(manager_->ExportSnapshot(request->job_id(), caller), writer);
 }
 

@@ -3,6 +3,8 @@
 // for that caller and statuses back (service/grpc_status.h); no logic of its own.
 #pragma once
 
+#include <atomic>
+
 #include "coordinator/auth.h"
 #include "coordinator/job_manager.h"
 #include "irfarm/v1/jobs.grpc.pb.h"
@@ -39,7 +41,12 @@ class JobServiceImpl final : public v1::JobService::Service {
 
   enum Method { kSubmit, kGet, kList, kCancel, kResult, kExport, kCluster, kDelete, kNumMethods };
 
+  // Takes one of limits().max_downloads slots for a GetResult / ExportCache call; false (and
+  // nothing taken) when all are in use.
+  bool TakeDownloadSlot();
+
   JobManager* manager_;
+  std::atomic<int> downloads_{0};  // GetResult / ExportCache calls in progress
   Authenticator* auth_;
   Histogram* latency_[kNumMethods];  // WatchJob is a long stream: not timed
 };

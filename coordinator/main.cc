@@ -131,6 +131,10 @@ int main(int argc, char** argv) {
                  "records per worker message (65536)");
   app.add_option("--max-job-records", lim.max_job_records,
                  "records one job's cache holds, from all its workers (16777216)");
+  app.add_option("--max-downloads", lim.max_downloads,
+                 "GetResult / ExportCache calls in progress at once; more are refused "
+                 "RESOURCE_EXHAUSTED (4)")
+      ->check(CLI::Range(1, 1024));
   app.add_option("--max-outbox-mib", max_outbox_mib,
                  "record fan-out queued per worker before batches are dropped (64)");
   std::string fanout = "region";

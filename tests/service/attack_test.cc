@@ -21,6 +21,7 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <tuple>
 
 #include "cache/snapshot.h"
 #include "coordinator/auth.h"
@@ -217,6 +218,7 @@ class AttackTest : public ::testing::Test {
     options.limits.max_live_jobs_per_client = 4;
     options.limits.max_outbox_bytes = size_t(1) << 20;
     options.limits.max_job_records = max_job_records_;
+    options.limits.max_downloads = max_downloads_;
     manager_ = std::move(*JobManager::Create(options, &store_));
     auth_ =
         std::make_unique<Authenticator>(std::vector<NamedToken>{{"alice", kAlice}, {"bob", kBob}},
@@ -367,6 +369,7 @@ class AttackTest : public ::testing::Test {
 
   std::string dir_, worker_token_file_;
   int64_t max_job_records_ = int64_t(1) << 24;
+  int max_downloads_ = 4;
   InMemoryJobStore store_;
   std::unique_ptr<JobManager> manager_;
   std::unique_ptr<Authenticator> auth_;
@@ -888,6 +891,77 @@ TEST_F(AttackTest, AStoppedWorkerFinishesItsTileAndTakesNoOther) {
   const size_t at = metrics.find(lost);
   ASSERT_NE(at, std::string::npos) << metrics;
   EXPECT_EQ(metrics.substr(at + lost.size(), 1), "0") << metrics.substr(at, 60);
+}
+
+// GetResult and ExportCache each hold a whole image or snapshot in memory while they stream it:
+// at most max_downloads (1 here) at once. A client that opens a download of a 2048 x 2048 result
+// (noise, so that the EXR does not compress: tens of MB, past what the transport buffers) and
+// stops reading holds the slot; a second download is refused RESOURCE_EXHAUSTED with the reason,
+// and once the first is cancelled a download goes through again.
+TEST_F(AttackTest, DownloadsPastTheLimitAreRefusedUntilOneEnds) {
+  max_downloads_ = 1;
+  StartServer();
+  v1::SubmitJobRequest req = Request(/*tile_size=*/512);
+  (*req.mutable_settings()->mutable_defines())["resx"] = "2048";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "2048";
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, req, &a).ok());
+  FakeWorker f(channel_, kWorker, "w");
+  uint32_t noise = 12345;
+  for (int t = 0; t < 16; ++t) {
+    const std::optional<v1::TileLease> l = f.NextLease();
+    ASSERT_TRUE(l.has_value());
+    v1::WorkerMessage m = Result(l->job_id(), l->tile_index(), l->lease_token(), 0, 0);
+    for (int i = 0; i < LeaseFloats(*l); ++i) {
+      noise = noise * 1664525u + 1013904223u;
+      m.mutable_tile_result()->add_pixels(float(noise >> 8) * (1.0f / 16777216.0f));
+    }
+    ASSERT_TRUE(f.Send(m));
+  }
+  ASSERT_EQ(WaitFinal(a, 60).state(), v1::JOB_STATE_SUCCEEDED);
+  f.Cancel();
+  const auto download = [&](grpc::ClientContext* c, bool read_all) {
+    Auth(c, kAlice);
+    v1::GetResultRequest r;
+    r.set_job_id(a);
+    auto reader = stub_->GetResult(c, r);
+    v1::GetResultResponse x;
+    size_t bytes = 0;
+    while (reader->Read(&x)) {
+      bytes += x.chunk().size();
+      if (!read_all) return std::make_pair(grpc::Status::OK, bytes);  // stops reading
+    }
+    return std::make_pair(reader->Finish(), bytes);
+  };
+  grpc::ClientContext held;
+  auto reader_held = [&] {
+    Auth(&held, kAlice);
+    v1::GetResultRequest r;
+    r.set_job_id(a);
+    return stub_->GetResult(&held, r);
+  }();
+  v1::GetResultResponse first;
+  ASSERT_TRUE(reader_held->Read(&first));  // the server is streaming it, and stays blocked
+  grpc::ClientContext second;
+  const auto [refused, none] = download(&second, true);
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << refused.error_message();
+  EXPECT_NE(refused.error_message().find("--max-downloads"), std::string::npos);
+  EXPECT_EQ(none, 0u);
+  held.TryCancel();
+  while (reader_held->Read(&first)) {
+  }
+  reader_held->Finish();
+  grpc::Status st;
+  size_t bytes = 0;
+  for (int i = 0; i < 100; ++i) {  // the cancelled call gives its slot back as it ends
+    grpc::ClientContext third;
+    std::tie(st, bytes) = download(&third, true);
+    if (st.error_code() != grpc::StatusCode::RESOURCE_EXHAUSTED) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  std::printf("MEASURED the result is %zu bytes\n", bytes);
+  EXPECT_GT(bytes, size_t(16) << 20);
 }
 
 // Why 3: no token, a wrong token, a worker token on the job API, a client token as a worker
