@@ -17,6 +17,13 @@ class Texture {
   virtual ~Texture() = default;
   // The colour at surface coordinates (u, v); the texture's average where they are not finite.
   virtual Vec3 Eval(float u, float v) const = 0;
+  // A scalar parameter (roughness, opacity, weight) read from the texture, as Mitsuba's eval_1:
+  // the mean of the channels (what its rgb constants give, and so its checkerboard); a bitmap
+  // overrides it with the luminance.
+  virtual float EvalScalar(float u, float v) const {
+    const Vec3 c = Eval(u, v);
+    return (c.x + c.y + c.z) * (1.0f / 3.0f);
+  }
   // Derivatives of the luminance of Eval with respect to u and v, as Mitsuba's eval_1_grad (bump
   // mapping); 0 where the texture is flat.
   virtual void Gradient(float u, float v, float* d_du, float* d_dv) const = 0;

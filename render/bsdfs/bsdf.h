@@ -92,11 +92,11 @@ struct TexturedColor {
   Vec3 value{0.5f, 0.5f, 0.5f};
   const Texture* texture = nullptr;  // owned by the Scene
   Vec3 Eval(const BsdfContext& ctx) const { return texture ? texture->Eval(ctx.u, ctx.v) : value; }
-  // A scalar parameter (roughness, opacity) from the same: Mitsuba reads a grey value; for a
-  // colour texture we take the channel mean.
+  // A scalar parameter (roughness, opacity) from the same, as Mitsuba's eval_1: an rgb
+  // constant's channel mean, a texture's Texture::EvalScalar (a bitmap's luminance).
   float EvalScalar(const BsdfContext& ctx) const {
-    const Vec3 c = Eval(ctx);
-    return (c.x + c.y + c.z) * (1.0f / 3.0f);
+    if (texture) return texture->EvalScalar(ctx.u, ctx.v);
+    return (value.x + value.y + value.z) * (1.0f / 3.0f);
   }
 };
 

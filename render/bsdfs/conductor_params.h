@@ -74,7 +74,8 @@ inline absl::Status ParseConductorParams(BsdfParams& p) {
   absl::StatusOr<std::string> material = p.String("material", "none");
   if (!material.ok()) return material.status();
   const bool explicit_ior = p.Has("eta") || p.Has("k");
-  if (explicit_ior && p.Has("material"))
+  // material="none" beside eta/k is what Mitsuba's own exports write: the eta/k then count.
+  if (explicit_ior && p.Has("material") && *material != "none")
     return p.Error("material", "give either material or eta/k, not both");
   Vec3 eta(0.0f), k(0.0f);
   bool none = *material == "none";

@@ -36,8 +36,10 @@ class Microfacet {
 
   // Distribution of normals D(m) (per steradian of m, projected: integral D(m) m.z dm = 1).
   float D(const Vec3& m) const {
-    if (m.z <= 0) return 0;
     const float c2 = m.z * m.z;
+    // Grazing facets (m.z below 1e-10) weigh nothing: past it c2 * c2 underflows and the
+    // formulas give 0 / 0 or 0 * inf (Mitsuba zeroes them too).
+    if (!(m.z > 0) || !(c2 > 1e-20f)) return 0;
     const float x = m.x / au_, y = m.y / av_;
     const float e = (x * x + y * y) / c2;  // tan^2 scaled by the roughness
     if (type_ == MicrofacetType::kBeckmann) return std::exp(-e) / (kPi * au_ * av_ * c2 * c2);

@@ -3,18 +3,27 @@
 // bitmap texture; sample_visible accepted), shared by the rough BSDFs.
 #pragma once
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "render/bsdfs/microfacet.h"
 #include "render/bsdfs/registry.h"
 
 namespace irfarm {
 
-inline absl::Status ParseMicrofacetParams(BsdfParams& p) {
+// The distribution's name, in any case as Mitsuba reads it ("GGX" is ggx); stored lower-case.
+inline absl::Status ParseMicrofacetDistribution(BsdfParams& p) {
   absl::StatusOr<std::string> dist = p.String("distribution", "beckmann");
   if (!dist.ok()) return dist.status();
-  if (*dist != "beckmann" && *dist != "ggx")
+  const std::string lower = absl::AsciiStrToLower(*dist);
+  if (lower != "beckmann" && lower != "ggx")
     return p.Error("distribution", absl::StrCat("unknown microfacet distribution '", *dist,
                                                 "' (supported: beckmann, ggx)"));
+  if (p.Has("distribution")) p.desc().strings["distribution"] = lower;
+  return absl::OkStatus();
+}
+
+inline absl::Status ParseMicrofacetParams(BsdfParams& p) {
+  if (absl::Status s = ParseMicrofacetDistribution(p); !s.ok()) return s;
   if (p.Has("alpha") && (p.Has("alpha_u") || p.Has("alpha_v")))
     return p.Error("alpha", "give either alpha or alpha_u/alpha_v, not both");
   if (p.Has("alpha_u") != p.Has("alpha_v"))

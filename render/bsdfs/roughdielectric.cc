@@ -114,7 +114,7 @@ class RoughDielectricBsdf final : public Bsdf {
 
 absl::Status Parse(BsdfParams& p) {
   if (absl::Status s = ParseMicrofacetParams(p); !s.ok()) return s;
-  return ParseDielectricParams(p);
+  return ParseDielectricParams(p, /*rough=*/true);
 }
 
 std::unique_ptr<Bsdf> Build(const BsdfDesc& d, const BsdfBuildContext& ctx) {

@@ -21,6 +21,8 @@ class BitmapTexture final : public Texture {
  public:
   static absl::StatusOr<std::unique_ptr<BitmapTexture>> Load(const TextureDesc& desc);
   Vec3 Eval(float u, float v) const override;
+  // Mitsuba's bitmap eval_1: the luminance of a colour image (a grey one's value).
+  float EvalScalar(float u, float v) const override { return Luminance(Eval(u, v)); }
   // Bilinear filtering only (0 with nearest).
   void Gradient(float u, float v, float* d_du, float* d_dv) const override;
   // An environment map's radiance at (u, v) (u = phi / 2 pi, v = theta / pi), as Mitsuba 3's

@@ -866,6 +866,31 @@ TEST(SceneLoaderTest, GlossyMaterials) {
   ExpectError(Load("  <bsdf type=\"mask\">\n    <float name=\"opacity\" value=\"0.5\"/>\n"
                    "  </bsdf>\n"),
               "scene.xml:2:", "mask needs exactly one nested bsdf");
+  // As Mitsuba 3.9.1 reads them: a distribution's name in any case; roughplastic's alpha_u and
+  // alpha_v when equal, and an alpha below 1e-4 raised to it; material="none" beside eta/k.
+  const auto loaded = Load(R"(  <bsdf type="roughplastic">
+    <string name="distribution" value="GGX"/>
+    <float name="alpha_u" value="0.2"/><float name="alpha_v" value="0.2"/>
+  </bsdf>
+  <bsdf type="roughplastic"><float name="alpha" value="0"/></bsdf>
+  <bsdf type="roughconductor"><string name="distribution" value="Beckmann"/></bsdf>
+  <bsdf type="conductor"><string name="material" value="none"/><rgb name="eta" value="0.2"/>
+    <rgb name="k" value="3"/></bsdf>
+)");
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  EXPECT_EQ(loaded->bsdfs[0].String("distribution", ""), "ggx");
+  EXPECT_FLOAT_EQ(loaded->bsdfs[0].Float("alpha", 0), 0.2f);
+  EXPECT_FLOAT_EQ(loaded->bsdfs[1].Float("alpha", 0), 1e-4f);
+  EXPECT_EQ(loaded->bsdfs[2].String("distribution", ""), "beckmann");
+  EXPECT_FLOAT_EQ(loaded->bsdfs[3].Color("k", Vec3()).value.x, 3.0f);
+  ExpectError(Load("  <bsdf type=\"roughplastic\">\n    <float name=\"alpha_u\" value=\"0.1\"/>\n"
+                   "    <float name=\"alpha_v\" value=\"0.2\"/>\n  </bsdf>\n"),
+              "scene.xml:3:", "alpha_u and alpha_v must be equal");
+  // Equal indices: Mitsuba refuses them too (every refracted sample would fail).
+  ExpectError(
+      Load("  <bsdf type=\"roughdielectric\">\n    <float name=\"int_ior\" value=\"1.2\"/>\n"
+           "    <float name=\"ext_ior\" value=\"1.2\"/>\n  </bsdf>\n"),
+      "scene.xml:3:", "int_ior and ext_ior must differ");
 }
 
 // principled: Mitsuba 3's parameter names, eta or specular (not both), file:line errors, and
