@@ -666,6 +666,24 @@ TEST(BsdfFurnaceTest, AlbedoMatchesMitsuba) {
   }
 }
 
+// A plastic's diffuse term for `d` (diffuse 0.5, ext_ior Mitsuba's "air"), f cos with wo along the
+// normal, against Mitsuba's eval of the same (`normal`: wi along the normal; `half`: wi at cos
+// 0.5): their ratios must be within `tolerance` of 1.
+void ExpectDiffuseAsMitsuba(BsdfDesc d, const std::string& what, float normal, float half,
+                            float tolerance) {
+  d.floats["ext_ior"] = 1.000277f;
+  d.colors["diffuse_reflectance"].value = Vec3(0.5f);
+  const Built b = Build({d});
+  const Vec3 wo(0, 0, 1);
+  const float at_normal = b.last().Eval(BsdfContext(), wo, Vec3(0, 0, 1), kDiffuseLobe).x;
+  const float at_half =
+      b.last().Eval(BsdfContext(), wo, Vec3(std::sqrt(0.75f), 0, 0.5f), kDiffuseLobe).x;
+  std::printf("MEASURED %s: %.6f / %.6f against Mitsuba %.6f / %.6f\n", what.c_str(),
+              double(at_normal), double(at_half), double(normal), double(half));
+  EXPECT_NEAR(at_normal / normal, 1.0f, tolerance) << what;
+  EXPECT_NEAR(at_half / half, 1.0f, tolerance) << what;
+}
+
 // roughplastic's diffuse term, evaluated, against Mitsuba 3.9.1's own (scalar_rgb, eval with
 // specular_reflectance 0, diffuse 0.5; values f cos for wo along the normal and wi at the
 // normal and at cos 0.5): within 0.2%. Its precomputed internal reflectance now uses Mitsuba's
@@ -684,18 +702,10 @@ TEST(BsdfTest, RoughPlasticDiffuseMatchesMitsuba) {
   for (const Case& c : cases) {
     BsdfDesc d = Rough("roughplastic", c.dist, c.alpha, c.alpha);
     d.floats["int_ior"] = c.ior;
-    d.floats["ext_ior"] = 1.000277f;  // Mitsuba's default, "air"
-    d.colors["diffuse_reflectance"].value = Vec3(0.5f);
-    const Built b = Build({d});
-    const Vec3 wo(0, 0, 1);
-    const float at_normal = b.last().Eval(BsdfContext(), wo, Vec3(0, 0, 1), kDiffuseLobe).x;
-    const float at_half =
-        b.last().Eval(BsdfContext(), wo, Vec3(std::sqrt(0.75f), 0, 0.5f), kDiffuseLobe).x;
-    std::printf("MEASURED %s %.2f ior %.2f: %.6f / %.6f against Mitsuba %.6f / %.6f\n", c.dist,
-                double(c.alpha), double(c.ior), double(at_normal), double(at_half),
-                double(c.normal), double(c.half));
-    EXPECT_NEAR(at_normal / c.normal, 1.0f, 2e-3f) << c.dist << " " << c.alpha;
-    EXPECT_NEAR(at_half / c.half, 1.0f, 2e-3f) << c.dist << " " << c.alpha;
+    ExpectDiffuseAsMitsuba(d,
+                           std::string("roughplastic ") + c.dist + " " + std::to_string(c.alpha) +
+                               " ior " + std::to_string(c.ior),
+                           c.normal, c.half, 2e-3f);
   }
 }
 
@@ -713,18 +723,7 @@ TEST(BsdfTest, PlasticDiffuseMatchesMitsuba) {
   for (const Case& c : cases) {
     BsdfDesc d = Desc("plastic");
     d.floats["int_ior"] = c.ior;
-    d.floats["ext_ior"] = 1.000277f;
-    d.colors["diffuse_reflectance"].value = Vec3(0.5f);
-    const Built b = Build({d});
-    const Vec3 wo(0, 0, 1);
-    const float at_normal = b.last().Eval(BsdfContext(), wo, Vec3(0, 0, 1), kDiffuseLobe).x;
-    const float at_half =
-        b.last().Eval(BsdfContext(), wo, Vec3(std::sqrt(0.75f), 0, 0.5f), kDiffuseLobe).x;
-    std::printf("MEASURED plastic ior %.3f: %.6f / %.6f against Mitsuba %.6f / %.6f\n",
-                double(c.ior), double(at_normal), double(at_half), double(c.normal),
-                double(c.half));
-    EXPECT_NEAR(at_normal / c.normal, 1.0f, 1e-3f) << c.ior;
-    EXPECT_NEAR(at_half / c.half, 1.0f, 1e-3f) << c.ior;
+    ExpectDiffuseAsMitsuba(d, "plastic ior " + std::to_string(c.ior), c.normal, c.half, 1e-3f);
   }
 }
 
