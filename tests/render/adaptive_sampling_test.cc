@@ -54,7 +54,46 @@ TEST(AdaptiveSamplingTest, BudgetGoesWhereTheErrorIs) {
   EXPECT_EQ(adaptive.stats.nonfinite_pixels, 0);
 }
 
-// An image whose estimate reaches the goal (--sampling-error) stops there, under its budget.
+// Adaptive sampling keeps the image's mean where pixels' samples are heavy-tailed: `path` finds
+// specular's caustics (a lamp through the glass sphere) only when a floor sample's bounce happens
+// to reach the lamp. A pixel's samples are not allowed to decide its own count (its neighbours'
+// errors do): one that caught a rare bright path got more samples, which diluted it, and one that
+// missed it stopped at 0. Path at 64 spp, half size, seeds 1 and 2, adaptive against uniform:
+// the means within 4 standard errors (each from its two seeds' per-pixel differences); adaptive
+// was 0.9% dark (about 6 standard errors) when a pixel's own error counted.
+TEST(AdaptiveSamplingTest, RareBrightPathsKeepTheirMean) {
+  const LoadedScene s = LoadScaledDown("specular", 2);
+  Image images[2][2];
+  for (const bool adaptive : {false, true})
+    for (const uint64_t seed : {1, 2}) {
+      RenderSettings settings = *SettingsForScene(s.desc, "path");
+      settings.spp = 64;
+      settings.seed = seed;
+      settings.adaptive = adaptive;
+      images[adaptive][seed - 1] = Render(*s.scene, settings).image;
+    }
+  const auto mean = [](const Image& a, const Image& b) {
+    double m = 0;
+    for (size_t i = 0; i < a.pixels.size(); ++i)
+      for (int c = 0; c < 3; ++c) m += (double(a.pixels[i][c]) + double(b.pixels[i][c])) / 2;
+    return m / (3.0 * double(a.pixels.size()));
+  };
+  const auto se = [](const Image& a, const Image& b) {  // of the two images' average
+    const Vec3 s = MeanStandardError(a, b, Vec3(), 0);
+    return double(s.x + s.y + s.z) / 3 / std::sqrt(2.0);
+  };
+  const double uniform = mean(images[0][0], images[0][1]),
+               adaptive = mean(images[1][0], images[1][1]);
+  const double sigma = std::hypot(se(images[0][0], images[0][1]), se(images[1][0], images[1][1]));
+  std::printf("MEASURED mean: uniform %.5f, adaptive %.5f (%+.2f%%), standard error %.5f\n",
+              uniform, adaptive, 100 * (adaptive / uniform - 1), sigma);
+  EXPECT_NEAR(adaptive, uniform, 4 * sigma);
+}
+
+// An image whose estimate reaches the goal (--sampling-error) stops there, under its budget
+// (cornell-box at quarter size: 39 spp on average against 48; under 36 before pixels' own errors
+// stopped deciding their refinement, when the estimate fell faster than the image's error: the
+// A/B in the commit that changed it measured cornell-box's relMSE 28% lower for 14% more CPU).
 TEST(AdaptiveSamplingTest, EasyImageStopsAtTheGoalBelowItsBudget) {
   const LoadedScene s = LoadQuarter("cornell-box");
   RenderSettings settings = *SettingsForScene(s.desc, "irrcache");
@@ -62,7 +101,8 @@ TEST(AdaptiveSamplingTest, EasyImageStopsAtTheGoalBelowItsBudget) {
   ASSERT_TRUE(settings.adaptive);
   const RenderOutput out = Render(*s.scene, settings);
   EXPECT_LE(out.stats.estimated_sampling_relmse, settings.sampling_error);
-  EXPECT_LT(out.stats.spp_mean, 0.75 * settings.spp);
+  EXPECT_LT(out.stats.spp_mean, settings.spp);
+  EXPECT_GT(out.stats.budget_left, 0);
   EXPECT_GT(out.stats.pixels_stopped_early, 0);
 }
 
@@ -78,8 +118,12 @@ TEST(AdaptiveSamplingTest, CarriedBudgetIsSpentWhereItBindsAndGivenBackWhereNot)
   constexpr double kCarry = 1e12;
   settings.budget_carry = kCarry;
   const RenderOutput easy_carry = Render(*s.scene, settings);
-  EXPECT_GT(easy_carry.stats.budget_left, kCarry);
-  EXPECT_NEAR(easy_carry.stats.spp_mean, easy.stats.spp_mean, 0.25 * easy.stats.spp_mean);
+  // It still stops at the goal and gives nearly all of the carry back; the larger budget lets
+  // its rounds take more pixels each, so it stops a little past where it stops without (52.6
+  // against 39.3 spp on average, 6% past its own budget).
+  EXPECT_LE(easy_carry.stats.estimated_sampling_relmse, settings.sampling_error);
+  EXPECT_GT(easy_carry.stats.budget_left, 0.99 * kCarry);
+  EXPECT_LT(easy_carry.stats.spp_mean, 1.5 * easy.stats.spp_mean);
 
   const Image ref = QuarterReference("materials");
   const RenderOutput own = RenderMaterials(true);
