@@ -21,8 +21,9 @@ class Camera {
         height_(d.height),
         film_w_(d.film_width > 0 ? d.film_width : d.width),
         film_h_(d.film_height > 0 ? d.film_height : d.height),
-        crop_x_(float(d.crop_x)),
-        crop_y_(float(d.crop_y)),
+        // The crop window's corner in film pixels, moved by the principal point's offset.
+        crop_x_(float(d.crop_x) + d.principal_x * float(film_w_)),
+        crop_y_(float(d.crop_y) + d.principal_y * float(film_h_)),
         filter_(d.filter, d.width, d.height) {
     origin_ = d.to_world.ApplyPoint(Vec3(0, 0, 0));
     forward_ = Normalize(d.to_world.ApplyVector(Vec3(0, 0, 1)));

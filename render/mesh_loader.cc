@@ -356,8 +356,11 @@ absl::StatusOr<TriangleMesh> LoadPlyMesh(const std::string& path) {
   };
   bool have_vertices = false;
   for (const PlyElement& e : elements) {
-    // Cheap guard against absurd counts before reserving memory.
-    if (!ascii && e.count > reader.remaining()) return truncated(absl::StrCat("element ", e.name));
+    // An element without properties has nothing to read (a count of 1e19 of them looped for ever).
+    // Every item of one with properties takes at least a byte, binary or ASCII: a cheap guard
+    // against absurd counts before reserving memory.
+    if (e.properties.empty()) continue;
+    if (e.count > reader.remaining()) return truncated(absl::StrCat("element ", e.name));
     const bool is_vertex = e.name == "vertex", is_face = e.name == "face";
     int slot[8];  // x y z nx ny nz u v -> property index, or -1
     std::fill(std::begin(slot), std::end(slot), -1);

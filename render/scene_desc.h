@@ -45,6 +45,9 @@ struct CameraDesc {
   // hdrfilm's crop_*: the full film is film_width x film_height (0 = width x height) and the
   // image is its window at (crop_x, crop_y), as Mitsuba 3 renders it.
   int film_width = 0, film_height = 0, crop_x = 0, crop_y = 0;
+  // perspective's principal_point_offset_x / _y: the image centre moved by these fractions of
+  // the film's width and height (Mitsuba 3's; its Blender exporter writes them).
+  float principal_x = 0, principal_y = 0;
   int spp = 4;  // sampler sample_count
   FilterDesc filter;
   // thinlens: the lens's radius (scene units; 0 = the pinhole `perspective`) and the distance

@@ -425,9 +425,11 @@ absl::StatusOr<Mat4> Parser::ParseTransform(pugi::xml_node t) const {
                      static_cast<float>(d[2] / len));
       Vec3 up(static_cast<float>(p[2][0]), static_cast<float>(p[2][1]),
               static_cast<float>(p[2][2]));
-      if (!c.attribute("up")) {
-        Vec3 s;
-        MakeFrame(dir, &s, &up);  // Mitsuba picks any perpendicular up as well
+      if (!c.attribute("up") || (up.x == 0 && up.y == 0 && up.z == 0)) {
+        // Mitsuba's choice (parser.cpp): the first vector of coordinate_system(dir), which is
+        // MakeFrame's s (Duff et al. 2017 both).
+        Vec3 t;
+        MakeFrame(dir, &up, &t);
       }
       if (!(Length(Cross(Normalize(up), dir)) > 1e-6f)) {
         return Error(c, "<lookat> up is zero or parallel to the view direction");
@@ -859,8 +861,28 @@ absl::Status Parser::ParseSensor(pugi::xml_node n) {
       return Error(NodeOf(p, "focus_distance"), "focus_distance must be positive and finite");
     }
   }
+  if (sensor_type == "perspective") {
+    LOADER_ASSIGN_OR_RETURN(cam.principal_x, GetFloat(p, "principal_point_offset_x", 0));
+    LOADER_ASSIGN_OR_RETURN(cam.principal_y, GetFloat(p, "principal_point_offset_y", 0));
+    if (!std::isfinite(cam.principal_x) || !std::isfinite(cam.principal_y) ||
+        std::abs(cam.principal_x) > 1e3f || std::abs(cam.principal_y) > 1e3f) {
+      return Error(NodeOf(p, "principal_point_offset_x"),
+                   "principal_point_offset_x / _y must be finite fractions of the film");
+    }
+  }
   LOADER_ASSIGN_OR_RETURN(const std::optional<Mat4> to_world, GetTransform(p, "to_world"));
   cam.to_world = World(to_world);
+  // Mitsuba refuses scale (and shear) in the camera's to_world (Transform::has_scale: the rows
+  // of its 3 x 3 part orthonormal within 1e-3); a mirror is allowed.
+  for (int i = 0; i < 3; ++i)
+    for (int j = i; j < 3; ++j) {
+      double dot = 0;
+      for (int k = 0; k < 3; ++k) dot += cam.to_world.m[i][k] * cam.to_world.m[j][k];
+      if (std::abs(dot - (i == j ? 1.0 : 0.0)) > 1e-3)
+        return Error(NodeOf(p, "to_world"),
+                     "scale factors in the camera's to_world are not allowed (Mitsuba refuses "
+                     "them too)");
+    }
   const std::vector<const Entry*> films = TakeObjects(p, "film");
   const std::vector<const Entry*> samplers = TakeObjects(p, "sampler");
   LOADER_RETURN_IF_ERROR(Finish(p));
@@ -1232,6 +1254,10 @@ absl::Status Parser::ParseInstance(pugi::xml_node n) {
              "x scale, as Mitsuba 3 does)");
     } else {
       TransformMesh(to_world, &s.mesh);
+      // Mitsuba moves an instance's normals with to_world's normal transform, so a mirrored
+      // instance keeps its front: the winding turns with the mirror (the vertex normals already
+      // do, in TransformMesh).
+      if (det < 0) ReverseWinding(&s.mesh);
     }
     scene_.shapes.push_back(std::move(s));
   }
@@ -1319,13 +1345,10 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
     LOADER_ASSIGN_OR_RETURN(s.bsdf, AddBsdf(bsdfs[0]->node, std::move(b)));
   }
   if (emitters.size() > 1) return Error(emitters[1]->node, "a shape has at most one emitter");
-  if (!emitters.empty() && scene_.bsdfs[size_t(s.bsdf)].type == "null") {
-    // Mitsuba 3's path tracer lights the scene with such a shape but shows the camera no emission
-    // from it (measured: a null-BSDF emitting sphere is invisible in its image).
-    return Error(emitters[0]->node,
-                 "an area emitter on a shape with a null bsdf is not rendered by irfarm "
-                 "(Mitsuba 3 hides its emission from the camera but lights the scene with it)");
-  }
+  // An area emitter on a shape with a null bsdf (how Mitsuba's Blender exporter writes every area
+  // light) is seen and lights the scene as on any other shape, and rays pass through it: a
+  // sphere lamp shows its front's emission and what lies behind (Mitsuba 3.9.1 measured,
+  // RenderPropertiesTest.NullBsdfLampsAreSeenAndPassedThrough).
   if (!emitters.empty()) {
     LOADER_ASSIGN_OR_RETURN(s.area_radiance, ParseAreaEmitter(emitters[0]->node));
   }
@@ -1552,6 +1575,23 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
     return Error(root, absl::StrCat("the root element must be <scene>, not <", root.name(), ">"));
   }
   LOADER_RETURN_IF_ERROR(CheckAttributes(root, {"version"}));
+  // Elements are read recursively (a bsdf's nested bsdfs, a shapegroup's shapes, the old-syntax
+  // upgrade): a file nesting thousands deep (an upload to the coordinator) would overflow the
+  // stack. Real scenes nest a handful of levels; the depth is checked here without recursion.
+  constexpr int kMaxDepth = 64;
+  for (pugi::xml_node n = root.first_child(); n;) {
+    int depth = 1;
+    for (pugi::xml_node a = n.parent(); a != root; a = a.parent()) ++depth;
+    if (n.type() == pugi::node_element && depth > kMaxDepth)
+      return Error(n, absl::StrCat("elements nested more than ", kMaxDepth, " deep"));
+    if (n.first_child() && depth <= kMaxDepth) {
+      n = n.first_child();
+      continue;
+    }
+    while (n && n != root && !n.next_sibling()) n = n.parent();
+    if (!n || n == root) break;
+    n = n.next_sibling();
+  }
   LOADER_RETURN_IF_ERROR(UpgradeOldSyntax(root));
 
   // <default>s first, so that $name works anywhere; then the -D defines override them.

@@ -43,7 +43,7 @@ absl::StatusOr<Light> Build(const EmitterDesc& d, std::vector<std::unique_ptr<Te
   l.type = LightType::kEnvmap;
   TextureDesc td;
   td.filename = d.filename;
-  td.raw = true;
+  td.raw = false;  // 8-bit images are sRGB-encoded, as Mitsuba decodes them (EXR and HDR: linear)
   td.loc = d.loc;
   absl::StatusOr<std::unique_ptr<BitmapTexture>> tex = BitmapTexture::Load(td);
   if (!tex.ok()) return tex.status();

@@ -23,8 +23,10 @@ absl::Status Parse(EmitterParams& p, EmitterDesc* d) {
   absl::StatusOr<float> beam = p.Float("beam_width", d->cutoff_angle_deg * 0.75f);
   if (!beam.ok()) return beam.status();
   d->beam_width_deg = *beam;
-  if (!(d->cutoff_angle_deg > 0 && d->beam_width_deg > 0)) {
-    return p.Error("", "spot cutoff_angle and beam_width must be positive");
+  // beam_width 0 (all falloff) is valid in Mitsuba; its Blender exporter writes it for a spot
+  // blend of 1.
+  if (!(d->cutoff_angle_deg > 0 && d->beam_width_deg >= 0)) {
+    return p.Error("", "spot cutoff_angle must be positive and beam_width not negative");
   }
   return absl::OkStatus();
 }

@@ -89,6 +89,17 @@ TEST_P(AnalyticTest, SpotLightOnItsAxis) {
   ExpectRadiance(RenderMean(xml, GetParam(), dir_), 0.5f / kPi * 3, 0.01f, "spot");
 }
 
+// beam_width 0 (Mitsuba accepts it; its Blender exporter writes it for a spot blend of 1): the
+// falloff is linear in angle from the axis to the cutoff, (30 - 15) / 30 = 0.5 at 15 degrees off
+// the axis, where the plane is lit (irradiance 3 at distance 1, straight down). It was refused.
+TEST_P(AnalyticTest, SpotLightWithoutABeamFallsOffFromItsAxis) {
+  const std::string xml = SceneXml(R"(<emitter type="spot">
+    <transform name="to_world"><lookat origin="0, 0, 1" target="0.267949, 0, 0" up="0, 1, 0"/>
+    </transform><rgb name="intensity" value="3"/><float name="cutoff_angle" value="30"/>
+    <float name="beam_width" value="0"/></emitter>)");
+  ExpectRadiance(RenderMean(xml, GetParam(), dir_), 0.5f / kPi * 3 * 0.5f, 0.02f, "spot, no beam");
+}
+
 TEST_P(AnalyticTest, DirectionalLight) {
   const std::string xml = SceneXml(R"(<emitter type="directional">
     <vector name="direction" value="0, 0, -1"/><rgb name="irradiance" value="1.5"/></emitter>)");

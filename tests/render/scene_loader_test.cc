@@ -14,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include "render/camera.h"
 #include "render/emitters/registry.h"
 #include "render/mesh_loader.h"
 #include "render/scene_loader.h"
@@ -224,6 +225,33 @@ TEST(SceneLoaderErrorTest, PlyIndexOutOfRange) {
               dir + "/scene.xml:2:", "bad.ply: vertex 2: y = 1e+300 is not a finite 32-bit float");
   ExpectError(load_with_body("uchar", "0 0 0\n1 0 0\n0 1 0\n3 0 1 1e300\n"),
               dir + "/scene.xml:2:", "bad.ply: face 0: vertex index 1e+300 out of range");
+  // An ASCII element without properties and a count of 1.8e19 looped for ever (a review's
+  // finding); one with properties and more items than the file has bytes is refused at once.
+  WriteFile(dir + "/meshes/bad.ply",
+            "ply\nformat ascii 1.0\nelement junk 18000000000000000000\nelement vertex 3\n"
+            "property float x\nproperty float y\nproperty float z\nelement face 1\n"
+            "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  EXPECT_TRUE(Load("  <shape type=\"ply\">\n    <string name=\"filename\" "
+                   "value=\"meshes/bad.ply\"/>\n  </shape>\n",
+                   dir + "/scene.xml")
+                  .ok());
+  WriteFile(dir + "/meshes/bad.ply",
+            "ply\nformat ascii 1.0\nelement vertex 18000000000000000000\nproperty float x\n"
+            "property float y\nproperty float z\nend_header\n0 0 0\n");
+  ExpectError(Load("  <shape type=\"ply\">\n    <string name=\"filename\" "
+                   "value=\"meshes/bad.ply\"/>\n  </shape>\n",
+                   dir + "/scene.xml"),
+              dir + "/scene.xml:2:", "element vertex: file is truncated or malformed");
+}
+
+// Elements nested past 64 deep are refused at the first one past it: the loader reads nested
+// elements recursively, and 5000 nested masks (125 kB, an upload to the coordinator) overflowed
+// its stack.
+TEST(SceneLoaderErrorTest, DeepNestingIsRefused) {
+  std::string xml;
+  for (int i = 0; i < 10000; ++i) xml += "<bsdf type=\"mask\">";
+  for (int i = 0; i < 10000; ++i) xml += "</bsdf>";
+  ExpectError(Load("  " + xml + "\n"), "scene.xml:2:", "elements nested more than 64 deep");
 }
 
 TEST(SceneLoaderErrorTest, BlendAndNullBsdfs) {
@@ -233,10 +261,10 @@ TEST(SceneLoaderErrorTest, BlendAndNullBsdfs) {
                   .ok());
   ExpectError(Load("  <bsdf type=\"blendbsdf\"><bsdf type=\"diffuse\"/></bsdf>\n"),
               "scene.xml:2:", "blendbsdf needs exactly two nested bsdfs");
-  // Mitsuba 3 shows the camera no emission from a null-BSDF lamp but lights the scene with it.
-  ExpectError(Load("  <shape type=\"sphere\"><bsdf type=\"null\"/>\n"
-                   "    <emitter type=\"area\"/></shape>\n"),
-              "scene.xml:3:", "an area emitter on a shape with a null bsdf");
+  // A null-BSDF lamp loads (RenderPropertiesTest.NullBsdfLampsAreSeenAndPassedThrough renders it).
+  EXPECT_TRUE(Load("  <shape type=\"sphere\"><bsdf type=\"null\"/>\n"
+                   "    <emitter type=\"area\"/></shape>\n")
+                  .ok());
 }
 
 // shapegroup / instance (Blender's exporter writes them for instanced objects): each instance
@@ -267,6 +295,19 @@ TEST(SceneLoaderTest, InstancesCopyTheirShapeGroup) {
     found |= Length(v - Vec3(1 + c * (c60 - s60), 0.5f + c * (s60 + c60), c)) < 1e-5f;
   EXPECT_TRUE(found);
 
+  // A mirrored instance keeps its front, as Mitsuba moves an instance's normals with to_world's
+  // normal transform: the rectangle's +z, through scale x -1, is still +z (its triangles' winding
+  // gave -z before).
+  const auto mirrored = Load(R"(  <shape type="shapegroup" id="g"><shape type="rectangle"/></shape>
+  <shape type="instance"><ref id="g"/><transform name="to_world"><scale x="-1"/></transform></shape>
+)");
+  ASSERT_TRUE(mirrored.ok()) << mirrored.status();
+  const TriangleMesh& m = mirrored->shapes.at(0).mesh;
+  for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
+    const Vec3 a = m.positions[m.indices[t]], b = m.positions[m.indices[t + 1]],
+               c = m.positions[m.indices[t + 2]];
+    EXPECT_GT(Cross(b - a, c - a).z, 0.0f) << "triangle " << t / 3;
+  }
   ExpectError(Load("  <shape type=\"shapegroup\" id=\"g\"><shape type=\"sphere\">\n"
                    "    <emitter type=\"area\"/></shape></shape>\n"),
               "scene.xml:3:", "a shape in a shapegroup cannot emit");
@@ -517,6 +558,64 @@ TEST(SceneLoaderTest, SphereRadiusScalesWithItsToWorld) {
     ASSERT_EQ(scene->warnings.size(), 1u) << scale;
     EXPECT_NE(scene->warnings[0].find("unevenly"), std::string::npos) << scene->warnings[0];
   }
+}
+
+// <lookat> without up (or with a zero one): Mitsuba 3.9.1 takes the first vector of
+// coordinate_system(dir); the camera frames below are its own (sensor.world_transform()). The
+// second vector was taken, which rolled the image 90 degrees.
+TEST(SceneLoaderTest, LookAtWithoutUpIsMitsubasFrame) {
+  struct Case {
+    const char* attributes;
+    Vec3 x, y, z;
+  };
+  const Case cases[] = {
+      {R"(origin="0,0,0" target="1,0,0")", Vec3(0, -1, 0), Vec3(0, 0, -1), Vec3(1, 0, 0)},
+      {R"(origin="1,2,3" target="0.5,-1,2")", Vec3(-0.111511f, 0.330933f, -0.937043f),
+       Vec3(0.981415f, -0.111511f, -0.156174f), Vec3(-0.156174f, -0.937043f, -0.312348f)},
+      {R"(origin="0,0,5" target="0,0,0" up="0,0,0")", Vec3(0, 1, 0), Vec3(1, 0, 0),
+       Vec3(0, 0, -1)}};
+  for (const Case& c : cases) {
+    const auto scene = LoadSceneString(std::string(R"(<scene version="3.0.0">
+  <sensor type="perspective"><transform name="to_world"><lookat )") +
+                                           c.attributes + R"(/></transform></sensor>
+</scene>
+)",
+                                       "s.xml", {});
+    ASSERT_TRUE(scene.ok()) << scene.status();
+    ExpectNear(Column(scene->camera.to_world, 0), c.x);
+    ExpectNear(Column(scene->camera.to_world, 1), c.y);
+    ExpectNear(Column(scene->camera.to_world, 2), c.z);
+  }
+}
+
+// perspective's principal_point_offset_x / _y (Mitsuba's Blender exporter writes them) move the
+// image centre; the ray directions are Mitsuba 3.9.1's own (sensor.sample_ray at film positions
+// (0.5, 0.5) and (0.25, 0.75) of a 64 x 48 film, fov 40, offsets 0.1 and -0.05). A camera
+// to_world with a scale is refused, as Mitsuba refuses it; a mirror is not a scale.
+TEST(SceneLoaderTest, PrincipalPointOffsetAndCameraScale) {
+  const auto scene = LoadSceneString(R"(<scene version="3.0.0">
+  <sensor type="perspective"><float name="fov" value="40"/>
+    <float name="principal_point_offset_x" value="0.1"/>
+    <float name="principal_point_offset_y" value="-0.05"/>
+    <transform name="to_world"><lookat origin="0,0,0" target="0,0,1" up="0,1,0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="64"/><integer name="height" value="48"/>
+    </film></sensor>
+</scene>
+)",
+                                     "s.xml", {});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  const Camera cam(scene->camera);
+  ExpectNear(cam.Direction(32, 24), Vec3(-0.072575f, 0.027216f, 0.996992f));
+  ExpectNear(cam.Direction(16, 36), Vec3(0.107912f, -0.107912f, 0.988286f));
+  const auto with = [](const std::string& transform) {
+    return LoadSceneString(R"(<scene version="3.0.0"><sensor type="perspective">
+  <transform name="to_world">)" +
+                               transform + R"(</transform></sensor></scene>
+)",
+                           "s.xml", {});
+  };
+  ExpectError(with(R"(<scale value="2"/>)"), "s.xml:2:", "scale factors in the camera's to_world");
+  EXPECT_TRUE(with(R"(<scale x="-1"/><rotate y="1" angle="30"/>)").ok());
 }
 
 TEST(SceneLoaderTest, LookAtBuildsMitsubaCameraFrame) {

@@ -211,6 +211,29 @@ TEST(TextureTest, EightBitImagesAreReadAsTheirBytes) {
   }
 }
 
+// An 8-bit environment map is sRGB-encoded, as Mitsuba 3.9.1's envmap decodes it: a grey PNG of
+// byte 128 gives radiance 0.2159 there (measured), where reading the byte as linear gave 0.502.
+TEST(TextureTest, EightBitEnvironmentMapsAreSrgb) {
+  const std::string dir = ::testing::TempDir() + "/envmap_srgb_test";
+  std::filesystem::create_directories(dir);
+  Image image(8, 4);
+  for (Vec3& p : image.pixels) p = Vec3(SrgbToLinear(128 / 255.0f));
+  absl::StatusOr<std::string> png = EncodePng(image, 1.0f);
+  ASSERT_TRUE(png.ok());
+  std::ofstream(dir + "/grey.png", std::ios::binary) << *png;
+  const auto desc = LoadSceneString(
+      R"(<scene version="3.0.0"><sensor type="perspective"/>
+  <emitter type="envmap"><string name="filename" value="grey.png"/></emitter></scene>)",
+      dir + "/s.xml", {});
+  ASSERT_TRUE(desc.ok()) << desc.status();
+  absl::StatusOr<std::unique_ptr<Scene>> scene = Scene::Build(*desc);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  for (const Vec3& d : {Vec3(0, 0, 1), Vec3(1, 0, 0), Vec3(0, -1, 0)}) {
+    const Vec3 l = (*scene)->EvalEnvironment(d);
+    EXPECT_NEAR(l.x, 0.2159f, 2e-4f) << d.x << " " << d.y << " " << d.z;
+  }
+}
+
 // Textures load in parallel; a file that cannot be read is still reported at its own line, the
 // first such texture in the file when there are several.
 TEST(TextureTest, AnUnreadableTextureIsReportedAtItsLine) {
