@@ -60,14 +60,42 @@ RecordBounds RecordBoundsOf(const v1::StoredJob& stored) {
 }
 
 // Printable, bounded text of something a peer sent, for messages and logs: control bytes
-// (newlines, ANSI escapes, NUL) become '?', and at most `max` bytes are kept.
+// (newlines, ANSI escapes, NUL) and bytes that are not UTF-8 become '?', and at most `max` bytes
+// are kept, cut between characters. It goes into proto3 strings (a job's error), which must be
+// valid UTF-8: one cut inside a character was stored, and the job could no longer be parsed, by
+// clients or by the coordinator resuming it from Redis.
 std::string Printable(const std::string& s, size_t max = 200) {
   std::string out;
-  for (size_t i = 0; i < s.size() && i < max; ++i) {
+  size_t i = 0;
+  while (i < s.size()) {
     const unsigned char c = static_cast<unsigned char>(s[i]);
-    out += (c < 0x20 || c == 0x7f) ? '?' : char(c);
+    // The length of the UTF-8 sequence starting here, 0 when it is not one.
+    size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+    if (n > 1) {
+      if (i + n > s.size()) n = 0;
+      for (size_t k = 1; k < n; ++k)
+        if ((static_cast<unsigned char>(s[i + k]) & 0xC0) != 0x80) n = 0;
+      // Overlong forms and surrogates are not UTF-8 either.
+      if (n == 2 && c < 0xC2) n = 0;
+      if (n == 3) {
+        const unsigned char d = static_cast<unsigned char>(s[i + 1]);
+        if ((c == 0xE0 && d < 0xA0) || (c == 0xED && d >= 0xA0)) n = 0;
+      }
+      if (n == 4) {
+        const unsigned char d = static_cast<unsigned char>(s[i + 1]);
+        if ((c == 0xF0 && d < 0x90) || c > 0xF4 || (c == 0xF4 && d >= 0x90)) n = 0;
+      }
+    }
+    const size_t len = n == 0 ? 1 : n;
+    if (out.size() + len > max) break;
+    if (n == 0 || (n == 1 && (c < 0x20 || c == 0x7f))) {
+      out += '?';
+    } else {
+      out.append(s, i, n);
+    }
+    i += len;
   }
-  if (s.size() > max) out += "...";
+  if (i < s.size()) out += "...";
   return out;
 }
 

@@ -37,6 +37,10 @@ absl::StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string&
   server.set_keep_alive_max_count(1);
   server.set_read_timeout(5, 0);
   server.set_write_timeout(5, 0);
+  // Request bodies are read before the route or the token is looked at: without a bound (httplib's
+  // default is none) one POST of /dev/zero filled the process's memory. No route takes more than
+  // a few bytes of body; past 64 KiB the answer is 413.
+  server.set_payload_max_length(size_t(64) << 10);
   for (HttpRoute& route : routes) {
     auto handle = [handler = std::move(route.handler)](const httplib::Request& req,
                                                        httplib::Response& res) {

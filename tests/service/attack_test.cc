@@ -964,6 +964,31 @@ TEST_F(AttackTest, DownloadsPastTheLimitAreRefusedUntilOneEnds) {
   EXPECT_GT(bytes, size_t(16) << 20);
 }
 
+// A failure reason cut to its bounded length is cut between UTF-8 characters: a job's error is a
+// proto3 string, and one ending in half an 'é' could not be parsed by any client (GetJob failed)
+// nor by a coordinator resuming the job from its store. Three workers fail the one tile with 199
+// x's and an 'é' (the 200-byte bound falls inside it).
+TEST_F(AttackTest, AFailureReasonIsCutBetweenCharacters) {
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(/*tile_size=*/64), &a).ok());
+  const std::string reason = std::string(199, 'x') + "\xc3\xa9";
+  for (int i = 0; i < 3; ++i) {
+    FakeWorker f(channel_, kWorker, "bad" + std::to_string(i));
+    const std::optional<v1::TileLease> l = f.NextLease();
+    ASSERT_TRUE(l.has_value());
+    ASSERT_TRUE(f.Send(Failed(l->job_id(), l->tile_index(), l->lease_token(), reason)));
+    f.Close();
+  }
+  const v1::Job job = WaitFinal(a, 30);
+  EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(job.error().find(std::string(199, 'x') + "..."), std::string::npos) << job.error();
+  std::string serialized;
+  ASSERT_TRUE(job.SerializeToString(&serialized));
+  v1::Job back;
+  EXPECT_TRUE(back.ParseFromString(serialized));
+}
+
 // Why 3: no token, a wrong token, a worker token on the job API, a client token as a worker
 // token, client B on client A's job. UNAUTHENTICATED / NOT_FOUND, nothing changes, counted.
 TEST_F(AttackTest, AccessControl) {

@@ -39,6 +39,12 @@ for m in "$CM" "${WM[@]}"; do
   curl -sf "http://$m/metrics" >/dev/null || fail "no metrics on $m"
 done
 
+# A request body past 64 KiB is refused (413) before any route reads it: 100 MB of zeros posted to
+# the unauthenticated metrics port used to be read into the coordinator's memory whole.
+code=$(head -c 100000000 /dev/zero | curl -s -o /dev/null -w '%{http_code}' -X POST \
+  -H 'Content-Type: application/octet-stream' --data-binary @- "http://$CM/metrics" || true)
+check "a 100 MB request body is refused" "'$code' == '413'"
+
 JOB=$("$BIN/irfarm" submit --coordinator "$ADDR" "$SCENE" -Dresx=320 -Dresy=320 --tile-size 16 -q)
 mkdir -p "$WORK/scrapes"
 n=0
