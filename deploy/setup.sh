@@ -12,7 +12,7 @@ packages=(
   libcpp-httplib-dev python3-prometheus-client curl
   chromium chromium-driver python3-selenium
   openssl
-  python3
+  python3 python3-pip  # python3-pip: fetches the Open Image Denoise wheel below
   clang libclang-rt-14-dev  # .ci/fuzz only: libFuzzer and the sanitizer runtimes for clang
 )
 missing=()

@@ -1563,13 +1563,11 @@ f 1 2 9
 // ---------------------------------------------------------------- the shipped scenes
 
 // The folder holding scenes/<name>/scene.xml: $IRFARM_TEST_DATA, else the compiled-in
-// IRFARM_TEST_DATA, else the shared/ folder beside the repository (until the scenes are copied
-// into tests/data).
+// IRFARM_TEST_DATA (the repository's tests/data: nothing outside the clone).
 std::string ScenesRoot() {
   std::vector<std::string> candidates;
   if (const char* env = std::getenv("IRFARM_TEST_DATA")) candidates.push_back(env);
   candidates.push_back(IRFARM_TEST_DATA);
-  candidates.push_back(IRFARM_TEST_DATA "/../../../shared");
   for (const std::string& c : candidates) {
     std::error_code ec;
     if (fs::is_directory(fs::path(c) / "scenes", ec)) return c + "/scenes";
