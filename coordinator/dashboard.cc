@@ -51,12 +51,36 @@ std::string Header(const HttpRequest& r, const std::string& name) {
   return it == r.headers.end() ? "" : it->second;
 }
 
+// Whether the request's Host names this machine's loopback (127.0.0.1, localhost, [::1], with
+// any port). An open dashboard (no client tokens) answers only those: a web page whose name an
+// attacker rebinds to 127.0.0.1 (DNS rebinding) is same-origin with the dashboard and could send
+// X-Irfarm-Request, but its requests carry its own name as Host.
+bool LoopbackHost(const HttpRequest& r) {
+  std::string host = Header(r, "host");
+  if (!host.empty() && host.front() == '[') {
+    const size_t close = host.find(']');
+    host = close == std::string::npos ? "" : host.substr(0, close + 1);
+  } else if (const size_t colon = host.rfind(':'); colon != std::string::npos) {
+    host.resize(colon);
+  }
+  for (char& c : host) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return host == "127.0.0.1" || host == "localhost" || host == "[::1]";
+}
+
+HttpResponse ForeignHost() {
+  return HttpResponse{421, "text/plain; charset=utf-8",
+                      "an open dashboard (no client tokens) answers only requests for "
+                      "127.0.0.1, localhost or [::1]\n"};
+}
+
 }  // namespace
 
 std::vector<HttpRoute> DashboardRoutes(JobManager* manager, Authenticator* auth) {
+  const bool open = auth == nullptr || auth->clients_open();
   // Wraps an API handler: authenticates the caller, and for POSTs checks the anti-forgery header.
-  const auto api = [auth](bool post, auto handler) {
-    return [auth, post, handler](const HttpRequest& r) -> HttpResponse {
+  const auto api = [auth, open](bool post, auto handler) {
+    return [auth, open, post, handler](const HttpRequest& r) -> HttpResponse {
+      if (open && !LoopbackHost(r)) return ForeignHost();
       if (post && Header(r, "x-irfarm-request") != "1")
         return HttpResponse{403, "text/plain; charset=utf-8",
                             "POST needs the header X-Irfarm-Request: 1\n"};
@@ -67,7 +91,8 @@ std::vector<HttpRoute> DashboardRoutes(JobManager* manager, Authenticator* auth)
     };
   };
   std::vector<HttpRoute> routes;
-  routes.push_back({"GET", "/", [](const HttpRequest&) {
+  routes.push_back({"GET", "/", [open](const HttpRequest& r) {
+                      if (open && !LoopbackHost(r)) return ForeignHost();
                       return HttpResponse{200, "text/html; charset=utf-8", kDashboardHtml};
                     }});
   routes.push_back({"GET", "/api/jobs", api(false, [manager](const HttpRequest&, const Caller& c) {
