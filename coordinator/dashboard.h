@@ -4,7 +4,8 @@
 //   GET  /                          the page
 //   GET  /api/jobs                  ListJobs as JSON (protobuf's JSON mapping: tilesDone, ...)
 //   GET  /api/workers               GetCluster as JSON
-//   GET  /api/image.png?job=ID      the job's image so far, tone-mapped PNG (finished tiles)
+//   GET  /api/image.png?job=ID      the job's image so far, tone-mapped PNG (finished tiles), the
+//                                   film's size up to 1024 px (block means beyond)
 //   GET  /api/record_map.png?job=ID where the job's records were computed, one colour per worker
 //                                   (record_map.h), the film's size up to 1024 px
 //   POST /api/cancel?job=ID         cancel a job

@@ -163,10 +163,12 @@ class JobManager {
   // rendered, layers "albedo" and "normal" = the guides.
   absl::StatusOr<std::string> ResultExr(const std::string& id,
                                         const Caller& caller = Caller()) const;
-  // The job's image so far (the dashboard): finished tiles' pixels, black elsewhere. For queued,
-  // running and succeeded jobs (a failed or cancelled job's pixels are released:
-  // FAILED_PRECONDITION).
+  // The job's image so far (the dashboard): finished tiles' pixels, black elsewhere, at most
+  // kMaxPreviewSide pixels on the longer side (each the mean of the finished pixels of its
+  // block). For queued, running and succeeded jobs (a failed or cancelled job's pixels are
+  // released: FAILED_PRECONDITION).
   absl::StatusOr<Image> Preview(const std::string& id, const Caller& caller = Caller()) const;
+  static constexpr int kMaxPreviewSide = 1024;  // Preview's longer side at most, in pixels
   // The job's record map so far (the dashboard; record_map.h): where its level-0 records were
   // computed, coloured by the worker session that sent them. FAILED_PRECONDITION for a job stored
   // before jobs kept their camera.

@@ -989,6 +989,35 @@ TEST_F(AttackTest, AFailureReasonIsCutBetweenCharacters) {
   EXPECT_TRUE(back.ParseFromString(serialized));
 }
 
+// The dashboard's preview of a large job is at most 1024 px on its longer side (it was the
+// whole film in floats, 0.8 GB for a 67 M-pixel job, asked for every second): a 2048 x 1536 job
+// previews at 1024 x 768, each pixel the mean of its finished 2 x 2 block, black where no tile
+// has come back.
+TEST_F(AttackTest, PreviewsAreBoundedAndAverageTheirBlocks) {
+  StartServer();
+  v1::SubmitJobRequest req = Request(/*tile_size=*/512);
+  (*req.mutable_settings()->mutable_defines())["resx"] = "2048";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "1536";
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, req, &a).ok());
+  FakeWorker f(channel_, kWorker, "w");
+  const std::optional<v1::TileLease> l = f.NextLease();
+  ASSERT_TRUE(l.has_value());
+  ASSERT_TRUE(
+      f.Send(Result(l->job_id(), l->tile_index(), l->lease_token(), LeaseFloats(*l), 0.5f)));
+  ASSERT_TRUE(f.NextLease().has_value());  // the result was taken before the next lease
+  absl::StatusOr<Image> preview = manager_->Preview(a);
+  ASSERT_TRUE(preview.ok()) << preview.status();
+  EXPECT_EQ(preview->width, 1024);
+  EXPECT_EQ(preview->height, 768);
+  const v1::PixelRect& r = l->rect();
+  EXPECT_FLOAT_EQ(preview->at(r.x0() / 2 + 10, r.y0() / 2 + 10).x, 0.5f);
+  double sum = 0;
+  for (const Vec3& p : preview->pixels) sum += p.x;
+  EXPECT_NEAR(sum, 0.5 * 256 * 256, 1e-3);  // one 512 x 512 tile: 256 x 256 preview pixels
+  f.Cancel();
+}
+
 // Why 3: no token, a wrong token, a worker token on the job API, a client token as a worker
 // token, client B on client A's job. UNAUTHENTICATED / NOT_FOUND, nothing changes, counted.
 TEST_F(AttackTest, AccessControl) {

@@ -2,7 +2,7 @@
 # The coordinator's web dashboard (issue 11, part 2), against a real coordinator (--http, client
 # tokens for alice and bob) and one real worker on 127.0.0.1 rendering the Cornell box.
 #   dashboard_test.sh api      HTTP checks with curl (always run): the page, /api/jobs and
-#                              /api/workers JSON, /api/image.png a PNG of the film's size while
+#                              /api/workers JSON, /api/image.png a PNG of the film's size (up to 1024 px) while
 #                              the job runs and after; 401 without a token, bob sees neither
 #                              alice's job nor its image, a POST without X-Irfarm-Request is 403,
 #                              cancel and priority over HTTP change the job as `irfarm status`
