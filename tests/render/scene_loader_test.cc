@@ -1333,6 +1333,17 @@ TEST(SceneLoaderTest, IntegratorAndSampler) {
   ExpectError(Load("  <integrator type=\"path\">\n    <float name=\"error\" value=\"0.1\"/>\n"
                    "  </integrator>\n"),
               "scene.xml:3:", "unknown parameter 'error' for integrator 'path'");
+  // Mitsuba's `direct` (half of the public Mitsuba 3 scene collections use it) is path at
+  // max_depth 2; its sample counts are read; a max_depth it does not have is an error, as there.
+  const auto direct = Load(
+      "  <integrator type=\"direct\"><integer name=\"emitter_samples\" value=\"4\"/>\n"
+      "    <integer name=\"bsdf_samples\" value=\"2\"/></integrator>\n");
+  ASSERT_TRUE(direct.ok()) << direct.status();
+  EXPECT_EQ(direct->integrator.type, "path");
+  EXPECT_EQ(direct->integrator.max_depth, 2);
+  ExpectError(Load("  <integrator type=\"direct\">\n    <integer name=\"max_depth\" "
+                   "value=\"5\"/>\n  </integrator>\n"),
+              "scene.xml:3:", "unknown parameter 'max_depth' for integrator 'direct'");
 }
 
 // ---------------------------------------------------------------- meshes
