@@ -339,7 +339,7 @@ TEST(SceneLoaderErrorTest, UnknownPluginType) {
                                             absl::StrJoin(EmitterPluginNames(), ", ") + ")");
   ExpectError(Load("  <integrator type=\"bdpt\"/>\n"), "scene.xml:2:",
               "unknown integrator type 'bdpt' (supported: path, irrcache, volpath, prbvolpath, "
-              "prb)");
+              "prb, direct)");
   // Without media (irfarm refuses them) Mitsuba's volpath and prb render path's image.
   const auto volpath = Load(
       "  <integrator type=\"volpath\"><integer name=\"max_depth\" "
@@ -911,10 +911,10 @@ TEST(SceneLoaderTest, Mitsuba06EstimatorsReadAsPath) {
               w.find("not read: light_image") != std::string::npos;
   EXPECT_TRUE(warned);
   // An estimator of another image is still an error in a 0.x file.
-  ExpectError(LoadSceneString("<scene version=\"0.6.0\">\n  <integrator type=\"direct\"/>\n"
+  ExpectError(LoadSceneString("<scene version=\"0.6.0\">\n  <integrator type=\"ao\"/>\n"
                               "  <sensor type=\"perspective\"/>\n</scene>\n",
                               "old.xml", {}),
-              "old.xml:2:", "unknown integrator type 'direct'");
+              "old.xml:2:", "unknown integrator type 'ao'");
 }
 
 // The BSDFs beyond the subset: parameters recorded by name, named conductor materials, and
