@@ -210,8 +210,10 @@ JobManager::JobManager(const JobManagerOptions& options, JobStore* store, Metric
       own_registry_(registry ? nullptr : std::make_unique<MetricsRegistry>()),
       registry_(registry ? registry : own_registry_.get()),
       metrics_(registry_) {
-  registry_->AddCollector([this](MetricsWriter& w) { CollectMetrics(w); });
+  collector_ = registry_->AddCollector([this](MetricsWriter& w) { CollectMetrics(w); });
 }
+
+JobManager::~JobManager() { registry_->RemoveCollector(collector_); }
 
 void JobManager::CollectMetrics(MetricsWriter& w) const {
   std::lock_guard<std::mutex> lock(mu_);

@@ -145,6 +145,8 @@ class JobManager {
   static absl::StatusOr<std::unique_ptr<JobManager>> Create(const JobManagerOptions& options,
                                                             JobStore* store,
                                                             MetricsRegistry* registry = nullptr);
+  // Takes its collector out of the registry (which may outlive it: a Create that failed).
+  ~JobManager();
 
   // --- Job API. Errors: NOT_FOUND (unknown job), INVALID_ARGUMENT (bad scene: the loader's
   // "path:line: ..." message; a bundle path leaving the bundle; bad settings), RESOURCE_EXHAUSTED
@@ -415,6 +417,7 @@ class JobManager {
   JobStore* const store_;
   std::unique_ptr<MetricsRegistry> own_registry_;  // when Create was given none
   MetricsRegistry* registry_;
+  uint64_t collector_ = 0;  // registry_'s handle of CollectMetrics
   CoordinatorMetrics metrics_;
   std::unique_ptr<StoreWriter> writer_;  // job-state writes, off the lock
   mutable std::mutex mu_;

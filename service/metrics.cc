@@ -1,6 +1,8 @@
 // Metrics registry and the Prometheus text format (see metrics.h).
 #include "service/metrics.h"
 
+#include <algorithm>
+
 #include <spdlog/spdlog.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -129,9 +131,17 @@ Histogram* MetricsRegistry::AddHistogram(const std::string& name, const std::str
   return f.children.back().histogram.get();
 }
 
-void MetricsRegistry::AddCollector(std::function<void(MetricsWriter&)> collect) {
+uint64_t MetricsRegistry::AddCollector(std::function<void(MetricsWriter&)> collect) {
   std::lock_guard<std::mutex> lock(mu_);
-  collectors_.push_back(std::move(collect));
+  collectors_.emplace_back(next_collector_, std::move(collect));
+  return next_collector_++;
+}
+
+void MetricsRegistry::RemoveCollector(uint64_t handle) {
+  std::lock_guard<std::mutex> lock(mu_);  // waits for a Render() in progress
+  collectors_.erase(std::remove_if(collectors_.begin(), collectors_.end(),
+                                   [&](const auto& c) { return c.first == handle; }),
+                    collectors_.end());
 }
 
 std::string MetricsRegistry::Render() const {
@@ -160,7 +170,7 @@ std::string MetricsRegistry::Render() const {
       }
     }
   }
-  for (const auto& collect : collectors_) collect(w);
+  for (const auto& [handle, collect] : collectors_) collect(w);
   return out;
 }
 

@@ -112,8 +112,10 @@ class MetricsRegistry {
   Histogram* AddHistogram(const std::string& name, const std::string& help,
                           std::vector<double> bounds, const MetricLabels& labels = {});
   // Called on every Render(), after the registered metrics; writes its own families (names
-  // distinct from the registered ones).
-  void AddCollector(std::function<void(MetricsWriter&)> collect);
+  // distinct from the registered ones). Returns a handle for RemoveCollector.
+  uint64_t AddCollector(std::function<void(MetricsWriter&)> collect);
+  // Removes a collector (its owner is going away): no Render() calls it after this returns.
+  void RemoveCollector(uint64_t handle);
 
   // The text exposition of every metric, families in the order they were first added.
   std::string Render() const;
@@ -133,7 +135,8 @@ class MetricsRegistry {
 
   mutable std::mutex mu_;  // guards the structure (Add*, Render), not the values
   std::vector<std::unique_ptr<Family>> families_;
-  std::vector<std::function<void(MetricsWriter&)>> collectors_;
+  std::vector<std::pair<uint64_t, std::function<void(MetricsWriter&)>>> collectors_;
+  uint64_t next_collector_ = 1;
 };
 
 // Serves `metrics` (not owned, must outlive the server) as Prometheus text at GET /metrics on

@@ -53,5 +53,27 @@ TEST(MetricsFormatTest, FamiliesGroupChildrenAndCollectorsFollow) {
             "# HELP c C.\n# TYPE c gauge\nc 1.5\n");
 }
 
+// A collector's owner may go before the registry (a coordinator whose JobManager failed to start
+// while its metrics server was up): once removed, Render() no longer calls it.
+TEST(MetricsFormatTest, ARemovedCollectorIsNotCalled) {
+  MetricsRegistry r;
+  int calls = 0;
+  const uint64_t a = r.AddCollector([&](MetricsWriter& w) {
+    ++calls;
+    w.Family("a", "gauge", "A.");
+    w.Sample("a", {}, 1);
+  });
+  r.AddCollector([](MetricsWriter& w) {
+    w.Family("b", "gauge", "B.");
+    w.Sample("b", {}, 2);
+  });
+  EXPECT_NE(r.Render().find("a 1"), std::string::npos);
+  r.RemoveCollector(a);
+  const std::string after = r.Render();
+  EXPECT_EQ(after.find("a 1"), std::string::npos);
+  EXPECT_NE(after.find("b 2"), std::string::npos);
+  EXPECT_EQ(calls, 1);
+}
+
 }  // namespace
 }  // namespace irfarm
