@@ -481,9 +481,18 @@ float Scene::PassProbability(unsigned geom, unsigned prim, float bu, float bv, c
     SphereUv(n, &u, &v);
     ng = m.flip ? -n : n;
   } else {
-    if (!m.uvs.empty())
-      TriangleUv(m.uvs, &m.indices[3 * size_t(prim)], 1 - bu - bv, bu, bv, &u, &v);
+    const uint32_t* tri = &m.indices[3 * size_t(prim)];
+    if (!m.uvs.empty()) TriangleUv(m.uvs, tri, 1 - bu - bv, bu, bv, &u, &v);
     ng = m.tri_info[prim].ng;
+    // Against the shading normal where the mesh has one, as the BSDF's Sample sees the surface
+    // (a pane with smoothed normals passed shadow rays by its geometric cosine, paths by the
+    // shading one: the two halves of MIS disagreed).
+    if (!m.normals.empty()) {
+      const Vec3 n =
+          m.normals[tri[0]] * (1 - bu - bv) + m.normals[tri[1]] * bu + m.normals[tri[2]] * bv;
+      const float len = Length(n) * Length(d);
+      if (len > 0) cos_theta = std::min(1.0f, std::abs(Dot(d, n)) / len);
+    }
   }
   return materials_[size_t(m.material)]->PassThrough(BsdfContext{u, v}, cos_theta, Dot(d, ng) < 0,
                                                      delta_light);
@@ -529,7 +538,7 @@ bool Scene::OccludedPassThrough(Ray ray, bool delta_light) const {
     SurfaceHit hit;
     if (!Intersect(ray, &hit)) return false;
     const float pass = materials_[size_t(hit.material)]->PassThrough(
-        BsdfContext{hit.u, hit.v}, AbsCos(ray.dir, hit.ng), Dot(ray.dir, hit.ng) < 0, delta_light);
+        BsdfContext{hit.u, hit.v}, AbsCos(ray.dir, hit.ns), Dot(ray.dir, hit.ng) < 0, delta_light);
     if (!(pass > 0)) return true;
     h = HashCombine(h, (uint64_t(hit.geom) << 32) | hit.prim);
     if (Rng::ToUnitFloat(uint32_t(h >> 32)) >= pass) return true;

@@ -166,7 +166,8 @@ class Scene {
   static void PassThroughFilter(const RTCFilterFunctionNArguments* args);
   // The chance that a shadow ray passes the surface of geometry `geom` at the hit (primitive
   // prim, Embree's barycentrics bu, bv, point p), meeting it at |cos| = cos_theta to its
-  // geometric normal.
+  // geometric normal; a mesh with vertex normals is met at the cosine to its shading normal
+  // instead, as the BSDF's Sample sees it.
   // `d`: the ray's direction (which side of the surface it meets: Bsdf::PassThrough's front).
   float PassProbability(unsigned geom, unsigned prim, float bu, float bv, const Vec3& p,
                         const Vec3& d, float cos_theta, bool delta_light) const;
