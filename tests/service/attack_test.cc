@@ -873,7 +873,14 @@ TEST_F(AttackTest, AStoppedWorkerFinishesItsTileAndTakesNoOther) {
     if (!leased) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   ASSERT_TRUE(leased);
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the tile is rendering
+  // The tile is rendering once its region came in (the worker sends it just before the render).
+  bool rendering = false;
+  for (int k = 0; k < 1000 && !rendering; ++k) {
+    rendering = manager_->metrics_registry()->Render().find("irfarm_tile_regions_total 1") !=
+                std::string::npos;
+    if (!rendering) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_TRUE(rendering);
   const auto stopped = std::chrono::steady_clock::now();
   StopHonestWorker();  // Stop(), then Run() returns when the session has ended
   std::printf("MEASURED the stopped worker left %.2f s after Stop\n",
