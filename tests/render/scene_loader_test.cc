@@ -1517,6 +1517,17 @@ TEST(SceneLoaderTest, LoadsPly) {
   EXPECT_EQ(bin.indices, expected);
   EXPECT_EQ(scene->shapes.at(1).mesh.indices.size(), 3u);
   EXPECT_TRUE(scene->shapes.at(1).mesh.normals.empty());
+  // flip_tex_coords, as Mitsuba's ply reads it (off by default): v becomes 1 - v.
+  const auto flipped = Load(R"(  <shape type="ply">
+    <string name="filename" value="meshes/binary.ply"/>
+    <boolean name="flip_tex_coords" value="true"/>
+  </shape>
+)",
+                            dir + "/scene.xml");
+  ASSERT_TRUE(flipped.ok()) << flipped.status();
+  ASSERT_EQ(flipped->shapes.at(0).mesh.uvs.size(), 8u);
+  for (size_t i = 0; i < 8; ++i)
+    EXPECT_FLOAT_EQ(flipped->shapes.at(0).mesh.uvs[i], i % 2 ? 1 - bin.uvs[i] : bin.uvs[i]) << i;
 
   WriteFile(dir + "/meshes/binary.ply", BinaryPly(4));
   ExpectError(Load("  <shape type=\"ply\">\n    <string name=\"filename\" "
