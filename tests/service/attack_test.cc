@@ -980,14 +980,22 @@ TEST_F(AttackTest, AFailureReasonIsCutBetweenCharacters) {
   std::string a;
   ASSERT_TRUE(Submit(kAlice, Request(/*tile_size=*/64), &a).ok());
   const std::string reason = std::string(199, 'x') + "\xc3\xa9";
-  for (int i = 0; i < 3; ++i) {
-    FakeWorker f(channel_, kWorker, "bad" + std::to_string(i));
-    const std::optional<v1::TileLease> l = f.NextLease();
-    ASSERT_TRUE(l.has_value());
-    ASSERT_TRUE(f.Send(Failed(l->job_id(), l->tile_index(), l->lease_token(), reason)));
-    f.Close();
-  }
+  // As JobFailsOnlyWhenATileFailedOnThreeWorkers: three workers connected throughout, each
+  // failing every lease it gets (closing one right after its TileFailed can cancel the stream
+  // before the coordinator reads it, and the tile then fails as "disconnected").
+  std::vector<std::unique_ptr<FakeWorker>> workers;
+  for (int i = 0; i < 3; ++i)
+    workers.push_back(std::make_unique<FakeWorker>(channel_, kWorker, "bad" + std::to_string(i)));
+  std::vector<std::thread> threads;
+  for (int i = 0; i < 3; ++i)
+    threads.emplace_back([&, i] {
+      FakeWorker& w = *workers[size_t(i)];
+      while (std::optional<v1::TileLease> l = w.NextLease())
+        if (!w.Send(Failed(l->job_id(), l->tile_index(), l->lease_token(), reason))) break;
+    });
   const v1::Job job = WaitFinal(a, 30);
+  for (auto& w : workers) w->Cancel();
+  for (std::thread& t : threads) t.join();
   EXPECT_EQ(job.state(), v1::JOB_STATE_FAILED);
   EXPECT_NE(job.error().find(std::string(199, 'x') + "..."), std::string::npos) << job.error();
   std::string serialized;
