@@ -120,6 +120,13 @@ class FakeWorker {
     final_ = stream_->Finish();
     return final_;
   }
+  // Ends the session in order: half-closes the stream and reads until the coordinator ends it,
+  // so every message sent before is read (Close cancels, which can drop the last messages).
+  grpc::Status Leave() {
+    if (closed_) return final_;
+    stream_->WritesDone();
+    return Finish();
+  }
   // Reads to the end of the stream (the coordinator ended it); the final status.
   grpc::Status Finish() {
     v1::CoordinatorMessage m;
@@ -837,7 +844,7 @@ TEST_F(AttackTest, ADrainedWorkersLeaseIsNotATileFailure) {
     FakeWorker f(channel_, kWorker, "stopped" + std::to_string(i));
     ASSERT_TRUE(f.NextLease().has_value()) << i;
     ASSERT_TRUE(f.Send(drain));
-    f.Close();
+    f.Leave();  // the Drain is read before the session ends
     v1::Job job;
     for (int k = 0; k < 100; ++k) {  // until the coordinator saw the session end
       ASSERT_TRUE(Get(kAdmin, a, &job).ok());
