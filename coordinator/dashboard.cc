@@ -3,6 +3,8 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include "service/loopback.h"
+
 namespace irfarm {
 namespace {
 
@@ -51,20 +53,13 @@ std::string Header(const HttpRequest& r, const std::string& name) {
   return it == r.headers.end() ? "" : it->second;
 }
 
-// Whether the request's Host names this machine's loopback (127.0.0.1, localhost, [::1], with
-// any port). An open dashboard (no client tokens) answers only those: a web page whose name an
-// attacker rebinds to 127.0.0.1 (DNS rebinding) is same-origin with the dashboard and could send
-// X-Irfarm-Request, but its requests carry its own name as Host.
+// Whether the request's Host names this machine's loopback. An open dashboard (no client tokens)
+// answers only those: a web page whose name an attacker rebinds to 127.0.0.1 (DNS rebinding) is
+// same-origin with the dashboard and could send X-Irfarm-Request, but its requests carry its own
+// name as Host.
 bool LoopbackHost(const HttpRequest& r) {
-  std::string host = Header(r, "host");
-  if (!host.empty() && host.front() == '[') {
-    const size_t close = host.find(']');
-    host = close == std::string::npos ? "" : host.substr(0, close + 1);
-  } else if (const size_t colon = host.rfind(':'); colon != std::string::npos) {
-    host.resize(colon);
-  }
-  for (char& c : host) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return host == "127.0.0.1" || host == "localhost" || host == "[::1]";
+  const std::string host = Header(r, "host");
+  return !host.empty() && host.rfind("unix:", 0) != 0 && IsLoopbackAddress(host);
 }
 
 HttpResponse ForeignHost() {

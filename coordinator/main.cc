@@ -39,17 +39,10 @@
 #include "coordinator/timed_job_store.h"
 #include "coordinator/worker_service.h"
 #include "service/http_server.h"
+#include "service/loopback.h"
 #include "service/metrics.h"
 
 namespace {
-
-// True for 127.0.0.0/8, ::1 and localhost (with a port, unix: sockets too).
-bool IsLoopback(const std::string& address) {
-  if (address.rfind("unix:", 0) == 0) return true;
-  std::string host = address.substr(0, address.rfind(':'));
-  if (host.size() >= 2 && host.front() == '[') host = host.substr(1, host.size() - 2);
-  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
-}
 
 bool ReadFile(const std::string& path, std::string* out) {
   std::ifstream in(path, std::ios::binary);
@@ -182,14 +175,16 @@ int main(int argc, char** argv) {
     tokens[i] = std::move(*t);
   }
   irfarm::Authenticator auth(tokens[0], tokens[1], tokens[2]);
-  if (!http_address.empty() && !IsLoopback(http_address) && auth.clients_open() && !insecure) {
+  if (!http_address.empty() && !irfarm::IsLoopbackAddress(http_address) && auth.clients_open() &&
+      !insecure) {
     spdlog::error(
         "refusing to serve the dashboard on {} without client tokens; pass --insecure "
         "to do it anyway",
         http_address);
     return 1;
   }
-  if (!IsLoopback(listen) && (auth.clients_open() || auth.workers_open()) && !insecure) {
+  if (!irfarm::IsLoopbackAddress(listen) && (auth.clients_open() || auth.workers_open()) &&
+      !insecure) {
     spdlog::error(
         "refusing to listen on {} without client and worker tokens (--client-token-file, "
         "--worker-token-file); pass --insecure to do it anyway",
@@ -212,7 +207,7 @@ int main(int argc, char** argv) {
   } else if (!tls_client_ca.empty()) {
     spdlog::error("--tls-client-ca needs --tls-cert and --tls-key");
     return 1;
-  } else if (!IsLoopback(listen)) {
+  } else if (!irfarm::IsLoopbackAddress(listen)) {
     spdlog::warn("listening on {} without TLS: tokens travel in clear text", listen);
   }
 

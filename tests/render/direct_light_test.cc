@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 
 #include "render/image.h"
 #include "render/renderer.h"
@@ -67,6 +68,29 @@ Built Build(const std::string& xml) {
   EXPECT_TRUE(scene.ok()) << scene.status();
   b.scene = std::move(*scene);
   return b;
+}
+
+// The image mean of `integrator` at `spp` (seeds 1 and 2 averaged; `adjust` changes the
+// settings first) and the variance of that mean, from the two seeds' per-pixel differences.
+std::pair<double, double> MeanAndVariance(
+    const Built& b, const char* integrator, int spp,
+    const std::function<void(RenderSettings&)>& adjust = nullptr) {
+  RenderSettings s = *SettingsForScene(b.desc, integrator);
+  s.spp = spp;
+  if (adjust) adjust(s);
+  s.seed = 1;
+  const Image a = Render(*b.scene, s).image;
+  s.seed = 2;
+  const Image c = Render(*b.scene, s).image;
+  double sum = 0, sq = 0;
+  const double n = double(a.pixels.size()) * 3;
+  for (size_t i = 0; i < a.pixels.size(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      sum += (double(a.pixels[i][k]) + c.pixels[i][k]) / 2;
+      const double d = double(a.pixels[i][k]) - c.pixels[i][k];
+      sq += d * d / 4;  // variance of the two renders' mean, per pixel
+    }
+  return {sum / n, sq / (n * n)};
 }
 
 TEST(DirectLightTest, UnoccludedLampIsNoiseFreeAtOneSpp) {
@@ -189,28 +213,9 @@ TEST(DirectLightTest, CoatedPlaneMatchesPathTracer) {
   </bsdf>
 )");
   const Built b = Build(xml);
-  // Mean over pixels and its variance from two seeds' per-pixel differences.
-  auto mean_and_var = [&](const char* integrator, int spp) {
-    RenderSettings s = *SettingsForScene(b.desc, integrator);
-    s.spp = spp;
-    s.irrcache.path.max_depth = 2;
-    double sum = 0, sq = 0;
-    s.seed = 1;
-    const Image a = Render(*b.scene, s).image;
-    s.seed = 2;
-    const Image c = Render(*b.scene, s).image;
-    const double n = double(a.width) * a.height * 3;
-    for (int y = 0; y < a.height; ++y)
-      for (int x = 0; x < a.width; ++x)
-        for (int k = 0; k < 3; ++k) {
-          sum += (double(a.at(x, y)[k]) + c.at(x, y)[k]) / 2;
-          const double d = double(a.at(x, y)[k]) - c.at(x, y)[k];
-          sq += d * d / 4;  // variance of the two renders' mean, per pixel
-        }
-    return std::pair<double, double>(sum / n, sq / (n * n));
-  };
-  const auto [path, path_var] = mean_and_var("path", 64);
-  const auto [irr, irr_var] = mean_and_var("irrcache", 16);
+  const auto max_depth_2 = [](RenderSettings& s) { s.irrcache.path.max_depth = 2; };
+  const auto [path, path_var] = MeanAndVariance(b, "path", 64, max_depth_2);
+  const auto [irr, irr_var] = MeanAndVariance(b, "irrcache", 16, max_depth_2);
   const double se = std::sqrt(path_var + irr_var);
   std::printf("MEASURED path %.5f irrcache %.5f (se %.2e)\n", path, irr, se);
   EXPECT_GT(se, 0);
@@ -244,25 +249,8 @@ TEST(DirectLightTest, ShadowedLampSeenInARoughMirrorMatchesPathTracer) {
     <emitter type="area"><rgb name="radiance" value="5"/></emitter></shape>
 </scene>
 )");
-  const auto mean_and_var = [&](const char* integrator) {
-    RenderSettings s = *SettingsForScene(b.desc, integrator);
-    s.spp = 256;
-    s.seed = 1;
-    const Image a = Render(*b.scene, s).image;
-    s.seed = 2;
-    const Image c = Render(*b.scene, s).image;
-    double sum = 0, sq = 0;
-    const double n = double(a.pixels.size()) * 3;
-    for (size_t i = 0; i < a.pixels.size(); ++i)
-      for (int k = 0; k < 3; ++k) {
-        sum += (double(a.pixels[i][k]) + c.pixels[i][k]) / 2;
-        const double d = double(a.pixels[i][k]) - c.pixels[i][k];
-        sq += d * d / 4;
-      }
-    return std::pair<double, double>(sum / n, sq / (n * n));
-  };
-  const auto [path, path_var] = mean_and_var("path");
-  const auto [irr, irr_var] = mean_and_var("irrcache");
+  const auto [path, path_var] = MeanAndVariance(b, "path", 256);
+  const auto [irr, irr_var] = MeanAndVariance(b, "irrcache", 256);
   const double se = std::sqrt(path_var + irr_var);
   std::printf("MEASURED path %.5f irrcache %.5f (%+.2f%%, se %.2e)\n", path, irr,
               100 * (irr / path - 1), se);

@@ -283,6 +283,13 @@ class AttackTest : public ::testing::Test {
     c->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
     if (!token.empty()) c->AddMetadata("authorization", "Bearer " + token);
   }
+  // A width x height job of the same scene in tiles of tile_size.
+  v1::SubmitJobRequest LargeRequest(int width, int height, int tile_size) {
+    v1::SubmitJobRequest req = Request(tile_size);
+    (*req.mutable_settings()->mutable_defines())["resx"] = std::to_string(width);
+    (*req.mutable_settings()->mutable_defines())["resy"] = std::to_string(height);
+    return req;
+  }
   v1::SubmitJobRequest Request(int tile_size = 16) {
     v1::SubmitJobRequest req;
     *req.mutable_scene()->mutable_bundle() = *MakeBundle(kScene);
@@ -915,9 +922,7 @@ TEST_F(AttackTest, AStoppedWorkerFinishesItsTileAndTakesNoOther) {
 TEST_F(AttackTest, DownloadsPastTheLimitAreRefusedUntilOneEnds) {
   max_downloads_ = 1;
   StartServer();
-  v1::SubmitJobRequest req = Request(/*tile_size=*/512);
-  (*req.mutable_settings()->mutable_defines())["resx"] = "2048";
-  (*req.mutable_settings()->mutable_defines())["resy"] = "2048";
+  const v1::SubmitJobRequest req = LargeRequest(2048, 2048, /*tile_size=*/512);
   std::string a;
   ASSERT_TRUE(Submit(kAlice, req, &a).ok());
   FakeWorker f(channel_, kWorker, "w");
@@ -1017,9 +1022,7 @@ TEST_F(AttackTest, AFailureReasonIsCutBetweenCharacters) {
 // has come back.
 TEST_F(AttackTest, PreviewsAreBoundedAndAverageTheirBlocks) {
   StartServer();
-  v1::SubmitJobRequest req = Request(/*tile_size=*/512);
-  (*req.mutable_settings()->mutable_defines())["resx"] = "2048";
-  (*req.mutable_settings()->mutable_defines())["resy"] = "1536";
+  const v1::SubmitJobRequest req = LargeRequest(2048, 1536, /*tile_size=*/512);
   std::string a;
   ASSERT_TRUE(Submit(kAlice, req, &a).ok());
   FakeWorker f(channel_, kWorker, "w");
