@@ -13,7 +13,9 @@
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <memory>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <utility>
 #include <vector>
@@ -146,10 +148,40 @@ class Parser {
   absl::StatusOr<SceneDesc> Parse(const std::string& xml);
 
  private:
+  // The scene file (files_[0]) and every file it includes (<include filename=...>), each with
+  // its own document and line table, so that a node's messages name the file it came from.
+  struct SourceFile {
+    std::string path;              // as messages show it
+    fs::path rel_dir;              // its folder, relative to the scene folder ("" for the scene)
+    int depth = 0;                 // includes above it
+    std::vector<size_t> newlines;  // offsets of '\n' in its text, for line numbers
+    pugi::xml_document doc;
+  };
+  // Mitsuba's ParserConfig::max_include_depth; the file count bounds what an upload can make the
+  // loader read (a file including itself twice, 15 deep, would be 2^15 reads).
+  static constexpr int kMaxIncludeDepth = 15;
+  static constexpr size_t kMaxIncludedFiles = 1024;
+  const SourceFile& FileOf(pugi::xml_node n) const;
+  // A file the scene names (a parameter, an <include>), relative to the scene folder and inside
+  // it: looked up next to the file that names it, then in the scene folder (as Mitsuba's file
+  // resolver does for included files). `full` is the path to open, `rel` the path in the folder.
+  struct FoundFile {
+    std::string full;
+    fs::path rel;
+  };
+  absl::StatusOr<FoundFile> ResolveFile(pugi::xml_node at, const std::string& value,
+                                        absl::string_view what) const;
+  // Reads the file an <include> names: the root of its document (a <scene>, whose children are
+  // read in the include's place, or one object), nesting-checked and upgraded.
+  absl::StatusOr<pugi::xml_node> LoadInclude(pugi::xml_node inc);
+  absl::Status CheckNesting(pugi::xml_node root) const;
+
   // Locations and messages.
   int Line(pugi::xml_node n) const;
-  SourceLoc Loc(pugi::xml_node n) const { return {path_, Line(n)}; }
-  std::string Where(pugi::xml_node n) const { return absl::StrCat(path_, ":", Line(n), ": "); }
+  SourceLoc Loc(pugi::xml_node n) const { return {FileOf(n).path, Line(n)}; }
+  std::string Where(pugi::xml_node n) const {
+    return absl::StrCat(FileOf(n).path, ":", Line(n), ": ");
+  }
   absl::Status Error(pugi::xml_node n, absl::string_view what) const {
     return absl::InvalidArgumentError(absl::StrCat(Where(n), what));
   }
@@ -170,6 +202,10 @@ class Parser {
 
   // The parameters of one plugin element.
   absl::StatusOr<Params> Collect(pugi::xml_node obj, absl::string_view kind);
+  absl::Status AddEntry(Params& p, pugi::xml_node c, absl::string_view kind);
+  // A <ref> to an id not read yet: parses the top-level bsdf, texture or shapegroup that defines
+  // it further down (Mitsuba 3 resolves references after reading the whole scene).
+  absl::Status ParseForward(pugi::xml_node at, const std::string& id);
   absl::StatusOr<const Entry*> Find(Params& p, absl::string_view name,
                                     std::initializer_list<absl::string_view> tags) const;
   pugi::xml_node NodeOf(const Params& p, absl::string_view name) const;
@@ -197,6 +233,8 @@ class Parser {
   absl::Status RegisterId(pugi::xml_node n, absl::string_view kind, int index);
   absl::StatusOr<std::string> PluginType(pugi::xml_node n, absl::string_view kind,
                                          std::initializer_list<absl::string_view> supported) const;
+  absl::Status ParseChildren(pugi::xml_node root);
+  absl::Status ParseTopLevel(pugi::xml_node c);
   absl::Status ParseIntegrator(pugi::xml_node n);
   absl::Status ParseSensor(pugi::xml_node n);
   absl::Status ParseFilm(pugi::xml_node n);
@@ -224,7 +262,12 @@ class Parser {
   const std::string path_;
   const fs::path base_dir_;
   const LoadOptions& options_;
-  std::vector<size_t> newlines_;             // offsets of '\n' in the text, for line numbers
+  std::vector<std::unique_ptr<SourceFile>> files_;
+  // Top-level bsdfs, textures and shapegroups by id, for <ref>s before them; parsed_ holds those
+  // parsed early (skipped where they stand), resolving_ those being parsed (a cycle check).
+  std::map<std::string, pugi::xml_node> forward_;
+  std::set<pugi::xml_node_struct*> parsed_;
+  std::vector<pugi::xml_node> resolving_;
   std::map<std::string, std::string> vars_;  // $name -> value: <default>s, then -D defines
   std::map<std::string, IdInfo> ids_;
   SceneDesc scene_;
@@ -258,11 +301,19 @@ class Parser {
                                                                 absl::string_view name) const;
 };
 
+const Parser::SourceFile& Parser::FileOf(pugi::xml_node n) const {
+  const pugi::xml_node root = n.root();
+  for (const std::unique_ptr<SourceFile>& f : files_)
+    if (f->doc == root) return *f;
+  return *files_[0];
+}
+
 int Parser::Line(pugi::xml_node n) const {
   const ptrdiff_t offset = n.offset_debug();
   if (offset < 0) return 0;
-  return int(std::lower_bound(newlines_.begin(), newlines_.end(), size_t(offset)) -
-             newlines_.begin()) +
+  const std::vector<size_t>& newlines = FileOf(n).newlines;
+  return int(std::lower_bound(newlines.begin(), newlines.end(), size_t(offset)) -
+             newlines.begin()) +
          1;
 }
 
@@ -451,68 +502,87 @@ absl::StatusOr<Params> Parser::Collect(pugi::xml_node obj, absl::string_view kin
   p.node = obj;
   LOADER_ASSIGN_OR_RETURN(const std::string type, Attr(obj, "type"));
   p.what = absl::StrCat(kind, " '", type, "'");
-  for (const pugi::xml_node c : obj.children()) {
-    if (c.type() == pugi::node_pcdata) return Error(c, absl::StrCat("unexpected text in ", p.what));
-    if (c.type() != pugi::node_element) continue;
-    const absl::string_view tag = c.name();
-    Entry e;
-    e.node = c;
-    if (tag == "spectrum") {
-      if (c.attribute("filename") || c.attribute("type")) {
-        return Error(c,
-                     "spectrum files (filename=) and spectrum plugins (type=) are not read: give "
-                     "value=\"...\" (a number or wavelength:value pairs) or an <rgb>");
-      }
-      LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"name", "value"}));
-      e.tag = "spectrum";
-      LOADER_ASSIGN_OR_RETURN(e.name, RequiredAttr(c, "name"));
-      LOADER_ASSIGN_OR_RETURN(const std::string text, RequiredAttr(c, "value"));
-      absl::StatusOr<Vec3> rgb = SpectrumToRgb(text, kind == "emitter");
-      if (!rgb.ok()) return Error(c, std::string(rgb.status().message()));
-      if (rgb->x < 0 || rgb->y < 0 || rgb->z < 0) {
-        Warn(c, absl::StrCat("spectrum '", e.name, "' lies outside sRGB (", rgb->x, ", ", rgb->y,
-                             ", ", rgb->z, "): negative parts set to 0, as Mitsuba does"));
-        *rgb = Max(*rgb, Vec3(0.0f));
-      }
-      e.rgb = *rgb;
-    } else if (IsPropertyTag(tag)) {
-      LOADER_RETURN_IF_ERROR(tag == "transform" ? CheckAttributes(c, {"name"})
-                             : IsOneOf(tag, {"point", "vector"})
-                                 ? CheckAttributes(c, {"name", "value", "x", "y", "z"})
-                                 : CheckAttributes(c, {"name", "value"}));
-      e.tag = std::string(tag);
-      LOADER_ASSIGN_OR_RETURN(e.name, RequiredAttr(c, "name"));
-    } else if (tag == "ref") {
-      LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"id", "name"}));
-      LOADER_ASSIGN_OR_RETURN(const std::string id, RequiredAttr(c, "id"));
-      const auto it = ids_.find(id);
-      if (it == ids_.end()) {
-        return Error(c, absl::StrCat("unknown id '", id,
-                                     "' (a <ref> names a bsdf, texture or shapegroup defined "
-                                     "earlier in the file)"));
-      }
-      if (it->second.index < 0) {
-        return Error(c, absl::StrCat("id '", id, "' names a ", it->second.kind,
-                                     "; only bsdfs and textures can be referenced"));
-      }
-      e.tag = it->second.kind;
-      e.ref = it->second.index;
-      LOADER_ASSIGN_OR_RETURN(e.name, Attr(c, "name"));
-    } else if (IsObjectTag(tag)) {
-      e.tag = std::string(tag);
-      LOADER_ASSIGN_OR_RETURN(e.name, Attr(c, "name"));
-    } else {
-      return Error(c, absl::StrCat("unknown element <", tag, "> in ", p.what));
-    }
-    for (const Entry& other : p.entries) {
-      if (!e.name.empty() && other.name == e.name) {
-        return Error(c, absl::StrCat("parameter '", e.name, "' given twice in ", p.what,
-                                     " (first at line ", Line(other.node), ")"));
-      }
-    }
-    p.entries.push_back(std::move(e));
-  }
+  for (const pugi::xml_node c : obj.children()) LOADER_RETURN_IF_ERROR(AddEntry(p, c, kind));
   return p;
+}
+
+absl::Status Parser::AddEntry(Params& p, pugi::xml_node c, absl::string_view kind) {
+  if (c.type() == pugi::node_pcdata) return Error(c, absl::StrCat("unexpected text in ", p.what));
+  if (c.type() != pugi::node_element) return absl::OkStatus();
+  const absl::string_view tag = c.name();
+  if (tag == "include") {
+    // In an object: an included object is one child (named by the include), an included scene's
+    // children are children here.
+    LOADER_ASSIGN_OR_RETURN(const pugi::xml_node inc, LoadInclude(c));
+    if (absl::string_view(inc.name()) != "scene") return AddEntry(p, inc, kind);
+    for (const pugi::xml_node d : inc.children()) {
+      if (absl::string_view(d.name()) == "default")
+        return Error(d, "a <default> in a file included inside an object is not read");
+      LOADER_RETURN_IF_ERROR(AddEntry(p, d, kind));
+    }
+    return absl::OkStatus();
+  }
+  Entry e;
+  e.node = c;
+  if (tag == "spectrum") {
+    if (c.attribute("filename") || c.attribute("type")) {
+      return Error(c,
+                   "spectrum files (filename=) and spectrum plugins (type=) are not read: give "
+                   "value=\"...\" (a number or wavelength:value pairs) or an <rgb>");
+    }
+    LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"name", "value"}));
+    e.tag = "spectrum";
+    LOADER_ASSIGN_OR_RETURN(e.name, RequiredAttr(c, "name"));
+    LOADER_ASSIGN_OR_RETURN(const std::string text, RequiredAttr(c, "value"));
+    absl::StatusOr<Vec3> rgb = SpectrumToRgb(text, kind == "emitter");
+    if (!rgb.ok()) return Error(c, std::string(rgb.status().message()));
+    if (rgb->x < 0 || rgb->y < 0 || rgb->z < 0) {
+      Warn(c, absl::StrCat("spectrum '", e.name, "' lies outside sRGB (", rgb->x, ", ", rgb->y,
+                           ", ", rgb->z, "): negative parts set to 0, as Mitsuba does"));
+      *rgb = Max(*rgb, Vec3(0.0f));
+    }
+    e.rgb = *rgb;
+  } else if (IsPropertyTag(tag)) {
+    LOADER_RETURN_IF_ERROR(tag == "transform" ? CheckAttributes(c, {"name"})
+                           : IsOneOf(tag, {"point", "vector"})
+                               ? CheckAttributes(c, {"name", "value", "x", "y", "z"})
+                               : CheckAttributes(c, {"name", "value"}));
+    e.tag = std::string(tag);
+    LOADER_ASSIGN_OR_RETURN(e.name, RequiredAttr(c, "name"));
+  } else if (tag == "ref") {
+    LOADER_RETURN_IF_ERROR(CheckAttributes(c, {"id", "name"}));
+    LOADER_ASSIGN_OR_RETURN(const std::string id, RequiredAttr(c, "id"));
+    auto it = ids_.find(id);
+    if (it == ids_.end()) {
+      LOADER_RETURN_IF_ERROR(ParseForward(c, id));
+      it = ids_.find(id);
+    }
+    if (it == ids_.end()) {
+      return Error(c, absl::StrCat("unknown id '", id,
+                                   "' (a <ref> names a bsdf, texture or shapegroup of the "
+                                   "scene)"));
+    }
+    if (it->second.index < 0) {
+      return Error(c, absl::StrCat("id '", id, "' names a ", it->second.kind,
+                                   "; only bsdfs and textures can be referenced"));
+    }
+    e.tag = it->second.kind;
+    e.ref = it->second.index;
+    LOADER_ASSIGN_OR_RETURN(e.name, Attr(c, "name"));
+  } else if (IsObjectTag(tag)) {
+    e.tag = std::string(tag);
+    LOADER_ASSIGN_OR_RETURN(e.name, Attr(c, "name"));
+  } else {
+    return Error(c, absl::StrCat("unknown element <", tag, "> in ", p.what));
+  }
+  for (const Entry& other : p.entries) {
+    if (!e.name.empty() && other.name == e.name) {
+      return Error(c, absl::StrCat("parameter '", e.name, "' given twice in ", p.what,
+                                   " (first at line ", Line(other.node), ")"));
+    }
+  }
+  p.entries.push_back(std::move(e));
+  return absl::OkStatus();
 }
 
 absl::StatusOr<const Entry*> Parser::Find(Params& p, absl::string_view name,
@@ -688,24 +758,130 @@ absl::StatusOr<std::string> Parser::GetFile(Params& p, absl::string_view name) c
   LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"string"}));
   if (e == nullptr) return Error(p.node, absl::StrCat(p.what, " needs a '", name, "' parameter"));
   LOADER_ASSIGN_OR_RETURN(const std::string value, RequiredAttr(e->node, "value"));
+  LOADER_ASSIGN_OR_RETURN(const FoundFile f, ResolveFile(e->node, value, name));
+  return f.full;
+}
+
+absl::StatusOr<Parser::FoundFile> Parser::ResolveFile(pugi::xml_node at, const std::string& value,
+                                                      absl::string_view what) const {
   const fs::path rel(value);
-  if (value.empty()) return Error(e->node, absl::StrCat("empty ", name));
+  if (value.empty()) return Error(at, absl::StrCat("empty ", what));
   if (rel.has_root_path()) {
-    return Error(e->node, absl::StrCat(name, " '", value,
-                                       "' is absolute; file names must be relative to the scene "
-                                       "folder and stay inside it"));
+    return Error(at, absl::StrCat(what, " '", value,
+                                  "' is absolute; file names must be relative to the scene "
+                                  "folder and stay inside it"));
   }
-  const fs::path normal = rel.lexically_normal();
-  if (!normal.empty() && *normal.begin() == "..") {
-    return Error(e->node, absl::StrCat(name, " '", value, "' leaves the scene folder"));
+  const SourceFile& from = FileOf(at);
+  std::vector<fs::path> candidates;
+  if (!from.rel_dir.empty()) candidates.push_back((from.rel_dir / rel).lexically_normal());
+  candidates.push_back(rel.lexically_normal());
+  std::vector<std::string> tried;
+  for (const fs::path& normal : candidates) {
+    if (normal.empty() || *normal.begin() == "..") continue;
+    const fs::path full = base_dir_.empty() ? normal : base_dir_ / normal;
+    std::error_code ec;
+    if (fs::is_regular_file(full, ec)) return FoundFile{full.string(), normal};
+    tried.push_back(full.string());
   }
-  const fs::path full = base_dir_.empty() ? normal : base_dir_ / normal;
-  std::error_code ec;
-  if (!fs::is_regular_file(full, ec)) {
-    return absl::NotFoundError(
-        absl::StrCat(Where(e->node), "file '", value, "' not found (", full.string(), ")"));
+  if (tried.empty()) return Error(at, absl::StrCat(what, " '", value, "' leaves the scene folder"));
+  return absl::NotFoundError(
+      absl::StrCat(Where(at), "file '", value, "' not found (", absl::StrJoin(tried, ", "), ")"));
+}
+
+absl::StatusOr<pugi::xml_node> Parser::LoadInclude(pugi::xml_node inc) {
+  LOADER_RETURN_IF_ERROR(CheckAttributes(inc, {"filename", "name"}));
+  const SourceFile& from = FileOf(inc);
+  if (from.depth + 1 >= kMaxIncludeDepth) {
+    return Error(inc, absl::StrCat("<include>s nested ", kMaxIncludeDepth,
+                                   " deep (Mitsuba's limit; a file including itself?)"));
   }
-  return full.string();
+  if (files_.size() > kMaxIncludedFiles)
+    return Error(inc, absl::StrCat("more than ", kMaxIncludedFiles, " included files"));
+  LOADER_ASSIGN_OR_RETURN(const std::string value, RequiredAttr(inc, "filename"));
+  LOADER_ASSIGN_OR_RETURN(const FoundFile found, ResolveFile(inc, value, "include filename"));
+  std::ifstream in(found.full, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (!in) return Error(inc, absl::StrCat("cannot read included file '", found.full, "'"));
+  const std::string xml = text.str();
+  auto file = std::make_unique<SourceFile>();
+  file->path = found.full;
+  file->rel_dir = found.rel.parent_path();
+  file->depth = from.depth + 1;
+  for (size_t i = 0; i < xml.size(); ++i)
+    if (xml[i] == '\n') file->newlines.push_back(i);
+  const pugi::xml_parse_result result =
+      file->doc.load_buffer(xml.data(), xml.size(), pugi::parse_default);
+  if (!result) {
+    const int line = int(std::lower_bound(file->newlines.begin(), file->newlines.end(),
+                                          size_t(std::max<ptrdiff_t>(result.offset, 0))) -
+                         file->newlines.begin()) +
+                     1;
+    return absl::InvalidArgumentError(absl::StrCat(file->path, ":", line,
+                                                   ": malformed XML: ", result.description(),
+                                                   " (included at ", Where(inc), ")"));
+  }
+  pugi::xml_node root = file->doc.document_element();
+  files_.push_back(std::move(file));
+  if (!root) return Error(inc, absl::StrCat("included file '", found.full, "' has no element"));
+  const absl::string_view tag = root.name();
+  if (tag != "scene" && !IsObjectTag(tag)) {
+    return Error(root,
+                 absl::StrCat("an included file holds a <scene> or one object, not <", tag, ">"));
+  }
+  LOADER_RETURN_IF_ERROR(CheckNesting(root));
+  LOADER_RETURN_IF_ERROR(UpgradeOldSyntax(root));
+  if (tag == "scene") {
+    LOADER_RETURN_IF_ERROR(CheckAttributes(root, {"version"}));
+  } else {
+    root.remove_attribute("version");
+    // Mitsuba names an included object after the include.
+    if (const pugi::xml_attribute name = inc.attribute("name")) {
+      pugi::xml_attribute own = root.attribute("name");
+      if (!own) own = root.append_attribute("name");
+      own.set_value(name.value());
+    }
+  }
+  return root;
+}
+
+// Elements are read recursively (a bsdf's nested bsdfs, a shapegroup's shapes, the old-syntax
+// upgrade): a file nesting thousands deep (an upload to the coordinator) would overflow the
+// stack. Real scenes nest a handful of levels; the depth is checked here without recursion.
+absl::Status Parser::CheckNesting(pugi::xml_node root) const {
+  constexpr int kMaxDepth = 64;
+  for (pugi::xml_node n = root.first_child(); n;) {
+    int depth = 1;
+    for (pugi::xml_node a = n.parent(); a != root; a = a.parent()) ++depth;
+    if (n.type() == pugi::node_element && depth > kMaxDepth)
+      return Error(n, absl::StrCat("elements nested more than ", kMaxDepth, " deep"));
+    if (n.first_child() && depth <= kMaxDepth) {
+      n = n.first_child();
+      continue;
+    }
+    while (n && n != root && !n.next_sibling()) n = n.parent();
+    if (!n || n == root) break;
+    n = n.next_sibling();
+  }
+  return absl::OkStatus();
+}
+
+absl::Status Parser::ParseForward(pugi::xml_node at, const std::string& id) {
+  const auto f = forward_.find(id);
+  if (f == forward_.end()) return absl::OkStatus();
+  const pugi::xml_node target = f->second;
+  if (std::find(resolving_.begin(), resolving_.end(), target) != resolving_.end())
+    return Error(at, absl::StrCat("circular reference to id '", id, "'"));
+  if (parsed_.count(target.internal_object()) != 0) return absl::OkStatus();
+  constexpr size_t kMaxChain = 64;  // bounds the recursion, as CheckNesting does
+  if (resolving_.size() >= kMaxChain)
+    return Error(
+        at, absl::StrCat("references to ids defined later chained more than ", kMaxChain, " deep"));
+  resolving_.push_back(target);
+  parsed_.insert(target.internal_object());
+  const absl::Status st = ParseTopLevel(target);
+  resolving_.pop_back();
+  return st;
 }
 
 // irrcache: every parameter not read yet, as name -> value text.
@@ -763,10 +939,9 @@ absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
                                                    "ppm", "sppm", "ptracer", "volpath_simple"});
   LOADER_ASSIGN_OR_RETURN(
       const std::string type,
-      old_estimator
-          ? RequiredAttr(n, "type")
-          : PluginType(n, "integrator",
-                       {"path", "irrcache", "volpath", "prbvolpath", "prb", "direct"}));
+      old_estimator ? RequiredAttr(n, "type")
+                    : PluginType(n, "integrator",
+                                 {"path", "irrcache", "volpath", "prbvolpath", "prb", "direct"}));
   LOADER_ASSIGN_OR_RETURN(Params p, Collect(n, "integrator"));
   IntegratorDesc& d = scene_.integrator;
   // Mitsuba's volumetric and differentiable path tracers render a scene without media (irfarm
@@ -1566,18 +1741,66 @@ absl::Status Parser::UpgradeOldSyntax(pugi::xml_node root) {
   return absl::OkStatus();
 }
 
+absl::Status Parser::ParseChildren(pugi::xml_node root) {
+  for (const pugi::xml_node c : root.children()) {
+    if (c.type() == pugi::node_pcdata) return Error(c, "unexpected text in <scene>");
+    if (c.type() != pugi::node_element || absl::string_view(c.name()) == "default") continue;
+    if (parsed_.count(c.internal_object()) != 0) continue;  // parsed early for a <ref>
+    LOADER_RETURN_IF_ERROR(ParseTopLevel(c));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status Parser::ParseTopLevel(pugi::xml_node c) {
+  const absl::string_view tag = c.name();
+  if (tag == "integrator") return ParseIntegrator(c);
+  if (tag == "sensor") return ParseSensor(c);
+  if (tag == "bsdf") {
+    LOADER_ASSIGN_OR_RETURN(BsdfDesc b, ParseBsdf(c));
+    return AddBsdf(c, std::move(b)).status();
+  }
+  if (tag == "texture") return ParseTexture(c).status();
+  if (tag == "shape") return ParseShape(c);
+  if (tag == "emitter") return ParseEmitter(c);
+  if (tag == "include") {
+    LOADER_ASSIGN_OR_RETURN(const pugi::xml_node inc, LoadInclude(c));
+    if (absl::string_view(inc.name()) != "scene") return ParseTopLevel(inc);
+    // An included scene's <default>s set what is not set yet (the including file's defaults and
+    // the -D defines win), then its children are read here.
+    for (const pugi::xml_node d : inc.children("default")) {
+      LOADER_RETURN_IF_ERROR(CheckAttributes(d, {"name", "value"}));
+      const std::string name = d.attribute("name").value();
+      if (name.empty() || !d.attribute("value"))
+        return Error(d, "<default> needs a name and a value");
+      vars_.try_emplace(name, d.attribute("value").value());
+    }
+    return ParseChildren(inc);
+  }
+  if (tag == "spectrum") {
+    return Error(c,
+                 "a <spectrum> outside the object that uses it is not read: give it inside "
+                 "that object, as <spectrum name=... value=...> or <rgb>");
+  }
+  return Error(c, absl::StrCat("unknown element <", tag,
+                               "> in <scene> (supported: default, integrator, sensor, bsdf, "
+                               "texture, shape, emitter, include)"));
+}
+
 absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
+  files_.push_back(std::make_unique<SourceFile>());
+  SourceFile& main = *files_[0];
+  main.path = path_;
   for (size_t i = 0; i < xml.size(); ++i) {
-    if (xml[i] == '\n') newlines_.push_back(i);
+    if (xml[i] == '\n') main.newlines.push_back(i);
   }
   scene_.path = path_;
-  pugi::xml_document doc;
+  pugi::xml_document& doc = main.doc;
   const pugi::xml_parse_result result =
       doc.load_buffer(xml.data(), xml.size(), pugi::parse_default);
   if (!result) {
-    const int line = int(std::lower_bound(newlines_.begin(), newlines_.end(),
+    const int line = int(std::lower_bound(main.newlines.begin(), main.newlines.end(),
                                           size_t(std::max<ptrdiff_t>(result.offset, 0))) -
-                         newlines_.begin()) +
+                         main.newlines.begin()) +
                      1;
     return absl::InvalidArgumentError(
         absl::StrCat(path_, ":", line, ": malformed XML: ", result.description()));
@@ -1588,23 +1811,7 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
     return Error(root, absl::StrCat("the root element must be <scene>, not <", root.name(), ">"));
   }
   LOADER_RETURN_IF_ERROR(CheckAttributes(root, {"version"}));
-  // Elements are read recursively (a bsdf's nested bsdfs, a shapegroup's shapes, the old-syntax
-  // upgrade): a file nesting thousands deep (an upload to the coordinator) would overflow the
-  // stack. Real scenes nest a handful of levels; the depth is checked here without recursion.
-  constexpr int kMaxDepth = 64;
-  for (pugi::xml_node n = root.first_child(); n;) {
-    int depth = 1;
-    for (pugi::xml_node a = n.parent(); a != root; a = a.parent()) ++depth;
-    if (n.type() == pugi::node_element && depth > kMaxDepth)
-      return Error(n, absl::StrCat("elements nested more than ", kMaxDepth, " deep"));
-    if (n.first_child() && depth <= kMaxDepth) {
-      n = n.first_child();
-      continue;
-    }
-    while (n && n != root && !n.next_sibling()) n = n.parent();
-    if (!n || n == root) break;
-    n = n.next_sibling();
-  }
+  LOADER_RETURN_IF_ERROR(CheckNesting(root));
   LOADER_RETURN_IF_ERROR(UpgradeOldSyntax(root));
 
   // <default>s first, so that $name works anywhere; then the -D defines override them.
@@ -1623,34 +1830,17 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
   }
   for (const auto& [name, value] : options_.defines) vars_[name] = value;
 
+  // What a <ref> may name before its definition.
   for (const pugi::xml_node c : root.children()) {
-    if (c.type() == pugi::node_pcdata) return Error(c, "unexpected text in <scene>");
-    if (c.type() != pugi::node_element) continue;
     const absl::string_view tag = c.name();
-    if (tag == "default") continue;
-    if (tag == "integrator") {
-      LOADER_RETURN_IF_ERROR(ParseIntegrator(c));
-    } else if (tag == "sensor") {
-      LOADER_RETURN_IF_ERROR(ParseSensor(c));
-    } else if (tag == "bsdf") {
-      LOADER_ASSIGN_OR_RETURN(BsdfDesc b, ParseBsdf(c));
-      LOADER_RETURN_IF_ERROR(AddBsdf(c, std::move(b)).status());
-    } else if (tag == "texture") {
-      LOADER_RETURN_IF_ERROR(ParseTexture(c).status());
-    } else if (tag == "shape") {
-      LOADER_RETURN_IF_ERROR(ParseShape(c));
-    } else if (tag == "emitter") {
-      LOADER_RETURN_IF_ERROR(ParseEmitter(c));
-    } else if (tag == "spectrum") {
-      return Error(c,
-                   "a <spectrum> outside the object that uses it is not read: give it inside "
-                   "that object, as <spectrum name=... value=...> or <rgb>");
-    } else {
-      return Error(c, absl::StrCat("unknown element <", tag,
-                                   "> in <scene> (supported: default, integrator, sensor, bsdf, "
-                                   "texture, shape, emitter)"));
-    }
+    if (!c.attribute("id") ||
+        !(tag == "bsdf" || tag == "texture" ||
+          (tag == "shape" && absl::string_view(c.attribute("type").value()) == "shapegroup")))
+      continue;
+    const absl::StatusOr<std::string> id = Attr(c, "id");
+    if (id.ok() && !id->empty()) forward_.try_emplace(*id, c);  // errors: where it is parsed
   }
+  LOADER_RETURN_IF_ERROR(ParseChildren(root));
   if (!sensor_) return Error(root, "the scene has no <sensor>");
   return std::move(scene_);
 }

@@ -25,11 +25,43 @@ absl::StatusOr<std::string> ReadFile(const std::string& path) {
   return ss.str();
 }
 
-void CollectFilenames(const pugi::xml_node& node, std::set<std::string>* out) {
+// Where the scene loader finds a file named in a scene file whose folder is `rel_dir` (relative
+// to the scene folder): next to that file if it is there, else in the scene folder
+// (render/scene_loader.cc, Parser::ResolveFile).
+std::string BundlePathOf(const fs::path& folder, const fs::path& rel_dir, const std::string& name) {
+  if (!rel_dir.empty()) {
+    const fs::path near = (rel_dir / name).lexically_normal();
+    std::error_code ec;
+    if (!near.empty() && *near.begin() != ".." && fs::is_regular_file(folder / near, ec))
+      return near.string();
+  }
+  return fs::path(name).lexically_normal().string();
+}
+
+// Every file named under `node` (<string name="filename">, <include filename=...>) as a bundle
+// path; included files are read and searched too, as deep as the loader follows them (15).
+void CollectFilenames(const fs::path& folder, const fs::path& rel_dir, const pugi::xml_node& node,
+                      int depth, std::set<std::string>* out) {
   for (const pugi::xml_node& c : node.children()) {
-    if (std::string(c.name()) == "string" && std::string(c.attribute("name").value()) == "filename")
-      out->insert(c.attribute("value").value());
-    CollectFilenames(c, out);
+    const std::string tag = c.name();
+    std::string value;
+    if (tag == "string" && std::string(c.attribute("name").value()) == "filename")
+      value = c.attribute("value").value();
+    else if (tag == "include")
+      value = c.attribute("filename").value();
+    if (!value.empty() && value.find('$') == std::string::npos) {
+      const std::string path = BundlePathOf(folder, rel_dir, value);
+      const bool first = out->insert(path).second;
+      if (tag == "include" && first && depth + 1 < 15) {
+        absl::StatusOr<std::string> xml = ReadFile((folder / path).string());
+        pugi::xml_document doc;
+        if (xml.ok() && doc.load_buffer(xml->data(), xml->size()))  // else the loader reports it
+          CollectFilenames(folder, fs::path(path).parent_path(), doc, depth + 1, out);
+      }
+    } else if (!value.empty()) {
+      out->insert(value);  // a parameter: skipped below
+    }
+    CollectFilenames(folder, rel_dir, c, depth, out);
   }
 }
 
@@ -67,8 +99,8 @@ absl::StatusOr<v1::SceneBundle> MakeBundle(const std::string& scene_path) {
   pugi::xml_document doc;
   if (!doc.load_string(xml->c_str())) return bundle;  // the coordinator reports where it fails
   std::set<std::string> names;
-  CollectFilenames(doc, &names);
   const fs::path folder = fs::path(scene_path).parent_path();
+  CollectFilenames(folder, fs::path(), doc, 0, &names);
   for (const std::string& name : names) {
     if (name.find('$') != std::string::npos) continue;  // a parameter: cannot resolve here
     absl::Status st = CheckBundlePath(fs::path(name).lexically_normal().string());

@@ -19,9 +19,10 @@ absl::Status CheckBundlePath(const std::string& path);
 // Total bytes of the bundle's file contents.
 size_t BundleBytes(const v1::SceneBundle& bundle);
 
-// The scene file plus every file it names (<string name="filename" value="..."/>), relative to
-// its folder. Errors: the scene or a referenced file cannot be read (NOT_FOUND), or a referenced
-// file lies outside the scene's folder (INVALID_ARGUMENT).
+// The scene file plus every file it names (<string name="filename" value="..."/>, <include
+// filename="..."/>, and what included files name, found where the scene loader finds them),
+// relative to its folder. Errors: the scene or a referenced file cannot be read (NOT_FOUND), or a
+// referenced file lies outside the scene's folder (INVALID_ARGUMENT).
 absl::StatusOr<v1::SceneBundle> MakeBundle(const std::string& scene_path);
 
 // Checks every path, then writes the files under `dir` (created if needed). Returns the path of

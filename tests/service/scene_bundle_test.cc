@@ -1,9 +1,14 @@
-// WriteBundle (service/scene_bundle.h): what a client's bundle cannot do to the coordinator's or a
-// worker's disk gets INVALID_ARGUMENT naming the client's own path, never the server's folder.
+// Scene bundles (service/scene_bundle.h): what a client's bundle cannot do to the coordinator's or
+// a worker's disk gets INVALID_ARGUMENT naming the client's own path, never the server's folder;
+// MakeBundle takes every file the scene loader will read.
 #include "service/scene_bundle.h"
 
 #include <gtest/gtest.h>
 
+#include "render/scene_loader.h"
+
+#include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -46,6 +51,44 @@ TEST(SceneBundleTest, ClientMistakesAreInvalidArgumentsThatNameTheClientsPath) {
   st = WriteBundle(Bundle({"scene.xml", "meshes/a.obj"}), *dir + "/ok");
   ASSERT_TRUE(st.ok()) << st.status();
   EXPECT_TRUE(std::ifstream(*dir + "/ok/meshes/a.obj").good());
+  RemoveTree(*dir);
+}
+
+// A scene with <include>s travels whole: the included files and what they name (found next to
+// them first, as the loader finds them) are in the bundle, and the written bundle loads.
+TEST(SceneBundleTest, IncludedFilesAndWhatTheyNameAreBundled) {
+  absl::StatusOr<std::string> dir = MakeTempDir("irfarm-bundle-include-");
+  ASSERT_TRUE(dir.ok());
+  std::filesystem::create_directories(*dir + "/src/parts");
+  const auto write = [&](const std::string& path, const std::string& text) {
+    std::ofstream(*dir + "/src/" + path, std::ios::binary) << text;
+  };
+  write("parts/room.xml", R"(<scene version="3.0.0">
+  <shape type="obj"><string name="filename" value="tri.obj"/>
+    <include filename="paint.xml"/></shape>
+</scene>
+)");
+  write("parts/paint.xml", "<bsdf type=\"diffuse\" version=\"3.0.0\"/>\n");
+  write("parts/tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  write("scene.xml", R"(<scene version="3.0.0">
+  <include filename="parts/room.xml"/>
+  <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="4"/>
+    <integer name="height" value="4"/></film></sensor>
+</scene>
+)");
+  absl::StatusOr<v1::SceneBundle> bundle = MakeBundle(*dir + "/src/scene.xml");
+  ASSERT_TRUE(bundle.ok()) << bundle.status();
+  std::vector<std::string> paths;
+  for (const v1::BundleFile& f : bundle->files()) paths.push_back(f.path());
+  std::sort(paths.begin(), paths.end());
+  EXPECT_EQ(paths, (std::vector<std::string>{"parts/paint.xml", "parts/room.xml", "parts/tri.obj",
+                                             "scene.xml"}));
+  absl::StatusOr<std::string> main = WriteBundle(*bundle, *dir + "/dst");
+  ASSERT_TRUE(main.ok()) << main.status();
+  absl::StatusOr<SceneDesc> scene = LoadSceneFile(*main, {});
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->shapes.size(), 1u);
+  EXPECT_EQ(scene->shapes[0].mesh.positions.size(), 3u);
   RemoveTree(*dir);
 }
 
