@@ -11,10 +11,14 @@
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
+#include <half.h>
 
 #include <algorithm>
+#include <array>
+#include <cctype>
 #include <cstdio>
 #include <exception>
+#include <map>
 
 namespace irfarm {
 
@@ -77,10 +81,34 @@ Image ReadChannels(Imf::InputFile& file, const std::vector<std::string>& names) 
 absl::StatusOr<Image> ReadExr(const std::string& path) {
   try {
     Imf::InputFile file(path.c_str());
-    // RGB, or a luminance-only image (Y) as grey.
-    if (file.header().channels().findChannel("R") != nullptr)
-      return ReadChannels(file, {"R", "G", "B"});
-    return ReadChannels(file, {"Y", "Y", "Y"});
+    // Channels are classified as Mitsuba's read_exr does, by the part of their name after the
+    // last '.', in any case: "R", "diffuse.r" and "B" are colour channels. Taken: an R, G and B
+    // of one layer (the unnamed layer first, then layers in name order), else a Y (luminance, as
+    // grey); else the file is refused (read as black before).
+    std::map<std::string, std::array<std::string, 4>> layers;  // layer -> R, G, B, Y names
+    for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) {
+      const std::string name = it.name();
+      const size_t dot = name.rfind('.');
+      const std::string layer = dot == std::string::npos ? "" : name.substr(0, dot);
+      std::string suffix = dot == std::string::npos ? name : name.substr(dot + 1);
+      for (char& c : suffix) c = char(std::tolower(static_cast<unsigned char>(c)));
+      const int k = suffix == "r"   ? 0
+                    : suffix == "g" ? 1
+                    : suffix == "b" ? 2
+                    : suffix == "y" ? 3
+                                    : -1;
+      if (k >= 0 && layers[layer][size_t(k)].empty()) layers[layer][size_t(k)] = name;
+    }
+    for (const auto& [layer, names] : layers)
+      if (!names[0].empty() && !names[1].empty() && !names[2].empty())
+        return ReadChannels(file, {names[0], names[1], names[2]});
+    for (const auto& [layer, names] : layers)
+      if (!names[3].empty()) return ReadChannels(file, {names[3], names[3], names[3]});
+    std::string all;
+    for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it)
+      all += std::string(all.empty() ? "" : ", ") + it.name();
+    return absl::InvalidArgumentError(path + ": EXR has no R, G, B or Y channels (it has: " + all +
+                                      ")");
   } catch (const std::exception& e) {
     return absl::InvalidArgumentError(path + ": cannot read EXR: " + e.what());
   }
@@ -162,7 +190,7 @@ absl::Status WritePng(const Image& image, const std::string& path, float exposur
   return absl::OkStatus();
 }
 
-absl::Status ReadTextureImage(const std::string& path, Image* floats, ByteImage* bytes) {
+absl::Status ReadTextureImage(const std::string& path, bool raw, Image* floats, ByteImage* bytes) {
   *floats = Image();
   *bytes = ByteImage();
   const std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
@@ -182,6 +210,22 @@ absl::Status ReadTextureImage(const std::string& path, Image* floats, ByteImage*
     for (size_t i = 0; i < image.pixels.size(); ++i)
       image.pixels[i] = Vec3(hdr[3 * i], hdr[3 * i + 1], hdr[3 * i + 2]);
     stbi_image_free(hdr);
+    *floats = std::move(image);
+    return absl::OkStatus();
+  }
+  if (stbi_is_16_bit(path.c_str())) {
+    // 16-bit PNG: all 16 bits, decoded from sRGB unless `raw` and kept at half precision, as
+    // Mitsuba keeps them (stbi_load would drop the low byte: 0x00ff read as 0).
+    uint16_t* data16 = stbi_load_16(path.c_str(), &w, &h, &n, 3);
+    if (!data16)
+      return absl::InvalidArgumentError(path + ": cannot read image: " + stbi_failure_reason());
+    Image image(w, h);
+    for (size_t i = 0; i < image.pixels.size(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        const float v = float(data16[3 * i + size_t(c)]) / 65535.0f;
+        image.pixels[i][c] = float(half(raw ? v : SrgbToLinear(v)));
+      }
+    stbi_image_free(data16);
     *floats = std::move(image);
     return absl::OkStatus();
   }

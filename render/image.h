@@ -33,6 +33,9 @@ struct ExrLayer {
 // file renamed into place.
 absl::Status WriteExr(const Image& image, const std::string& path,
                       const std::vector<ExrLayer>& layers = {});
+// An EXR's colour: the R, G, B channels of one layer (names classified by their last part, in any
+// case, as Mitsuba's read_exr does: "diffuse.r"), else a Y channel as grey; INVALID_ARGUMENT when
+// it has neither.
 absl::StatusOr<Image> ReadExr(const std::string& path);
 // Reads channels "layer.C" for C in `channels` (1 to 3) into x, y, z; an error if one is missing.
 absl::StatusOr<Image> ReadExrLayer(const std::string& path, const std::string& layer,
@@ -49,9 +52,10 @@ struct ByteImage {
   std::vector<uint8_t> rgb;
 };
 // Reads a texture's image file: EXR and Radiance .hdr as linear floats into `*floats` (`*bytes`
-// left empty), any other format stb_image reads (PNG, JPEG, ...) as its bytes into `*bytes`
-// (`*floats` left empty), never widened to floats (a 6-megapixel JPEG would take 72 MB).
-absl::Status ReadTextureImage(const std::string& path, Image* floats, ByteImage* bytes);
+// left empty), a 16-bit PNG as floats too (decoded from sRGB unless `raw`), any other format
+// stb_image reads (8-bit PNG, JPEG, ...) as its bytes into `*bytes` (`*floats` left empty),
+// never widened to floats (a 6-megapixel JPEG would take 72 MB).
+absl::Status ReadTextureImage(const std::string& path, bool raw, Image* floats, ByteImage* bytes);
 
 float SrgbToLinear(float v);
 float LinearToSrgb(float v);

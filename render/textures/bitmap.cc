@@ -22,7 +22,7 @@ Vec3 AverageOf(const double sum[3], size_t texels) {
 absl::StatusOr<std::unique_ptr<BitmapTexture>> BitmapTexture::Load(const TextureDesc& desc) {
   Image floats;
   ByteImage bytes;
-  const absl::Status read = ReadTextureImage(desc.filename, &floats, &bytes);
+  const absl::Status read = ReadTextureImage(desc.filename, desc.raw, &floats, &bytes);
   if (!read.ok())
     return absl::InvalidArgumentError(desc.loc.ToString() + ": " + std::string(read.message()));
   std::unique_ptr<BitmapTexture> t(new BitmapTexture(desc));

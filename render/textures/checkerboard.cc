@@ -1,5 +1,6 @@
 // `checkerboard`: color0 (default 0.4) where the fractional parts of u and v are both above 0.5
-// or both not, color1 (default 0.2) elsewhere, as Mitsuba's; flat between its jumps.
+// or both not, color1 (default 0.2) elsewhere, as Mitsuba's; flat between its jumps. Read as one
+// number, the other way round, as Mitsuba's eval_1.
 #include <cmath>
 
 #include "render/textures/registry.h"
@@ -18,6 +19,16 @@ class CheckerboardTexture final : public Texture {
     ToUv(&u, &v);
     if (!std::isfinite(u) || !std::isfinite(v)) return average_;
     return ((u - std::floor(u) > 0.5f) == (v - std::floor(v) > 0.5f)) ? color0_ : color1_;
+  }
+
+  // Mitsuba's eval_1 (a checkerboard read as opacity, a blend weight or a roughness) picks the
+  // colours the other way round from its eval: color0's mean where exactly one of the fractional
+  // parts is above 0.5 (checkerboard.cpp, m0 = mask.x != mask.y). Matched, as the reference.
+  float EvalScalar(float u, float v) const override {
+    ToUv(&u, &v);
+    const auto mean = [](const Vec3& c) { return (c.x + c.y + c.z) * (1.0f / 3.0f); };
+    if (!std::isfinite(u) || !std::isfinite(v)) return mean(average_);
+    return mean((u - std::floor(u) > 0.5f) != (v - std::floor(v) > 0.5f) ? color0_ : color1_);
   }
 
   void Gradient(float, float, float* d_du, float* d_dv) const override { *d_du = *d_dv = 0; }

@@ -116,13 +116,17 @@ TEST(TextureTest, ScalarsFromTexturesMatchMitsuba) {
   EXPECT_NEAR(c.EvalScalar(BsdfContext{0.25f, 0.25f}), 0.57025f, 1e-4f);
   TextureDesc checker;
   checker.type = "checkerboard";
-  checker.color0 = Vec3(0, 1, 0);
-  checker.color1 = Vec3(1, 0, 0);
+  // A checkerboard read as one number swaps its colours (Mitsuba's eval_1: color0 where exactly
+  // one fractional part is above 0.5), while its colour lookup keeps them (eval: color0 at
+  // (0.25, 0.25)). Mitsuba: eval_1 0.2 at (0.25, 0.25), 0.9 at (0.75, 0.25).
+  checker.color0 = Vec3(0.9f);
+  checker.color1 = Vec3(0.1f, 0.2f, 0.3f);
   const absl::StatusOr<std::unique_ptr<Texture>> board = LoadTexture(checker);
   ASSERT_TRUE(board.ok()) << board.status();
   c.texture = board->get();
-  EXPECT_NEAR(c.EvalScalar(BsdfContext{0.25f, 0.25f}), 1.0f / 3, 1e-6f);
-  EXPECT_NEAR(c.EvalScalar(BsdfContext{0.75f, 0.25f}), 1.0f / 3, 1e-6f);
+  EXPECT_NEAR(c.EvalScalar(BsdfContext{0.25f, 0.25f}), 0.2f, 1e-6f);
+  EXPECT_NEAR(c.EvalScalar(BsdfContext{0.75f, 0.25f}), 0.9f, 1e-6f);
+  ExpectColor(board->get()->Eval(0.25f, 0.25f), Vec3(0.9f), 0, "checkerboard eval");
   c.texture = nullptr;
   c.value = Vec3(0, 1, 0);  // an rgb constant: the mean, as Mitsuba's srgb eval_1
   EXPECT_NEAR(c.EvalScalar(BsdfContext{}), 1.0f / 3, 1e-6f);
@@ -177,7 +181,7 @@ TEST(TextureTest, EightBitImagesAreReadAsTheirBytes) {
 
   Image floats;
   ByteImage bytes;
-  ASSERT_TRUE(ReadTextureImage(path, &floats, &bytes).ok());
+  ASSERT_TRUE(ReadTextureImage(path, false, &floats, &bytes).ok());
   EXPECT_TRUE(floats.pixels.empty());
   ASSERT_EQ(bytes.width, 3);
   ASSERT_EQ(bytes.height, 2);
@@ -209,6 +213,38 @@ TEST(TextureTest, EightBitImagesAreReadAsTheirBytes) {
       }
     for (int c = 0; c < 3; ++c) EXPECT_NEAR((*t)->Average()[c], sum[c] / 6, 1e-7) << raw;
   }
+}
+
+// A 16-bit PNG keeps its 16 bits (decoded from sRGB unless raw, at half precision) and an EXR's
+// colour may sit in a layer ("diffuse.R"): mitsuba 3.9.1's bitmap (nearest) at the centres of
+// tests/data/textures' fixtures. Before: the PNG's low byte was dropped (0x00ff read as 0) and the
+// layer-only EXR read as black; an EXR without colour channels is refused, as Mitsuba refuses it.
+TEST(TextureTest, SixteenBitPngsAndLayeredExrsMatchMitsuba) {
+  const std::string dir = std::string(IRFARM_TEST_DATA) + "/textures/";
+  const auto eval = [&](const std::string& file, bool raw, float u) -> Vec3 {
+    TextureDesc desc;
+    desc.filename = dir + file;
+    desc.filter_type = "nearest";
+    desc.raw = raw;
+    const absl::StatusOr<std::unique_ptr<Texture>> t = LoadTexture(desc);
+    EXPECT_TRUE(t.ok()) << t.status();
+    return t.ok() ? (*t)->Eval(u, 0.5f) : Vec3(NAN);
+  };
+  ExpectColor(eval("sixteen-bit.png", false, 0.25f), Vec3(0.2176514f, 0.0003011227f, 1), 1e-7f,
+              "16-bit sRGB texel 0");
+  ExpectColor(eval("sixteen-bit.png", false, 0.75f), Vec3(0, 0.00610733f, 0.9897461f), 1e-7f,
+              "16-bit sRGB texel 1");
+  ExpectColor(eval("sixteen-bit.png", true, 0.25f), Vec3(0.5039062f, 0.003890991f, 1), 1e-7f,
+              "16-bit raw texel 0");
+  ExpectColor(eval("sixteen-bit.png", true, 0.75f), Vec3(0, 0.07110596f, 0.9956055f), 1e-7f,
+              "16-bit raw texel 1");
+  ExpectColor(eval("layer-only.exr", false, 0.25f), Vec3(0.5f, 0.25f, 0.125f), 0, "layer");
+  TextureDesc depth;
+  depth.filename = dir + "depth-only.exr";
+  const absl::StatusOr<std::unique_ptr<Texture>> t = LoadTexture(depth);
+  ASSERT_FALSE(t.ok());
+  EXPECT_NE(t.status().message().find("no R, G, B or Y channels (it has: Z)"), std::string::npos)
+      << t.status();
 }
 
 // An 8-bit environment map is sRGB-encoded, as Mitsuba 3.9.1's envmap decodes it: a grey PNG of

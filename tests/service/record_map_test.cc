@@ -72,7 +72,7 @@ TEST(RecordMapTest, DrawsEachRecordAtItsPixelInItsWorkersColour) {
   std::ofstream(path, std::ios::binary) << *png;
   Image floats;
   ByteImage back;  // the PNG's bytes, not decoded
-  ASSERT_TRUE(ReadTextureImage(path, &floats, &back).ok());
+  ASSERT_TRUE(ReadTextureImage(path, false, &floats, &back).ok());
   std::remove(path.c_str());
   ASSERT_EQ(back.width, map.width);
   const auto byte = [&](int x, int y, int k) {
