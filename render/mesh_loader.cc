@@ -467,14 +467,20 @@ TriangleMesh MakeCubeMesh() {
   // run counter-clockwise seen from outside.
   const Vec3 x(1, 0, 0), y(0, 1, 0), z(0, 0, 1);
   const Vec3 faces[6][3] = {{x, y, z}, {-x, z, y}, {y, z, x}, {-y, x, z}, {z, x, y}, {-z, y, x}};
+  // Each face's (u, v) as Mitsuba's cube lays them out (cube.cpp's texcoords): the directions in
+  // which u and v grow, from 0 to 1 across the face.
+  const Vec3 uv_axes[6][2] = {{y, -z}, {y, z}, {-x, -z}, {z, x}, {y, x}, {-y, x}};
   TriangleMesh mesh;
-  for (const auto& [n, s, t] : faces) {
+  for (int f = 0; f < 6; ++f) {
+    const auto& [n, s, t] = faces[f];
     const auto base = uint32_t(mesh.positions.size());
     const float corner[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
     for (const auto& [a, b] : corner) {
-      mesh.positions.push_back(n + s * a + t * b);
+      const Vec3 p = n + s * a + t * b;
+      mesh.positions.push_back(p);
       mesh.normals.push_back(n);
-      mesh.uvs.insert(mesh.uvs.end(), {(a + 1) / 2, (b + 1) / 2});
+      mesh.uvs.insert(mesh.uvs.end(),
+                      {(Dot(p - n, uv_axes[f][0]) + 1) / 2, (Dot(p - n, uv_axes[f][1]) + 1) / 2});
     }
     mesh.indices.insert(mesh.indices.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
   }

@@ -35,12 +35,27 @@ float TriangleArea(const Vec3& a, const Vec3& b, const Vec3& c) {
   return 0.5f * Length(Cross(b - a, c - a));
 }
 
-// Mitsuba's sphere uv at unit normal n: u = phi / 2 pi with phi = atan2(y, x) in [0, 2 pi),
-// v = theta / pi.
-void SphereUv(const Vec3& n, float* u, float* v) {
-  const float phi = std::atan2(n.y, n.x);
+// Mitsuba's sphere uv at the outward unit normal n (world space) of a sphere whose own directions
+// `frame` takes to world ones: with l = frame^T n, u = phi / 2 pi with phi = atan2(l.y, l.x) in
+// [0, 2 pi), v = theta / pi. The tangents (optional): d/du turns around its own z, d/dv runs from
+// its own +z pole down, scaled to the radius and turned back to world space.
+void SphereUv(const std::array<float, 9>& frame, const Vec3& n, float radius, float* u, float* v,
+              Vec3* dpdu = nullptr, Vec3* dpdv = nullptr) {
+  const auto& q = frame;
+  const Vec3 l(q[0] * n.x + q[3] * n.y + q[6] * n.z, q[1] * n.x + q[4] * n.y + q[7] * n.z,
+               q[2] * n.x + q[5] * n.y + q[8] * n.z);
+  const float phi = std::atan2(l.y, l.x);
   *u = (phi < 0 ? phi + 2 * kPi : phi) * (0.5f * kInvPi);
-  *v = std::acos(std::clamp(n.z, -1.0f, 1.0f)) * kInvPi;
+  *v = std::acos(std::clamp(l.z, -1.0f, 1.0f)) * kInvPi;
+  if (dpdu == nullptr) return;
+  const auto to_world = [&q](const Vec3& a) {
+    return Vec3(q[0] * a.x + q[1] * a.y + q[2] * a.z, q[3] * a.x + q[4] * a.y + q[5] * a.z,
+                q[6] * a.x + q[7] * a.y + q[8] * a.z);
+  };
+  const float rxy = std::sqrt(l.x * l.x + l.y * l.y);
+  *dpdu = to_world(Vec3(-l.y, l.x, 0) * (2 * kPi * radius));
+  *dpdv = to_world(rxy > 0 ? Vec3(l.z * l.x / rxy, l.z * l.y / rxy, -rxy) * (kPi * radius)
+                           : Vec3(kPi * radius, 0, 0));
 }
 
 // The per-vertex uvs of triangle `tri` interpolated at barycentrics (b0, b1, b2).
@@ -222,6 +237,7 @@ absl::StatusOr<std::unique_ptr<Scene>> Scene::Build(const SceneDesc& desc,
       mesh.center = sh.center;
       mesh.radius = sh.radius;
       mesh.flip = sh.flip_normals;
+      mesh.frame = sh.frame;
       g = rtcNewGeometry(s->device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
       float* v = static_cast<float*>(
           rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 16, 1));
@@ -388,12 +404,7 @@ bool Scene::Intersect(const Ray& ray, SurfaceHit* hit) const {
     hit->p = m.center + n * m.radius;
     hit->ng = m.flip ? -n : n;
     hit->ns = hit->ng;
-    SphereUv(n, &hit->u, &hit->v);
-    // d/du turns around z (u = phi / 2 pi), d/dv runs from the +z pole down (v = theta / pi).
-    const float rxy = std::sqrt(n.x * n.x + n.y * n.y);
-    hit->dpdu = Vec3(-n.y, n.x, 0) * (2 * kPi * m.radius);
-    hit->dpdv = rxy > 0 ? Vec3(n.z * n.x / rxy, n.z * n.y / rxy, -rxy) * (kPi * m.radius)
-                        : Vec3(kPi * m.radius, 0, 0);
+    SphereUv(m.frame, n, m.radius, &hit->u, &hit->v, &hit->dpdu, &hit->dpdv);
     hit->error_scale = MaxAbsComponent(m.center) + m.radius;
     return true;
   }
@@ -478,7 +489,7 @@ float Scene::PassProbability(unsigned geom, unsigned prim, float bu, float bv, c
   Vec3 ng;               // the front side's normal, as Intersect gives it (SurfaceHit::ng)
   if (m.sphere) {
     const Vec3 n = Normalize(p - m.center);
-    SphereUv(n, &u, &v);
+    SphereUv(m.frame, n, m.radius, &u, &v);
     ng = m.flip ? -n : n;
   } else {
     const uint32_t* tri = &m.indices[3 * size_t(prim)];

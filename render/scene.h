@@ -155,6 +155,7 @@ class Scene {
     Vec3 center;
     float radius = 0;
     bool flip = false;
+    std::array<float, 9> frame{1, 0, 0, 0, 1, 0, 0, 0, 1};  // kSphere: ShapeDesc::frame
     int material = 0;
     int light = -1;
   };

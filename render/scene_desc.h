@@ -132,9 +132,13 @@ enum class ShapeType { kMesh, kSphere };
 struct ShapeDesc {
   std::string id;
   ShapeType type = ShapeType::kMesh;
-  TriangleMesh mesh;                  // kMesh (obj, ply, rectangle, cube, disk)
-  Vec3 center;                        // kSphere, world space
-  float radius = 1;                   // kSphere, world space
+  TriangleMesh mesh;  // kMesh (obj, ply, rectangle, cube, disk)
+  Vec3 center;        // kSphere, world space
+  float radius = 1;   // kSphere, world space
+  // kSphere: the orthonormal 3 x 3 (row-major; a mirror where to_world mirrors) that takes the
+  // sphere's own directions to world ones. Its (u, v) and tangents come from its own coordinates,
+  // as Mitsuba's do, so they turn with to_world.
+  std::array<float, 9> frame{1, 0, 0, 0, 1, 0, 0, 0, 1};
   bool flip_normals = false;          // already applied to mesh winding/normals; kept for spheres
   int bsdf = -1;                      // index into SceneDesc::bsdfs
   std::optional<Vec3> area_radiance;  // area emitter on this shape (front side only)

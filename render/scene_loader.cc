@@ -71,6 +71,26 @@ double SphereScale(const Mat4& m, bool* uniform) {
   return *uniform ? std::cbrt(std::abs(m.Determinant3())) : len[0];
 }
 
+// The orthonormal part of m's 3 x 3 (row-major), mirrored where m mirrors: a sphere's own frame
+// (ShapeDesc::frame). Exact for translate, rotate, uniform scale and mirrors; for an uneven scale
+// (kept round, as above) its columns are made orthonormal in order (Gram-Schmidt).
+std::array<float, 9> SphereFrame(const Mat4& m) {
+  const Vec3 c0 = m.ApplyVector(Vec3(1, 0, 0)), c1 = m.ApplyVector(Vec3(0, 1, 0));
+  const Vec3 a = Normalize(c0), b = Normalize(c1 - a * Dot(a, c1));
+  const Vec3 c = Cross(a, b) * (m.Determinant3() < 0 ? -1.0f : 1.0f);
+  return {a.x, b.x, c.x, a.y, b.y, c.y, a.z, b.z, c.z};
+}
+
+// p * q for row-major 3 x 3s.
+std::array<float, 9> Compose(const std::array<float, 9>& p, const std::array<float, 9>& q) {
+  std::array<float, 9> r{};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k)
+        r[size_t(3 * i + j)] += p[size_t(3 * i + k)] * q[size_t(3 * k + j)];
+  return r;
+}
+
 namespace fs = std::filesystem;
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
@@ -1434,6 +1454,9 @@ absl::Status Parser::ParseInstance(pugi::xml_node n) {
     s.loc = Loc(n);
     if (s.type == ShapeType::kSphere) {
       s.center = to_world.ApplyPoint(s.center);
+      // Its own frame turns with the instance; its front does not (an instance moves normals with
+      // its normal transform, which keeps a sphere's outside outside).
+      s.frame = Compose(SphereFrame(to_world), s.frame);
       bool uniform = true;
       s.radius = float(s.radius * SphereScale(to_world, &uniform));
       if (!uniform)
@@ -1550,6 +1573,9 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
         (to_world * Mat4::Translate(g.center[0], g.center[1], g.center[2])).ApplyPoint(Vec3(0.0f));
     bool uniform = true;
     s.radius = float(g.radius * SphereScale(to_world, &uniform));
+    s.frame = SphereFrame(to_world);
+    // Mitsuba's sphere flips its normals where to_world mirrors (sphere.cpp): it faces inward.
+    if (det < 0) s.flip_normals = !s.flip_normals;
     if (!uniform)
       Warn(NodeOf(p, "to_world"),
            "the sphere's to_world scales it unevenly: irfarm keeps it "

@@ -74,8 +74,12 @@ uint64_t SceneHash(const SceneDesc& desc) {
     h.Pod(s.mesh.indices.size());
     if (!s.mesh.indices.empty())
       h.Bytes(s.mesh.indices.data(), s.mesh.indices.size() * sizeof(uint32_t));
+    // Texture coordinates: the textures records see are where they put them.
+    h.Pod(s.mesh.uvs.size());
+    if (!s.mesh.uvs.empty()) h.Bytes(s.mesh.uvs.data(), s.mesh.uvs.size() * sizeof(float));
     h.V(s.center);
     h.Pod(s.radius);
+    h.Pod(s.frame);
     h.Pod(s.flip_normals);
     h.Pod(s.bsdf);
     h.Pod(s.area_radiance.has_value());
