@@ -18,7 +18,10 @@ absl::Status Parse(EmitterParams& p, EmitterDesc* d) {
   d->direction = Normalize(v);
   absl::StatusOr<Vec3> irradiance = p.Rgb("irradiance", Vec3(1.0f));
   if (!irradiance.ok()) return irradiance.status();
-  d->irradiance = *irradiance;
+  // Mitsuba lights along to_world's +z as it is, not made unit (directional.cpp: ds.d = -M z), so
+  // a to_world that scales it scales the cosine a diffuse surface sees by |M z|: its irradiance is
+  // that much larger (a Blender sun of object scale 2 renders twice as bright there).
+  d->irradiance = *irradiance * (*direction ? 1.0f : Length(v));
   return absl::OkStatus();
 }
 

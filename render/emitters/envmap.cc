@@ -35,6 +35,9 @@ absl::Status Parse(EmitterParams& p, EmitterDesc* d) {
   absl::StatusOr<std::optional<Mat4>> to_world = p.Transform("to_world");
   if (!to_world.ok()) return to_world.status();
   d->to_world = to_world->value_or(Mat4());
+  const double det = d->to_world.Determinant3();
+  if (!(det != 0) || !std::isfinite(det))
+    return p.Error("to_world", "the envmap's to_world is singular");
   return absl::OkStatus();
 }
 

@@ -13,7 +13,10 @@ absl::Status Parse(EmitterParams& p, EmitterDesc* d) {
   if (!to_world.ok()) return to_world.status();
   const Mat4 m = p.World(to_world->value_or(Mat4()));
   d->position = m.ApplyPoint(Vec3(0.0f));
-  d->direction = Normalize(m.ApplyVector(Vec3(0, 0, 1)));
+  const Vec3 axis = m.ApplyVector(Vec3(0, 0, 1));
+  if (!(LengthSquared(axis) > 0) || !IsFinite(axis))
+    return p.Error("to_world", "the spot's to_world takes its axis (+z) to zero");
+  d->direction = Normalize(axis);
   absl::StatusOr<Vec3> intensity = p.Rgb("intensity", Vec3(1.0f));
   if (!intensity.ok()) return intensity.status();
   d->intensity = *intensity;

@@ -1330,6 +1330,26 @@ TEST(SceneLoaderTest, Emitters) {
   ExpectNear(scene->emitters[4].radiance, Vec3(0.3f, 0.4f, 0.5f));
   EXPECT_EQ(scene->emitters[4].loc.line, 20);
 
+  // Mitsuba lights along to_world's +z unnormalised, so a scaled to_world scales a diffuse
+  // surface's cosine: mitsuba 3.9.1 renders a white diffuse plane under look_at * scale(2) at
+  // 0.63662, 0.31831 without the scale.
+  const auto scaled = Load(R"(  <emitter type="directional">
+    <transform name="to_world"><scale value="2"/><rotate x="1" angle="90"/></transform>
+    <rgb name="irradiance" value="1, 2, 3"/>
+  </emitter>
+)");
+  ASSERT_TRUE(scaled.ok()) << scaled.status();
+  ExpectNear(scaled->emitters.at(0).direction, Vec3(0, -1, 0));
+  ExpectNear(scaled->emitters.at(0).irradiance, Vec3(2, 4, 6));
+  ExpectError(Load("  <emitter type=\"spot\">\n    <transform name=\"to_world\">"
+                   "<scale z=\"0\"/></transform></emitter>\n"),
+              "scene.xml:3:", "takes its axis (+z) to zero");
+  const std::string dir = MakeDir("envmap_singular");
+  WriteFile(dir + "/sky.exr", "not decoded by the loader");
+  ExpectError(Load("  <emitter type=\"envmap\"><string name=\"filename\" value=\"sky.exr\"/>\n"
+                   "    <transform name=\"to_world\"><scale y=\"0\"/></transform></emitter>\n",
+                   dir + "/scene.xml"),
+              dir + "/scene.xml:3:", "the envmap's to_world is singular");
   ExpectError(Load("  <emitter type=\"constant\"/>\n  <emitter type=\"constant\"/>\n"),
               "scene.xml:3:", "a second environment emitter (the first is at line 2)");
   ExpectError(Load("  <shape type=\"cube\">\n    <emitter type=\"point\"/>\n  </shape>\n"),
