@@ -564,6 +564,9 @@ Vec3 IrrcacheIntegrator::CachedRayRadiance(Ray ray, int depth, int level, float 
         const float distance = footprint / scene_.camera().PixelSpread(1.0f);
         L += w * Irradiance(hit, nf, depth, distance, true, rng, counters, &made, level,
                             settings_.secondary_ray_fraction);
+      } else if (depth + 1 == max_depth) {
+        const DiffuseLobe lobe{bsdf, ctx, frame, wo_l, beta};
+        L += LastBounceEnvironment(hit, nf, wo, w, &lobe, rng, counters);
       }
     }
     if (!bsdf.HasNonDiffuse()) break;
@@ -791,8 +794,31 @@ Vec3 IrrcacheIntegrator::ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, con
     if (shade) shade->made_record = shade->made_record || made;
     *cached = beta * albedo * E * kInvPi;
     L += *cached;
+  } else if (depth + 1 == max_depth) {
+    L += LastBounceEnvironment(hit, nd, wo, beta * albedo * kInvPi, lobe, rng, counters);
   }
   return L;
+}
+
+Vec3 IrrcacheIntegrator::LastBounceEnvironment(const SurfaceHit& hit, const Vec3& nf,
+                                               const Vec3& wo, const Vec3& weight,
+                                               const DiffuseLobe* lobe, Rng& rng,
+                                               RenderCounters& counters) const {
+  if (!scene_.has_environment()) return Vec3();
+  LightSample s;
+  const float u2 = rng.Next(), u3 = rng.Next();
+  if (!scene_.light_sampler().SampleEnvironment(hit.p, nf, u2, u3, &s, true)) return Vec3();
+  if (sun_ != nullptr && sun_->Contains(s.wi)) return Vec3();  // DirectLight's
+  const float cos_i = Dot(s.wi, nf);
+  if (!(cos_i > 0) || Dot(s.wi, hit.ng) * Dot(wo, hit.ng) <= 0) return Vec3();
+  ++counters.shadow_rays;
+  if (scene_.ShadowOccluded(hit, s)) return Vec3();
+  const Vec3 c = (lobe ? lobe->Eval(s.wi) : weight * cos_i) * scene_.LightValue(s);
+  if (!IsFinite(c)) {
+    ++counters.nonfinite_samples;
+    return Vec3();
+  }
+  return c;
 }
 
 bool IrrcacheIntegrator::FirstDiffuse(const Ray& ray, Rng& rng, RenderCounters& counters,

@@ -358,6 +358,13 @@ class IrrcacheIntegrator {
                    const LightStrata& strata, Rng& rng, RenderCounters& counters,
                    DirectTerms* terms, bool one_sample = false,
                    const DiffuseLobe* lobe = nullptr) const;
+  // The environment's light at a diffuse vertex whose cache lookup max_depth forbids (its light
+  // may take one more bounce, not two: depth + 1 == max_depth). The records carry it elsewhere;
+  // here it comes from one sample of the environment alone, outside the sun where DirectLight
+  // samples the sun itself, as the path tracer's next-event estimation has it.
+  Vec3 LastBounceEnvironment(const SurfaceHit& hit, const Vec3& nf, const Vec3& wo,
+                             const Vec3& weight, const DiffuseLobe* lobe, Rng& rng,
+                             RenderCounters& counters) const;
   // nf: the facing normal (cache lookups); nd: the facing mapped normal (direct light).
   Vec3 ShadeDiffuse(const SurfaceHit& hit, const Vec3& nf, const Vec3& nd, const Vec3& wo,
                     const Vec3& beta, const Vec3& albedo, int depth, float distance, int level,
