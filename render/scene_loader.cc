@@ -157,7 +157,7 @@ struct Params {
 struct IdInfo {
   std::string kind;
   int index = -1;
-  int line = 0;
+  pugi::xml_node node;  // where it is defined
 };
 
 class Parser {
@@ -174,6 +174,8 @@ class Parser {
     std::string path;              // as messages show it
     fs::path rel_dir;              // its folder, relative to the scene folder ("" for the scene)
     int depth = 0;                 // includes above it
+    int parent = -1;               // the file that includes it (index into files_)
+    bool upgraded = false;         // a Mitsuba 0.5/0.6 file, upgraded on load
     std::vector<size_t> newlines;  // offsets of '\n' in its text, for line numbers
     pugi::xml_document doc;
   };
@@ -181,23 +183,40 @@ class Parser {
   // loader read (a file including itself twice, 15 deep, would be 2^15 reads).
   static constexpr int kMaxIncludeDepth = 15;
   static constexpr size_t kMaxIncludedFiles = 1024;
+  static constexpr uintmax_t kMaxIncludedBytes = uintmax_t{256} << 20;  // all included files read
+  // Parse calls nested in each other (objects in objects, includes, references to objects defined
+  // later): bounded together, so that no combination of them (an include restarts a file's own
+  // nesting count) can exhaust the stack; real scenes nest a handful.
+  static constexpr int kMaxParseDepth = 128;
   const SourceFile& FileOf(pugi::xml_node n) const;
-  // A file the scene names (a parameter, an <include>), relative to the scene folder and inside
-  // it: looked up next to the file that names it, then in the scene folder (as Mitsuba's file
-  // resolver does for included files). `full` is the path to open, `rel` the path in the folder.
+  // A file the scene names, relative to the scene folder and inside it. A parameter's file is
+  // looked up in the scene folder; an <include>'s next to the file that names it, then next to
+  // each file that includes that one, then in the scene folder (Mitsuba's file resolver: while
+  // an included file is read its folder is searched first; its plugins' files are resolved after,
+  // with the scene's resolver). `full` is the path to open, `rel` the path in the folder.
   struct FoundFile {
     std::string full;
     fs::path rel;
   };
   absl::StatusOr<FoundFile> ResolveFile(pugi::xml_node at, const std::string& value,
-                                        absl::string_view what) const;
+                                        absl::string_view what, bool include = false) const;
   // Reads the file an <include> names: the root of its document (a <scene>, whose children are
   // read in the include's place, or one object), nesting-checked and upgraded.
   absl::StatusOr<pugi::xml_node> LoadInclude(pugi::xml_node inc);
+  // Indexes the top-level bsdfs, textures and shapegroups with an id under `root`, included
+  // scenes' too (their files are read now), for <ref>s that come before them.
+  absl::Status IndexForward(pugi::xml_node root);
+  class DepthGuard;
   absl::Status CheckNesting(pugi::xml_node root) const;
 
   // Locations and messages.
   int Line(pugi::xml_node n) const;
+  // "line N" in the scene file, "PATH:N" in an included one (for messages about another node).
+  std::string LineOf(pugi::xml_node n) const {
+    const SourceFile& f = FileOf(n);
+    return &f == files_[0].get() ? absl::StrCat("line ", Line(n))
+                                 : absl::StrCat(f.path, ":", Line(n));
+  }
   SourceLoc Loc(pugi::xml_node n) const { return {FileOf(n).path, Line(n)}; }
   std::string Where(pugi::xml_node n) const {
     return absl::StrCat(FileOf(n).path, ":", Line(n), ": ");
@@ -283,6 +302,9 @@ class Parser {
   const fs::path base_dir_;
   const LoadOptions& options_;
   std::vector<std::unique_ptr<SourceFile>> files_;
+  std::map<pugi::xml_node_struct*, pugi::xml_node> includes_;  // <include> -> its file's root
+  uintmax_t included_bytes_ = 0;
+  int parse_depth_ = 0;  // DepthGuard
   // Top-level bsdfs, textures and shapegroups by id, for <ref>s before them; parsed_ holds those
   // parsed early (skipped where they stand), resolving_ those being parsed (a cycle check).
   std::map<std::string, pugi::xml_node> forward_;
@@ -294,7 +316,6 @@ class Parser {
   pugi::xml_node sensor_, integrator_, environment_;  // to reject a second one
   int default_bsdf_ = -1;                             // diffuse 0.5, for shapes without a bsdf
   int default_emitter_bsdf_ = -1;                     // diffuse 0, for emitting shapes without one
-  bool upgraded_ = false;                             // a Mitsuba 0.5/0.6 file, upgraded on load
   // Translation by minus SceneDesc::world_origin, composed (in double) into every to_world.
   Mat4 recentre_;
   // <shape type="shapegroup">: its shapes, in the group's own space, copied into the scene by
@@ -319,6 +340,23 @@ class Parser {
   // The point `name` (point, vector or three numbers) in double, if given.
   absl::StatusOr<std::optional<std::array<double, 3>>> GetPoint(Params& p,
                                                                 absl::string_view name) const;
+};
+
+// Counts one level of nested parsing for as long as it lives; ok() is false past kMaxParseDepth.
+class Parser::DepthGuard {
+ public:
+  explicit DepthGuard(Parser& p) : p_(p) { ++p_.parse_depth_; }
+  ~DepthGuard() { --p_.parse_depth_; }
+  DepthGuard(const DepthGuard&) = delete;
+  DepthGuard& operator=(const DepthGuard&) = delete;
+  absl::Status Check(pugi::xml_node n) const {
+    if (p_.parse_depth_ <= kMaxParseDepth) return absl::OkStatus();
+    return p_.Error(n, absl::StrCat("objects, includes and references nested more than ",
+                                    kMaxParseDepth, " deep"));
+  }
+
+ private:
+  Parser& p_;
 };
 
 const Parser::SourceFile& Parser::FileOf(pugi::xml_node n) const {
@@ -598,7 +636,7 @@ absl::Status Parser::AddEntry(Params& p, pugi::xml_node c, absl::string_view kin
   for (const Entry& other : p.entries) {
     if (!e.name.empty() && other.name == e.name) {
       return Error(c, absl::StrCat("parameter '", e.name, "' given twice in ", p.what,
-                                   " (first at line ", Line(other.node), ")"));
+                                   " (first at ", LineOf(other.node), ")"));
     }
   }
   p.entries.push_back(std::move(e));
@@ -783,7 +821,7 @@ absl::StatusOr<std::string> Parser::GetFile(Params& p, absl::string_view name) c
 }
 
 absl::StatusOr<Parser::FoundFile> Parser::ResolveFile(pugi::xml_node at, const std::string& value,
-                                                      absl::string_view what) const {
+                                                      absl::string_view what, bool include) const {
   const fs::path rel(value);
   if (value.empty()) return Error(at, absl::StrCat("empty ", what));
   if (rel.has_root_path()) {
@@ -791,9 +829,12 @@ absl::StatusOr<Parser::FoundFile> Parser::ResolveFile(pugi::xml_node at, const s
                                   "' is absolute; file names must be relative to the scene "
                                   "folder and stay inside it"));
   }
-  const SourceFile& from = FileOf(at);
   std::vector<fs::path> candidates;
-  if (!from.rel_dir.empty()) candidates.push_back((from.rel_dir / rel).lexically_normal());
+  if (include) {
+    for (const SourceFile* f = &FileOf(at); f != nullptr;
+         f = f->parent >= 0 ? files_[size_t(f->parent)].get() : nullptr)
+      if (!f->rel_dir.empty()) candidates.push_back((f->rel_dir / rel).lexically_normal());
+  }
   candidates.push_back(rel.lexically_normal());
   std::vector<std::string> tried;
   for (const fs::path& normal : candidates) {
@@ -809,6 +850,8 @@ absl::StatusOr<Parser::FoundFile> Parser::ResolveFile(pugi::xml_node at, const s
 }
 
 absl::StatusOr<pugi::xml_node> Parser::LoadInclude(pugi::xml_node inc) {
+  if (const auto it = includes_.find(inc.internal_object()); it != includes_.end())
+    return it->second;  // read ahead by IndexForward
   LOADER_RETURN_IF_ERROR(CheckAttributes(inc, {"filename", "name"}));
   const SourceFile& from = FileOf(inc);
   if (from.depth + 1 >= kMaxIncludeDepth) {
@@ -818,7 +861,16 @@ absl::StatusOr<pugi::xml_node> Parser::LoadInclude(pugi::xml_node inc) {
   if (files_.size() > kMaxIncludedFiles)
     return Error(inc, absl::StrCat("more than ", kMaxIncludedFiles, " included files"));
   LOADER_ASSIGN_OR_RETURN(const std::string value, RequiredAttr(inc, "filename"));
-  LOADER_ASSIGN_OR_RETURN(const FoundFile found, ResolveFile(inc, value, "include filename"));
+  LOADER_ASSIGN_OR_RETURN(const FoundFile found, ResolveFile(inc, value, "include filename", true));
+  std::error_code ec;
+  const uintmax_t size = fs::file_size(found.full, ec);
+  if (ec || size > kMaxIncludedBytes - included_bytes_) {
+    return Error(inc, absl::StrCat("included files would take more than ", kMaxIncludedBytes >> 20,
+                                   " MB in all"));
+  }
+  included_bytes_ += size;
+  int parent = 0;
+  while (files_[size_t(parent)].get() != &from) ++parent;
   std::ifstream in(found.full, std::ios::binary);
   std::ostringstream text;
   text << in.rdbuf();
@@ -828,6 +880,7 @@ absl::StatusOr<pugi::xml_node> Parser::LoadInclude(pugi::xml_node inc) {
   file->path = found.full;
   file->rel_dir = found.rel.parent_path();
   file->depth = from.depth + 1;
+  file->parent = parent;
   for (size_t i = 0; i < xml.size(); ++i)
     if (xml[i] == '\n') file->newlines.push_back(i);
   const pugi::xml_parse_result result =
@@ -862,6 +915,7 @@ absl::StatusOr<pugi::xml_node> Parser::LoadInclude(pugi::xml_node inc) {
       own.set_value(name.value());
     }
   }
+  includes_.emplace(inc.internal_object(), root);
   return root;
 }
 
@@ -886,6 +940,37 @@ absl::Status Parser::CheckNesting(pugi::xml_node root) const {
   return absl::OkStatus();
 }
 
+absl::Status Parser::IndexForward(pugi::xml_node root) {
+  for (const pugi::xml_node c : root.children()) {
+    const absl::string_view tag = c.name();
+    pugi::xml_node object = c;
+    if (tag == "include") {
+      LOADER_ASSIGN_OR_RETURN(object, LoadInclude(c));
+      if (absl::string_view(object.name()) == "scene") {
+        // An included scene's <default>s set what is not set yet (the including file's defaults
+        // and the -D defines win), before anything in it is parsed.
+        for (const pugi::xml_node d : object.children("default")) {
+          LOADER_RETURN_IF_ERROR(CheckAttributes(d, {"name", "value"}));
+          const std::string name = d.attribute("name").value();
+          if (name.empty() || !d.attribute("value"))
+            return Error(d, "<default> needs a name and a value");
+          vars_.try_emplace(name, d.attribute("value").value());
+        }
+        LOADER_RETURN_IF_ERROR(IndexForward(object));
+        continue;
+      }
+    }
+    const absl::string_view kind = object.name();
+    if (!object.attribute("id") ||
+        !(kind == "bsdf" || kind == "texture" ||
+          (kind == "shape" && absl::string_view(object.attribute("type").value()) == "shapegroup")))
+      continue;
+    const absl::StatusOr<std::string> id = Attr(object, "id");
+    if (id.ok() && !id->empty()) forward_.try_emplace(*id, object);  // errors: where it is parsed
+  }
+  return absl::OkStatus();
+}
+
 absl::Status Parser::ParseForward(pugi::xml_node at, const std::string& id) {
   const auto f = forward_.find(id);
   if (f == forward_.end()) return absl::OkStatus();
@@ -893,10 +978,6 @@ absl::Status Parser::ParseForward(pugi::xml_node at, const std::string& id) {
   if (std::find(resolving_.begin(), resolving_.end(), target) != resolving_.end())
     return Error(at, absl::StrCat("circular reference to id '", id, "'"));
   if (parsed_.count(target.internal_object()) != 0) return absl::OkStatus();
-  constexpr size_t kMaxChain = 64;  // bounds the recursion, as CheckNesting does
-  if (resolving_.size() >= kMaxChain)
-    return Error(
-        at, absl::StrCat("references to ids defined later chained more than ", kMaxChain, " deep"));
   resolving_.push_back(target);
   parsed_.insert(target.internal_object());
   const absl::Status st = ParseTopLevel(target);
@@ -925,10 +1006,10 @@ absl::StatusOr<std::map<std::string, std::string>> Parser::TakeRestAsText(Params
 absl::Status Parser::RegisterId(pugi::xml_node n, absl::string_view kind, int index) {
   LOADER_ASSIGN_OR_RETURN(const std::string id, Attr(n, "id"));
   if (id.empty()) return absl::OkStatus();
-  const auto [it, inserted] = ids_.try_emplace(id, IdInfo{std::string(kind), index, Line(n)});
+  const auto [it, inserted] = ids_.try_emplace(id, IdInfo{std::string(kind), index, n});
   if (!inserted) {
-    return Error(
-        n, absl::StrCat("duplicate id '", id, "' (first defined at line ", it->second.line, ")"));
+    return Error(n, absl::StrCat("duplicate id '", id, "' (first defined at ",
+                                 LineOf(it->second.node), ")"));
   }
   return absl::OkStatus();
 }
@@ -946,17 +1027,18 @@ absl::StatusOr<std::string> Parser::PluginType(
 
 absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
   if (integrator_) {
-    return Error(
-        n, absl::StrCat("a second <integrator> (the first is at line ", Line(integrator_), ")"));
+    return Error(n,
+                 absl::StrCat("a second <integrator> (the first is at ", LineOf(integrator_), ")"));
   }
   integrator_ = n;
   // Mitsuba 0.6's other estimators of the same image (global illumination, unbiased or
   // consistent), in upgraded 0.x files: irfarm renders with its own integrator whatever the file
   // names, so these read as `path` (max_depth, rr_depth), with a warning naming the parameters
   // left unread. Mitsuba 3 has none of them: in a 3.x file they are an error, as there.
-  const bool old_estimator = upgraded_ && IsOneOf(n.attribute("type").value(),
-                                                  {"bdpt", "pssmlt", "mlt", "erpt", "photonmapper",
-                                                   "ppm", "sppm", "ptracer", "volpath_simple"});
+  const bool old_estimator =
+      FileOf(n).upgraded &&
+      IsOneOf(n.attribute("type").value(), {"bdpt", "pssmlt", "mlt", "erpt", "photonmapper", "ppm",
+                                            "sppm", "ptracer", "volpath_simple"});
   LOADER_ASSIGN_OR_RETURN(
       const std::string type,
       old_estimator ? RequiredAttr(n, "type")
@@ -990,7 +1072,8 @@ absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
   if (hide_emitters) {
     return Error(NodeOf(p, "hide_emitters"), "hide_emitters=true is not supported");
   }
-  if (upgraded_) {  // Mitsuba 0.5's strictNormals: irfarm always checks both normals' sides
+  if (FileOf(n)
+          .upgraded) {  // Mitsuba 0.5's strictNormals: irfarm always checks both normals' sides
     LOADER_RETURN_IF_ERROR(GetBool(p, "strict_normals", false).status());
   }
   if (type == "irrcache") {
@@ -1010,7 +1093,7 @@ absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
 
 absl::Status Parser::ParseSensor(pugi::xml_node n) {
   if (sensor_) {
-    return Error(n, absl::StrCat("a second <sensor> (the first is at line ", Line(sensor_),
+    return Error(n, absl::StrCat("a second <sensor> (the first is at ", LineOf(sensor_),
                                  "); irfarm renders one camera"));
   }
   sensor_ = n;
@@ -1138,7 +1221,7 @@ absl::Status Parser::ParseFilm(pugi::xml_node n) {
                           GetString(p, "component_format", "float16"));
   LOADER_RETURN_IF_ERROR(GetBool(p, "banner", false).status());
   LOADER_RETURN_IF_ERROR(GetBool(p, "sample_border", false).status());
-  if (upgraded_) {  // Mitsuba 0.5/0.6 hdrfilm parameters that Mitsuba 3 no longer has
+  if (FileOf(n).upgraded) {  // Mitsuba 0.5/0.6 hdrfilm parameters that Mitsuba 3 no longer has
     LOADER_RETURN_IF_ERROR(GetBool(p, "high_quality_edges", false).status());
     LOADER_RETURN_IF_ERROR(GetBool(p, "attach_log", false).status());
   }
@@ -1324,6 +1407,8 @@ class Parser::BsdfReader final : public BsdfParams {
 };
 
 absl::StatusOr<BsdfDesc> Parser::ParseBsdf(pugi::xml_node n) {
+  const DepthGuard depth(*this);
+  LOADER_RETURN_IF_ERROR(depth.Check(n));
   LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
   const BsdfPlugin* plugin = FindBsdfPlugin(type);
   if (plugin == nullptr) {
@@ -1375,6 +1460,8 @@ class Parser::TextureReader final : public TextureParams {
 };
 
 absl::StatusOr<int> Parser::ParseTexture(pugi::xml_node n) {
+  const DepthGuard depth(*this);
+  LOADER_RETURN_IF_ERROR(depth.Check(n));
   LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
   const TexturePlugin* plugin = FindTexturePlugin(type);
   if (plugin == nullptr) {
@@ -1412,11 +1499,6 @@ absl::Status Parser::ParseShapeGroup(pugi::xml_node n) {
   shape_sink_ = &group;
   absl::Status status;
   for (const Entry* e : shapes) {
-    if (!e->node.child("emitter").empty()) {
-      status = Error(e->node.child("emitter"),
-                     "a shape in a shapegroup cannot emit (Mitsuba 3 does not instance emitters)");
-      break;
-    }
     status = ParseShape(e->node);
     if (!status.ok()) break;
   }
@@ -1508,6 +1590,8 @@ class Parser::ShapeReader final : public ShapeParams {
 };
 
 absl::Status Parser::ParseShape(pugi::xml_node n) {
+  const DepthGuard depth(*this);
+  LOADER_RETURN_IF_ERROR(depth.Check(n));
   LOADER_ASSIGN_OR_RETURN(const std::string type, RequiredAttr(n, "type"));
   if (type == "shapegroup") return ParseShapeGroup(n);
   if (type == "instance") {
@@ -1533,6 +1617,11 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
   LOADER_ASSIGN_OR_RETURN(ShapeGeometry g, plugin->parse(reader));
 
   const std::vector<const Entry*> emitters = TakeObjects(p, "emitter");
+  // (An included emitter too, not only one written in the shape.)
+  if (shape_sink_ != nullptr && !emitters.empty()) {
+    return Error(emitters[0]->node,
+                 "a shape in a shapegroup cannot emit (Mitsuba 3 does not instance emitters)");
+  }
   const std::vector<const Entry*> bsdfs = TakeObjects(p, "bsdf");
   if (bsdfs.size() > 1) return Error(bsdfs[1]->node, "a shape has at most one bsdf");
   if (bsdfs.empty()) {
@@ -1679,8 +1768,8 @@ absl::Status Parser::ParseEmitter(pugi::xml_node n) {
   }
   if (plugin->kind == EmitterPlugin::Kind::kEnvironment) {
     if (environment_) {
-      return Error(n, absl::StrCat("a second environment emitter (the first is at line ",
-                                   Line(environment_), ")"));
+      return Error(n, absl::StrCat("a second environment emitter (the first is at ",
+                                   LineOf(environment_), ")"));
     }
     environment_ = n;
   }
@@ -1719,7 +1808,7 @@ absl::Status Parser::UpgradeOldSyntax(pugi::xml_node root) {
   if (ec != std::errc() || (end != version.data() + version.size() && *end != '.'))
     return Error(root, absl::StrCat("malformed scene version '", version, "'"));
   if (major >= 2) return absl::OkStatus();
-  upgraded_ = true;
+  const_cast<SourceFile&>(FileOf(root)).upgraded = true;  // files_ holds them mutable
   Warn(root, absl::StrCat("scene version ", version,
                           ": upgraded to Mitsuba 3 syntax (camelCase names -> snake_case)"));
   std::vector<pugi::xml_node> stack = {root};
@@ -1778,6 +1867,8 @@ absl::Status Parser::ParseChildren(pugi::xml_node root) {
 }
 
 absl::Status Parser::ParseTopLevel(pugi::xml_node c) {
+  const DepthGuard depth(*this);
+  LOADER_RETURN_IF_ERROR(depth.Check(c));
   const absl::string_view tag = c.name();
   if (tag == "integrator") return ParseIntegrator(c);
   if (tag == "sensor") return ParseSensor(c);
@@ -1791,15 +1882,7 @@ absl::Status Parser::ParseTopLevel(pugi::xml_node c) {
   if (tag == "include") {
     LOADER_ASSIGN_OR_RETURN(const pugi::xml_node inc, LoadInclude(c));
     if (absl::string_view(inc.name()) != "scene") return ParseTopLevel(inc);
-    // An included scene's <default>s set what is not set yet (the including file's defaults and
-    // the -D defines win), then its children are read here.
-    for (const pugi::xml_node d : inc.children("default")) {
-      LOADER_RETURN_IF_ERROR(CheckAttributes(d, {"name", "value"}));
-      const std::string name = d.attribute("name").value();
-      if (name.empty() || !d.attribute("value"))
-        return Error(d, "<default> needs a name and a value");
-      vars_.try_emplace(name, d.attribute("value").value());
-    }
+    // Its <default>s were read with it (IndexForward); its children are read here.
     return ParseChildren(inc);
   }
   if (tag == "spectrum") {
@@ -1856,16 +1939,7 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
   }
   for (const auto& [name, value] : options_.defines) vars_[name] = value;
 
-  // What a <ref> may name before its definition.
-  for (const pugi::xml_node c : root.children()) {
-    const absl::string_view tag = c.name();
-    if (!c.attribute("id") ||
-        !(tag == "bsdf" || tag == "texture" ||
-          (tag == "shape" && absl::string_view(c.attribute("type").value()) == "shapegroup")))
-      continue;
-    const absl::StatusOr<std::string> id = Attr(c, "id");
-    if (id.ok() && !id->empty()) forward_.try_emplace(*id, c);  // errors: where it is parsed
-  }
+  LOADER_RETURN_IF_ERROR(IndexForward(root));
   LOADER_RETURN_IF_ERROR(ParseChildren(root));
   if (!sensor_) return Error(root, "the scene has no <sensor>");
   return std::move(scene_);

@@ -25,12 +25,15 @@ absl::StatusOr<std::string> ReadFile(const std::string& path) {
   return ss.str();
 }
 
-// Where the scene loader finds a file named in a scene file whose folder is `rel_dir` (relative
-// to the scene folder): next to that file if it is there, else in the scene folder
-// (render/scene_loader.cc, Parser::ResolveFile).
-std::string BundlePathOf(const fs::path& folder, const fs::path& rel_dir, const std::string& name) {
-  if (!rel_dir.empty()) {
-    const fs::path near = (rel_dir / name).lexically_normal();
+// Where the scene loader finds the file an <include> names in a file read from inside the
+// includes whose folders are `dirs` (innermost first, relative to the scene folder): next to
+// each of them in turn, else in the scene folder (render/scene_loader.cc, Parser::ResolveFile).
+// Parameter files are always relative to the scene folder.
+std::string IncludePathOf(const fs::path& folder, const std::vector<fs::path>& dirs,
+                          const std::string& name) {
+  for (const fs::path& dir : dirs) {
+    if (dir.empty()) continue;
+    const fs::path near = (dir / name).lexically_normal();
     std::error_code ec;
     if (!near.empty() && *near.begin() != ".." && fs::is_regular_file(folder / near, ec))
       return near.string();
@@ -40,8 +43,8 @@ std::string BundlePathOf(const fs::path& folder, const fs::path& rel_dir, const 
 
 // Every file named under `node` (<string name="filename">, <include filename=...>) as a bundle
 // path; included files are read and searched too, as deep as the loader follows them (15).
-void CollectFilenames(const fs::path& folder, const fs::path& rel_dir, const pugi::xml_node& node,
-                      int depth, std::set<std::string>* out) {
+void CollectFilenames(const fs::path& folder, const std::vector<fs::path>& dirs,
+                      const pugi::xml_node& node, int depth, std::set<std::string>* out) {
   for (const pugi::xml_node& c : node.children()) {
     const std::string tag = c.name();
     std::string value;
@@ -50,18 +53,22 @@ void CollectFilenames(const fs::path& folder, const fs::path& rel_dir, const pug
     else if (tag == "include")
       value = c.attribute("filename").value();
     if (!value.empty() && value.find('$') == std::string::npos) {
-      const std::string path = BundlePathOf(folder, rel_dir, value);
+      const std::string path = tag == "include" ? IncludePathOf(folder, dirs, value)
+                                                : fs::path(value).lexically_normal().string();
       const bool first = out->insert(path).second;
       if (tag == "include" && first && depth + 1 < 15) {
         absl::StatusOr<std::string> xml = ReadFile((folder / path).string());
         pugi::xml_document doc;
-        if (xml.ok() && doc.load_buffer(xml->data(), xml->size()))  // else the loader reports it
-          CollectFilenames(folder, fs::path(path).parent_path(), doc, depth + 1, out);
+        if (xml.ok() && doc.load_buffer(xml->data(), xml->size())) {  // else the loader reports
+          std::vector<fs::path> inner = {fs::path(path).parent_path()};
+          inner.insert(inner.end(), dirs.begin(), dirs.end());
+          CollectFilenames(folder, inner, doc, depth + 1, out);
+        }
       }
     } else if (!value.empty()) {
       out->insert(value);  // a parameter: skipped below
     }
-    CollectFilenames(folder, rel_dir, c, depth, out);
+    CollectFilenames(folder, dirs, c, depth, out);
   }
 }
 
@@ -100,7 +107,7 @@ absl::StatusOr<v1::SceneBundle> MakeBundle(const std::string& scene_path) {
   if (!doc.load_string(xml->c_str())) return bundle;  // the coordinator reports where it fails
   std::set<std::string> names;
   const fs::path folder = fs::path(scene_path).parent_path();
-  CollectFilenames(folder, fs::path(), doc, 0, &names);
+  CollectFilenames(folder, {}, doc, 0, &names);
   for (const std::string& name : names) {
     if (name.find('$') != std::string::npos) continue;  // a parameter: cannot resolve here
     absl::Status st = CheckBundlePath(fs::path(name).lexically_normal().string());

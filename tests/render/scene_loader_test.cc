@@ -435,13 +435,14 @@ TEST(SceneLoaderTest, ReferencesToIdsDefinedLater) {
                    "  <bsdf type=\"twosided\" id=\"a\"><ref id=\"b\"/></bsdf>\n"
                    "  <bsdf type=\"twosided\" id=\"b\">\n    <ref id=\"a\"/></bsdf>\n"),
               "scene.xml:5:", "circular reference to id 'a'");
-  // A long chain of later definitions is refused before it can exhaust the stack.
+  // A long chain of later definitions is refused before it can exhaust the stack (each link
+  // parses the next in place: nested parsing, bounded as nested objects and includes are).
   std::string chain = "  <shape type=\"cube\"><ref id=\"b0\"/></shape>\n";
   for (int i = 0; i < 200; ++i)
     chain += "  <bsdf type=\"twosided\" id=\"b" + std::to_string(i) + "\"><ref id=\"b" +
              std::to_string(i + 1) + "\"/></bsdf>\n";
   chain += "  <bsdf type=\"diffuse\" id=\"b200\"/>\n";
-  ExpectError(Load(chain), "scene.xml:", "chained more than 64 deep");
+  ExpectError(Load(chain), "scene.xml:", "nested more than 128 deep");
   // Only top-level objects are found ahead; a shape's id still cannot be referenced.
   ExpectError(Load("  <shape type=\"cube\">\n    <ref id=\"s\"/></shape>\n"
                    "  <shape type=\"sphere\" id=\"s\"/>\n"),
@@ -449,9 +450,11 @@ TEST(SceneLoaderTest, ReferencesToIdsDefinedLater) {
 }
 
 // <include filename="..."/>: an included <scene>'s children are read in its place (its
-// <default>s set what is not set yet), an included object is one child named by the include;
-// names in an included file are found next to it first, then in the scene folder, as Mitsuba's
-// file resolver does. Values as mitsuba 3.9.1 loads the same files.
+// <default>s set what is not set yet), an included object is one child named by the include.
+// An include is found next to the file that names it (then next to the files that include that
+// one, then in the scene folder); a parameter's file in the scene folder only, as Mitsuba's
+// resolver has it when the plugins are made. Values as mitsuba 3.9.1 loads the same files; it
+// refuses `tri.obj` named in sub/part.xml for sub/tri.obj ("file not found"), as here.
 TEST(SceneLoaderTest, Includes) {
   const std::string dir = MakeDir("includes");
   fs::create_directories(dir + "/sub");
@@ -462,28 +465,41 @@ TEST(SceneLoaderTest, Includes) {
   <default name="r" value="0.7"/>
   <default name="s" value="0.1"/>
   <bsdf type="diffuse" id="late"><rgb name="reflectance" value="$r, $s, $s"/></bsdf>
-  <shape type="obj"><string name="filename" value="tri.obj"/><ref id="late"/></shape>
+  <shape type="obj"><string name="filename" value="sub/tri.obj"/><ref id="late"/></shape>
+  <shape type="disk"><include filename="mat.xml"/></shape>
 </scene>
 )");
   WriteFile(dir + "/sub/tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   WriteFile(dir + "/scene.xml", Wrap(R"(  <default name="s" value="0.5"/>
+  <shape type="sphere"><ref id="late"/></shape>
   <shape type="rectangle"><include filename="sub/mat.xml"/></shape>
   <include filename="sub/part.xml"/>
   <shape type="cube"><ref id="late"/></shape>
 )"));
   const auto scene = LoadSceneFile(dir + "/scene.xml", {});
   ASSERT_TRUE(scene.ok()) << scene.status();
-  ASSERT_EQ(scene->shapes.size(), 3u);
-  ExpectNear(scene->bsdfs.at(size_t(scene->shapes[0].bsdf)).Color("reflectance", Vec3(0)).value,
-             Vec3(0.2f, 0.3f, 0.4f));
-  const BsdfDesc& late = scene->bsdfs.at(size_t(scene->shapes[1].bsdf));
+  ASSERT_EQ(scene->shapes.size(), 5u);
+  const BsdfDesc& late = scene->bsdfs.at(size_t(scene->shapes[0].bsdf));  // a <ref> before it
   ExpectNear(late.Color("reflectance", Vec3(0)).value, Vec3(0.7f, 0.5f, 0.5f));  // s: the scene's
   EXPECT_EQ(late.loc.file, dir + "/sub/part.xml");
   EXPECT_EQ(late.loc.line, 4);
-  EXPECT_EQ(scene->shapes[1].mesh.positions.size(), 3u);  // sub/tri.obj, found next to part.xml
-  EXPECT_EQ(scene->shapes[2].bsdf, scene->shapes[1].bsdf);
+  ExpectNear(scene->bsdfs.at(size_t(scene->shapes[1].bsdf)).Color("reflectance", Vec3(0)).value,
+             Vec3(0.2f, 0.3f, 0.4f));
+  EXPECT_EQ(scene->shapes[2].mesh.positions.size(), 3u);
+  EXPECT_EQ(scene->shapes[2].bsdf, scene->shapes[0].bsdf);
+  // sub/part.xml's "mat.xml" is sub/mat.xml, next to it.
+  ExpectNear(scene->bsdfs.at(size_t(scene->shapes[3].bsdf)).Color("reflectance", Vec3(0)).value,
+             Vec3(0.2f, 0.3f, 0.4f));
+  EXPECT_EQ(scene->shapes[4].bsdf, scene->shapes[0].bsdf);
 
   // Errors name the file and line they are in.
+  WriteFile(dir + "/sub/near.xml",
+            "<scene version=\"3.0.0\">\n  <shape type=\"obj\">"
+            "<string name=\"filename\" value=\"tri.obj\"/></shape>\n"
+            "</scene>\n");
+  WriteFile(dir + "/near.xml", Wrap("  <include filename=\"sub/near.xml\"/>\n"));
+  ExpectError(LoadSceneFile(dir + "/near.xml", {}), dir + "/sub/near.xml:2:", "not found",
+              absl::StatusCode::kNotFound);
   WriteFile(dir + "/sub/bad.xml",
             "<scene version=\"3.0.0\">\n  <shape type=\"torus\"/>\n</scene>\n");
   WriteFile(dir + "/bad.xml", Wrap("  <include filename=\"sub/bad.xml\"/>\n"));
@@ -506,6 +522,49 @@ TEST(SceneLoaderTest, Includes) {
   WriteFile(dir + "/notobject.xml", Wrap("  <include filename=\"sub/film.xml\"/>\n"));
   ExpectError(LoadSceneFile(dir + "/notobject.xml", {}),
               dir + "/sub/film.xml:1:", "holds a <scene> or one object");
+  // A second sensor in an included file names where the first one is.
+  WriteFile(dir + "/sub/sensor.xml",
+            std::string("<scene version=\"3.0.0\">\n") + kSensor + "</scene>\n");
+  WriteFile(dir + "/sensors.xml", Wrap("  <include filename=\"sub/sensor.xml\"/>\n"));
+  ExpectError(LoadSceneFile(dir + "/sensors.xml", {}),
+              dir + "/sensors.xml:3:", "(the first is at " + dir + "/sub/sensor.xml:2)");
+  // An included emitter in a shapegroup's shape is refused as a written one is.
+  WriteFile(dir + "/sub/lamp.xml", "<emitter type=\"area\" version=\"3.0.0\"/>\n");
+  WriteFile(dir + "/group.xml",
+            Wrap("  <shape type=\"shapegroup\" id=\"g\"><shape type=\"sphere\">\n"
+                 "    <include filename=\"sub/lamp.xml\"/></shape></shape>\n"));
+  ExpectError(LoadSceneFile(dir + "/group.xml", {}),
+              dir + "/sub/lamp.xml:1:", "a shape in a shapegroup cannot emit");
+}
+
+// What an uploaded scene can make the loader do is bounded across includes: nesting restarts in
+// each included file, so 14 files of 20 nested masks each (280 levels) are refused by the one
+// count of nested parsing (they recursed 280 deep before; a longer chain of includes and
+// references exhausted the stack); and included files are sized before they are read (a 300 MB
+// file, sparse here, is refused without reading it).
+TEST(SceneLoaderErrorTest, IncludesCannotExhaustTheLoader) {
+  const std::string dir = MakeDir("include_limits");
+  for (int k = 1; k <= 14; ++k) {
+    std::string open, close;
+    for (int i = 0; i < 20; ++i) {
+      open += i == 0 ? "<bsdf type=\"mask\" version=\"3.0.0\">" : "<bsdf type=\"mask\">";
+      close += "</bsdf>";
+    }
+    const std::string inner = k < 14 ? "<include filename=\"" + std::to_string(k + 1) + ".xml\"/>"
+                                     : "<bsdf type=\"diffuse\"/>";
+    WriteFile(dir + "/" + std::to_string(k) + ".xml", open + inner + close + "\n");
+  }
+  WriteFile(dir + "/deep.xml",
+            Wrap("  <shape type=\"cube\"><include filename=\"1.xml\"/></shape>\n"));
+  ExpectError(LoadSceneFile(dir + "/deep.xml", {}), dir + "/", "nested more than 128 deep");
+
+  const std::string big = dir + "/big.xml";
+  WriteFile(big, "");
+  fs::resize_file(big, uintmax_t{300} << 20);
+  WriteFile(dir + "/huge.xml", Wrap("  <include filename=\"big.xml\"/>\n"));
+  ExpectError(LoadSceneFile(dir + "/huge.xml", {}),
+              dir + "/huge.xml:2:", "more than 256 MB in all");
+  fs::remove(big);
 }
 
 TEST(SceneLoaderErrorTest, UnsupportedFeatures) {

@@ -54,8 +54,9 @@ TEST(SceneBundleTest, ClientMistakesAreInvalidArgumentsThatNameTheClientsPath) {
   RemoveTree(*dir);
 }
 
-// A scene with <include>s travels whole: the included files and what they name (found next to
-// them first, as the loader finds them) are in the bundle, and the written bundle loads.
+// A scene with <include>s travels whole: the included files (an include found next to the file
+// that names it, as the loader finds it) and what they name are in the bundle, and the written
+// bundle loads.
 TEST(SceneBundleTest, IncludedFilesAndWhatTheyNameAreBundled) {
   absl::StatusOr<std::string> dir = MakeTempDir("irfarm-bundle-include-");
   ASSERT_TRUE(dir.ok());
@@ -64,7 +65,7 @@ TEST(SceneBundleTest, IncludedFilesAndWhatTheyNameAreBundled) {
     std::ofstream(*dir + "/src/" + path, std::ios::binary) << text;
   };
   write("parts/room.xml", R"(<scene version="3.0.0">
-  <shape type="obj"><string name="filename" value="tri.obj"/>
+  <shape type="obj"><string name="filename" value="parts/tri.obj"/>
     <include filename="paint.xml"/></shape>
 </scene>
 )");
