@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
 #include <map>
@@ -193,14 +194,37 @@ absl::Status WritePng(const Image& image, const std::string& path, float exposur
 absl::Status ReadTextureImage(const std::string& path, bool raw, Image* floats, ByteImage* bytes) {
   *floats = Image();
   *bytes = ByteImage();
+  // Sizes are checked from the header before anything is decoded: a small upload can claim any
+  // size (a PNG of 40000 x 40000 would take 4.8 GB as bytes). Floats (EXR, HDR, 16-bit PNG)
+  // take 12 bytes a texel: 2^27 texels is a 16K x 8K environment map; bytes 3: 2^28.
+  constexpr uint64_t kMaxFloatTexels = uint64_t{1} << 27, kMaxByteTexels = uint64_t{1} << 28;
+  const auto too_large = [&](uint64_t w, uint64_t h, uint64_t cap) {
+    return absl::InvalidArgumentError(path + ": image of " + std::to_string(w) + " x " +
+                                      std::to_string(h) + " texels is larger than the " +
+                                      std::to_string(cap) + " texels a texture may have");
+  };
   const std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
   if (ext == ".exr" || ext == ".EXR") {
+    try {
+      Imf::InputFile file(path.c_str());
+      const Imath::Box2i dw = file.header().dataWindow();
+      const uint64_t w = uint64_t(int64_t(dw.max.x) - dw.min.x + 1),
+                     h = uint64_t(int64_t(dw.max.y) - dw.min.y + 1);
+      if (w * h > kMaxFloatTexels) return too_large(w, h, kMaxFloatTexels);
+    } catch (const std::exception& e) {
+      return absl::InvalidArgumentError(path + ": cannot read EXR: " + e.what());
+    }
     absl::StatusOr<Image> exr = ReadExr(path);
     if (!exr.ok()) return exr.status();
     *floats = std::move(*exr);
     return absl::OkStatus();
   }
   int w = 0, h = 0, n = 0;
+  if (stbi_info(path.c_str(), &w, &h, &n)) {
+    const bool wide = stbi_is_hdr(path.c_str()) || stbi_is_16_bit(path.c_str());
+    const uint64_t cap = wide ? kMaxFloatTexels : kMaxByteTexels;
+    if (uint64_t(w) * uint64_t(h) > cap) return too_large(uint64_t(w), uint64_t(h), cap);
+  }
   if (stbi_is_hdr(path.c_str())) {
     // Radiance RGBE (.hdr): linear floats. stbi_load would tone-map it to 8 bits.
     float* hdr = stbi_loadf(path.c_str(), &w, &h, &n, 3);

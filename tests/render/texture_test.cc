@@ -247,6 +247,26 @@ TEST(TextureTest, SixteenBitPngsAndLayeredExrsMatchMitsuba) {
       << t.status();
 }
 
+// An image's size is checked from its header before it is decoded: a 16-bit PNG of a few bytes
+// that claims 12000 x 12000 texels (stb_image's own 1 GB check passes it; 864 MB as 16 bits and
+// 1.7 GB as floats) is refused at once, over the 2^27 texels a float image may have.
+TEST(TextureTest, AnImageClaimingAHugeSizeIsRefusedBeforeDecoding) {
+  const std::string dir = ::testing::TempDir() + "/texture_huge_test";
+  std::filesystem::create_directories(dir);
+  // Signature, then an IHDR chunk (12000 x 12000, 16-bit RGB) with its CRC; nothing after.
+  const unsigned char png[] = {0x89, 'P',  'N', 'G', '\r', '\n', 0x1a, '\n', 0,    0,    0,
+                               13,   'I',  'H', 'D', 'R',  0,    0,    0x2e, 0xe0, 0,    0,
+                               0x2e, 0xe0, 16,  2,   0,    0,    0,    0x8e, 0xb7, 0xc7, 0xe5};
+  const std::string path = dir + "/huge.png";
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(png), sizeof(png));
+  TextureDesc desc;
+  desc.filename = path;
+  const absl::StatusOr<std::unique_ptr<Texture>> t = LoadTexture(desc);
+  ASSERT_FALSE(t.ok());
+  EXPECT_NE(t.status().message().find("12000 x 12000 texels is larger than"), std::string::npos)
+      << t.status();
+}
+
 // An 8-bit environment map is sRGB-encoded, as Mitsuba 3.9.1's envmap decodes it: a grey PNG of
 // byte 128 gives radiance 0.2159 there (measured), where reading the byte as linear gave 0.502.
 TEST(TextureTest, EightBitEnvironmentMapsAreSrgb) {
