@@ -195,10 +195,11 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
         if (phase_of[t] == phase) batch.push_back(t);
       arena.execute([&] {
         tbb::parallel_for(size_t(0), batch.size(), [&](size_t i) {
+          if (settings.Cancelled()) return;
           const Tile& tile = tiles[batch[i]];
           RenderCounters& c = counters.local();
           PixelReuse reuse;
-          for (int y = tile.y0; y < tile.y1; ++y)
+          for (int y = tile.y0; y < tile.y1 && !settings.Cancelled(); ++y)
             for (int x = tile.x0; x < tile.x1; ++x)
               render_pixel(size_t(y - src.y0) * sw + size_t(x - src.x0), from, to, true, c, &reuse);
           if (progress) progress->Tick();
@@ -222,7 +223,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     double sum = 0;
     for (size_t p = 0; p < npix; ++p) sum += err[p] = film.RelativeError(p);
     estimate = sum / double(npix);
-    if (!adaptive || estimate <= goal) break;
+    if (!adaptive || estimate <= goal || settings.Cancelled()) break;
     if (settings.time_limit > 0 &&
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count() >=
             settings.time_limit)
@@ -319,6 +320,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, candidates.size(), 16),
                         [&](const tbb::blocked_range<size_t>& r) {
+                          if (settings.Cancelled()) return;
                           RenderCounters& c = counters.local();
                           PixelReuse reuse;
                           for (size_t i = r.begin(); i < r.end(); ++i) {

@@ -14,7 +14,7 @@ namespace irfarm {
 void RunOverture(const Camera& cam, const IrrcacheIntegrator& integrator, const PixelRect& rect,
                  uint64_t seed, uint64_t iteration, int threads, bool tty, tbb::task_arena& arena,
                  tbb::enumerable_thread_specific<RenderCounters>& counters,
-                 std::vector<uint8_t>* marks) {
+                 std::vector<uint8_t>* marks, const std::atomic<bool>* cancel) {
   const int w = cam.width();
   const int rw = rect.width(), rh = rect.height();
   // Coarse-to-fine: pixel centres on grids of stride 32, 16, ..., 1. Early passes spread records
@@ -43,6 +43,7 @@ void RunOverture(const Camera& cam, const IrrcacheIntegrator& integrator, const 
     tbb::parallel_for(0, threads, [&](int) {
       RenderCounters& c = counters.local();
       for (int i; (i = next.fetch_add(1, std::memory_order_relaxed)) < total;) {
+        if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) break;
         int p = int(passes.size()) - 1;
         while (passes[p].begin > i) --p;
         const Pass& pass = passes[p];

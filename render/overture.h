@@ -4,6 +4,7 @@
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/task_arena.h>
+#include <atomic>
 
 #include <cstdint>
 #include <vector>
@@ -21,6 +22,6 @@ namespace irfarm {
 void RunOverture(const Camera& cam, const IrrcacheIntegrator& integrator, const PixelRect& rect,
                  uint64_t seed, uint64_t iteration, int threads, bool tty, tbb::task_arena& arena,
                  tbb::enumerable_thread_specific<RenderCounters>& counters,
-                 std::vector<uint8_t>* marks);
+                 std::vector<uint8_t>* marks, const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace irfarm

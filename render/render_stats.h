@@ -32,6 +32,7 @@ struct CacheRound {
 
 struct RenderStats {
   std::string scene, integrator;
+  bool cancelled = false;  // RenderSettings::cancel was set: the image is not finished
   int width = 0, height = 0, spp = 0, threads = 0;
   uint64_t seed = 0;
   // irrcache settings actually used (zero for path)

@@ -340,7 +340,8 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
         const IrrcacheIntegrator trial(scene, cache, ic);
         if (settings.overture)
           RunOverture(cam, trial, rect, settings.seed, streams, threads, tty, arena, counters,
-                      &marks);
+                      &marks, settings.cancel);
+        if (settings.Cancelled()) break;
         const CacheErrorEstimate estimate = EstimateCacheError(
             trial, ic.cache_levels, cam, settings.seed, streams, refinement.checks(), rect, arena,
             counters, refinement.other_factor());
@@ -374,7 +375,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
       final_target_error = refinement.FinalTargetError();
     } else if (settings.overture) {
       RunOverture(cam, IrrcacheIntegrator(scene, cache, ic), rect, settings.seed, 0, threads, tty,
-                  arena, counters, &marks);
+                  arena, counters, &marks, settings.cancel);
     }
     out.stats.phases.push_back(timer.Stop());
     for (const RenderCounters& c : counters) out.stats.records_overture += c.records_computed;
@@ -396,6 +397,7 @@ RenderOutput RenderRect(const Scene& scene, const RenderSettings& settings_in,
   }
 
   RenderStats& st = out.stats;
+  st.cancelled = settings.Cancelled();
   for (const RenderCounters& c : counters) st.counters.Add(c);
   st.integrator = settings.integrator;
   st.width = rw;

@@ -5,6 +5,7 @@
 // Mitsuba do) and then the final pass, which interpolates and computes any record still missing.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -61,7 +62,12 @@ struct RenderSettings {
   // > 0: --target-error, the image's total relMSE to reach (cache + sampling); overrides
   // sampling_error and the cache's accuracy (render/cache_refinement.h plans it).
   double target_error = 0;
-  double time_limit = 0;    // seconds (wall) from the start of the render; 0 = none
+  double time_limit = 0;  // seconds (wall) from the start of the render; 0 = none
+  // Set by the caller (a worker whose job was closed or whose session broke): the render stops
+  // at its next tile, row or round and returns an image that is not finished
+  // (RenderStats::cancelled). Not owned; null: never.
+  const std::atomic<bool>* cancel = nullptr;
+  bool Cancelled() const { return cancel != nullptr && cancel->load(std::memory_order_relaxed); }
   bool sample_map = false;  // also produce an image of the samples each pixel got
   bool aovs = false;        // also accumulate the AOV images (render/aov.h)
   // Splat tent and gaussian samples into the pixels around them, as Mitsuba's film does

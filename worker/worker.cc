@@ -27,6 +27,11 @@ struct SessionState {
   std::map<std::string, std::shared_ptr<JobContext>> jobs;
   std::map<std::string, std::string> failed_jobs;  // job id -> why its scene did not load
   bool broken = false;
+  // The tile being rendered: its job and the flag that stops its render (RenderSettings::cancel),
+  // set when that job is closed (cancelled, failed, or finished by others) or the session breaks:
+  // its result would go nowhere. A stopped worker (Stop) still finishes its tile.
+  std::string tile_job;
+  std::atomic<bool>* tile_cancel = nullptr;
   // The lease token a warm-started job's tile waits on (empty: none) and whether its RegionReady
   // has arrived.
   std::string region_wait;
@@ -168,6 +173,8 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       } else if (m.has_job_closed()) {
         std::lock_guard<std::mutex> lock(s.mu);
         s.jobs.erase(m.job_closed().job_id());  // a tile in progress keeps its shared_ptr
+        if (s.tile_cancel != nullptr && s.tile_job == m.job_closed().job_id())
+          s.tile_cancel->store(true);
       } else if (m.has_drain()) {
         Stop();
       } else if (m.has_rejected()) {
@@ -177,6 +184,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
     }
     std::lock_guard<std::mutex> lock(s.mu);
     s.broken = true;
+    if (s.tile_cancel != nullptr) s.tile_cancel->store(true);
     s.cv.notify_all();
   });
 
@@ -300,8 +308,36 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
     }
     RenderSettings tile_settings = job->settings();
     tile_settings.budget_carry = job->TakeBudgetCarry();
+    std::atomic<bool> cancel{false};
+    {
+      std::lock_guard<std::mutex> lock(s.mu);
+      s.tile_job = lease.job_id();
+      s.tile_cancel = &cancel;
+      if (s.broken || s.jobs.count(lease.job_id()) == 0) cancel = true;  // closed meanwhile
+    }
+    tile_settings.cancel = &cancel;
     RenderOutput out = RenderRect(job->scene(), tile_settings, job->cache(), rect);
+    {
+      std::lock_guard<std::mutex> lock(s.mu);
+      s.tile_cancel = nullptr;
+      s.tile_job.clear();
+    }
     job->AddBudgetCarry(out.stats.budget_left);
+    if (out.stats.cancelled) {
+      metrics_.tiles_cancelled->Add();
+      spdlog::info("job {}: tile {} stopped (the job was closed or the session broke)",
+                   lease.job_id(), lease.tile_index());
+      // The coordinator holds the worker's lease until it hears of it (a closed job's tile
+      // included): it is told, and leases the next tile. A broken session ends at the loop's top.
+      v1::WorkerMessage stopped;
+      v1::TileFailed* tf = stopped.mutable_tile_failed();
+      tf->set_job_id(lease.job_id());
+      tf->set_tile_index(lease.tile_index());
+      tf->set_lease_token(lease.lease_token());
+      tf->set_reason("stopped: the job was closed while the tile rendered");
+      write(stopped);
+      continue;
+    }
     publish_all();  // the tile's records go out before its result
     v1::WorkerMessage m;
     v1::TileResult* tr = m.mutable_tile_result();

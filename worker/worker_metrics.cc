@@ -10,6 +10,9 @@ WorkerMetrics::WorkerMetrics(MetricsRegistry* r)
                                     "Tiles rendered and sent to the coordinator.")),
       tiles_failed(r->AddCounter("irfarm_worker_tiles_failed_total",
                                  "Tiles reported failed (the job's scene did not load).")),
+      tiles_cancelled(r->AddCounter(
+          "irfarm_worker_tiles_cancelled_total",
+          "Tile renders stopped before the end: their job was closed or the session broke.")),
       records_computed(r->AddCounter("irfarm_worker_records_computed_total",
                                      "Irradiance records computed by this worker.")),
       records_sent(r->AddCounter("irfarm_worker_records_sent_total",

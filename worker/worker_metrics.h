@@ -12,7 +12,8 @@ struct WorkerMetrics {
   explicit WorkerMetrics(MetricsRegistry* registry);
 
   Counter* tiles_completed;
-  Counter* tiles_failed;  // TileFailed sent (the job's scene did not load here)
+  Counter* tiles_failed;     // TileFailed sent (the job's scene did not load here)
+  Counter* tiles_cancelled;  // renders stopped: the job was closed or the session broke
   Counter* records_computed;
   Counter* records_sent;
   Counter* record_bytes_sent;

@@ -7,7 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <mutex>
 #include <thread>
+#include <vector>
 
 #include "irfarm/v1/worker.grpc.pb.h"
 #include "service/scene_bundle.h"
@@ -114,6 +118,105 @@ TEST(WorkerLeaseCheckTest, BadLeaseRectanglesFailTheTileAndTheSessionGoesOn) {
   ASSERT_EQ(service.results_.size(), 1u);
   EXPECT_EQ(service.results_[0].first, 5);
   EXPECT_EQ(service.results_[0].second, 16 * 8 * 3);
+}
+
+// Registers the worker, sends a 32 x 32 cornell-box job of 65536 path samples a pixel (a tile
+// of minutes on one thread) and its one tile, closes the job once the worker has started it
+// (its TileRegion arrives just before the render), then leases another tile of the closed job:
+// the worker answers that one (TileFailed: no job) as soon as its render loop is free.
+class ClosingCoordinator final : public v1::WorkerService::Service {
+ public:
+  grpc::Status Session(
+      grpc::ServerContext*,
+      grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>* stream) override {
+    v1::WorkerMessage in;
+    if (!stream->Read(&in) || !in.has_register_()) return grpc::Status::CANCELLED;
+    v1::CoordinatorMessage out;
+    out.mutable_registered()->set_worker_id(1);
+    out.mutable_registered()->set_heartbeat_ms(5000);
+    stream->Write(out);
+    out.Clear();
+    v1::JobSpec* spec = out.mutable_job_spec();
+    spec->set_job_id("job-1");
+    *spec->mutable_scene()->mutable_bundle() =
+        *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+    (*spec->mutable_settings()->mutable_defines())["resx"] = "32";
+    (*spec->mutable_settings()->mutable_defines())["resy"] = "32";
+    spec->mutable_settings()->set_integrator("path");
+    spec->mutable_settings()->set_spp(65536);
+    stream->Write(out);
+    const auto lease = [&](int tile) {
+      out.Clear();
+      v1::TileLease* l = out.mutable_lease();
+      l->set_job_id("job-1");
+      l->set_tile_index(tile);
+      l->set_lease_token(std::string(16, char('a' + tile)));
+      *l->mutable_rect() = Rect(0, 0, 32, 32);
+      stream->Write(out);
+    };
+    lease(0);
+    while (stream->Read(&in) && !in.has_tile_region()) {
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));  // into the render
+    out.Clear();
+    out.mutable_job_closed()->set_job_id("job-1");
+    stream->Write(out);
+    closed_at_ = std::chrono::steady_clock::now();
+    lease(1);
+    while (stream->Read(&in)) {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (in.has_tile_result()) results_.push_back(in.tile_result().tile_index());
+      if (in.has_tile_failed() && in.tile_failed().tile_index() == 0)
+        stopped_reason_ = in.tile_failed().reason();
+      if (in.has_tile_failed() && in.tile_failed().tile_index() == 1) {
+        answered_after_ = std::chrono::steady_clock::now() - closed_at_;
+        break;
+      }
+    }
+    done_ = true;
+    return grpc::Status::OK;
+  }
+
+  std::mutex mu_;
+  std::vector<int> results_;
+  std::string stopped_reason_;  // tile 0's TileFailed
+  std::chrono::steady_clock::time_point closed_at_;
+  std::chrono::steady_clock::duration answered_after_{};
+  std::atomic<bool> done_{false};
+};
+
+// A tile whose job is closed while it renders (cancelled by its client, failed, or finished by
+// other workers) stops rendering and is reported stopped (TileFailed, which a closed job does not
+// count), not rendered to its end and sent: it held the worker for the whole tile before.
+TEST(WorkerLeaseCheckTest, ATileOfAClosedJobStopsRendering) {
+  ClosingCoordinator service;
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(&service);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  ASSERT_GT(port, 0);
+  WorkerOptions options;
+  options.coordinator = "127.0.0.1:" + std::to_string(port);
+  options.name = "closer";
+  options.threads = 1;
+  Worker worker(options);
+  std::thread run([&] { worker.Run(); });
+  for (int i = 0; i < 1200 && !service.done_; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  worker.Stop();
+  run.join();
+  server->Shutdown(std::chrono::system_clock::now());
+  ASSERT_TRUE(service.done_) << "the worker never got to the second lease";
+  std::lock_guard<std::mutex> lock(service.mu_);
+  const double seconds = std::chrono::duration<double>(service.answered_after_).count();
+  std::printf("MEASURED the worker answered the next lease %.3f s after the job closed\n", seconds);
+  EXPECT_TRUE(service.results_.empty()) << "the closed job's tile was sent";
+  // Its lease is given back (the coordinator holds a worker's lease until it hears of it).
+  EXPECT_NE(service.stopped_reason_.find("stopped"), std::string::npos) << service.stopped_reason_;
+  // The render checks its flag at every row of its blocks: 32 pixels of 65536 samples on one
+  // thread, well under a second here; the whole tile takes minutes.
+  EXPECT_LT(seconds, 5.0);
 }
 
 }  // namespace
