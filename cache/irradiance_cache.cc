@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <new>
 
 #if defined(__SSE2__)
@@ -186,10 +187,18 @@ struct IrradianceCache::Accumulator {
   }
   // For a record that counts at a (weight w): does it count at the narrow accuracy too? Of
   // RecordWeight's tests, only eps < narrow (w > 1 / narrow; the reach test follows from it) and
-  // the in-front tolerance, which scales with the accuracy, can differ.
+  // the in-front tolerance, which scales with the accuracy, can differ. A weight at its cap
+  // (kWardMaxWeight: eps below 1e-3) says too little for a narrow accuracy under 1e-3: there eps
+  // itself is tested (no lookup counted at a narrow accuracy under 1e-3 before).
   void Narrow(float w, const Vec3& position, const Vec3& normal, float radius,
               const Vec3& irradiance) {
-    if (narrow > 0 && w > 1 / narrow && !IsInFront(x, n, narrow, position, normal, radius)) {
+    if (!(narrow > 0)) return;
+    const bool within =
+        w < kWardMaxWeight
+            ? w > 1 / narrow
+            : Length(x - position) / radius + std::sqrt(std::max(0.0f, 1.0f - Dot(n, normal))) <
+                  narrow;
+    if (within && !IsInFront(x, n, narrow, position, normal, radius)) {
       counts_at_narrow = true;
       narrow_weight += w;
       for (int k = 0; k < 3; ++k) narrow_e[k] += double(w) * irradiance[k];
@@ -510,6 +519,19 @@ void IrradianceCache::LowerNeighbours(const IrradianceRecord& r) const {
       });
 }
 
+void IrradianceCache::LowerOwn(const IrradianceRecord& r, float bound) const {
+  // Records at r's very position (the walk squares its reach: 1e-12 stays a normal float).
+  ForEachNeighbour(TreeOf(r.level), r.position, 0.0f, 1e-12f, [&](const Block* b, int i) {
+    if (b->radius()[i] != r.radius || b->x()[i] != r.position.x || b->y()[i] != r.position.y ||
+        b->z()[i] != r.position.z)
+      return;
+    std::atomic<float>& c = const_cast<Block*>(b)->cold()[i].clamped;
+    float old = c.load(std::memory_order_relaxed);
+    while (bound < old && !c.compare_exchange_weak(old, bound, std::memory_order_relaxed)) {
+    }
+  });
+}
+
 void IrradianceCache::Insert(const IrradianceRecord& in) {
   if (!IsValidRecord(in)) return;
   IrradianceRecord r = in;
@@ -518,7 +540,17 @@ void IrradianceCache::Insert(const IrradianceRecord& in) {
   if (std::abs(LengthSquared(r.normal) - 1.0f) > 1e-6f) r.normal = Normalize(r.normal);
   if (neighbour_slope_ > 0) r.radius = ClampToNeighbours(r);
   InsertUnclamped(r);
-  if (neighbour_slope_ > 0) LowerNeighbours(r);
+  if (neighbour_slope_ > 0) {
+    // Published, a full fence, then clamped again against what is published now, and its
+    // neighbours lowered: of two records inserted at once (Dekker's pattern: each publishes,
+    // fences, then looks) one sees the other, whichever order they land in. Without the second
+    // clamp a big record clamped before a small one near it was published kept its radius
+    // (NeighbourClampingHoldsForConcurrentInserts: 4498 of 20000 pairs).
+    std::atomic_thread_fence(std::memory_order_seq_cst);
+    const float again = ClampToNeighbours(r);
+    if (again < r.radius) LowerOwn(r, again);
+    LowerNeighbours(r);
+  }
   // Counted last, with release: a lookup region gathered after it saw this count (acquire) holds
   // the record and every radius it lowered, and one gathered before sees a new count and gathers
   // again (LookupNear keeps the clamped radii it gathered).

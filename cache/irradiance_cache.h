@@ -265,6 +265,8 @@ class IrradianceCache {
   bool CellOf(const Vec3& x, uint32_t cell[3]) const;
   static void AddToNode(Node* node, const IrradianceRecord& r, std::atomic<uint64_t>* all);
   void InsertUnclamped(const IrradianceRecord& r);
+  // Lowers the clamped radius of the published copies of r (its position and radius) to bound.
+  void LowerOwn(const IrradianceRecord& r, float bound) const;
   // Calls f(block, slot) for every ready record j of the blocks from `head` with
   // |p - x_j| < alpha * R_j + beta (where that is positive), tested 4 at a time.
   template <typename F>
