@@ -539,6 +539,12 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     absl::Status st = CheckSnapshotScene(*snap, scene_hash, "cache snapshot");
     if (!st.ok()) return st;
     imported = std::move(snap->records);
+    // Counted against the job's record limit as workers' records are (imports were not: jobs
+    // holding 64 MiB of imported records each were kept after they ended and seeded the next).
+    if (int64_t(imported.size()) > options_.limits.max_job_records)
+      return absl::ResourceExhaustedError(
+          "cache snapshot: " + std::to_string(imported.size()) + " records, over the limit of " +
+          std::to_string(options_.limits.max_job_records) + " per job");
     // The same checks as a worker's records: a snapshot is as untrusted as a worker.
     st = SnapshotRecordsProblem(record_bounds, imported, "cache snapshot");
     if (!st.ok()) return st;
@@ -1622,12 +1628,16 @@ void JobManager::SeedCache(Job& job) {
   if (sources.empty()) return;
   std::sort(sources.begin(), sources.end(),
             [](const Job* a, const Job* b) { return a->stored.sequence() < b->stored.sequence(); });
+  // At most half the job's record limit, the newest first (the latest job's records, each log
+  // from its end), so that the job's own records still fit and the work done here, under the
+  // lock, is bounded: every earlier job of the client was copied whole before.
+  const size_t cap = size_t(std::max<int64_t>(0, options_.limits.max_job_records / 2));
   SeedSet seed;
   std::string from;
-  for (const Job* src : sources) {
-    const RecordLog& log = src->cache->records();
-    for (size_t i = 0; i < log.size(); ++i) seed.Add(log[i]);
-    from += (from.empty() ? "" : ",") + src->stored.job().id();
+  for (auto src = sources.rbegin(); src != sources.rend() && seed.records().size() < cap; ++src) {
+    const RecordLog& log = (*src)->cache->records();
+    for (size_t i = log.size(); i-- > 0 && seed.records().size() < cap;) seed.Add(log[i]);
+    from += (from.empty() ? "" : ",") + (*src)->stored.job().id();
   }
   std::vector<IrradianceRecord> records = seed.records();
   // Stamped like imported records: sent to every worker of the job when it joins.
@@ -1635,8 +1645,14 @@ void JobManager::SeedCache(Job& job) {
   const std::vector<IrradianceRecord> merged = job.cache->Merge(records);
   j->set_records_seeded(merged.size());
   j->set_seeded_from(from);
-  // Written in this order (records, then the job saying it was seeded), retried until stored.
-  writer_->AppendRecords(j->id(), merged);
+  // Written in this order (records, then the job saying it was seeded), retried until stored;
+  // in batches, as records are synced, so that no one store write is larger than a batch.
+  for (size_t i = 0; i < merged.size(); i += options_.sync_batch_records)
+    writer_->AppendRecords(
+        j->id(),
+        std::vector<IrradianceRecord>(
+            merged.begin() + ptrdiff_t(i),
+            merged.begin() + ptrdiff_t(std::min(merged.size(), i + options_.sync_batch_records))));
   writer_->PutJob(job.stored);
 }
 

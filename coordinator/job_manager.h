@@ -94,6 +94,9 @@ struct JobLimits {
   // GetResult and ExportCache calls in progress at once (each holds a whole image or snapshot,
   // and its file, in memory); past it RESOURCE_EXHAUSTED, to be retried.
   int max_downloads = 4;
+  // WatchJob streams open at once (each holds a server thread until its job ends); past it
+  // RESOURCE_EXHAUSTED (GetJob answers the same, polled).
+  int max_watches = 64;
   // A job's priority (higher runs first, across all clients' jobs) is in [0, kMaxPriority].
   static constexpr int kMaxPriority = 100;
 };

@@ -2,6 +2,8 @@
 #include "coordinator/job_service.h"
 
 #include <algorithm>
+#include <chrono>
+#include <thread>
 
 #include "service/grpc_status.h"
 
@@ -22,7 +24,7 @@ grpc::Status StreamBytes(const absl::StatusOr<std::string>& bytes,
   return grpc::Status::OK;
 }
 
-// Gives a download slot (JobServiceImpl::TakeDownloadSlot) back when the call ends.
+// Gives a download or watch slot (JobServiceImpl::TakeSlot) back when the call ends.
 struct DownloadSlot {
   std::atomic<int>* in_use;
   ~DownloadSlot() { in_use->fetch_sub(1); }
@@ -94,9 +96,21 @@ grpc::Status JobServiceImpl::WatchJob(grpc::ServerContext* context,
                                       const v1::WatchJobRequest* request,
                                       grpc::ServerWriter<v1::WatchJobResponse>* writer) {
   IRFARM_AUTHENTICATE(caller);
+  const int limit = manager_->options().limits.max_watches;
+  if (!TakeSlot(watches_, limit))
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        std::to_string(limit) +
+                            " job watches are open (--max-watches); poll GetJob, or retry "
+                            "when one has ended");
+  const DownloadSlot slot{&watches_};
   uint64_t version = 0;
   std::string last;
+  auto looked = std::chrono::steady_clock::now() - std::chrono::milliseconds(100);
   while (!context->IsCancelled()) {
+    // At most 10 looks a second: every record batch of a running job is a change, and each look
+    // reads the job under the coordinator's lock.
+    std::this_thread::sleep_until(looked + std::chrono::milliseconds(100));
+    looked = std::chrono::steady_clock::now();
     absl::StatusOr<v1::Job> job = manager_->GetJob(request->job_id(), caller);
     if (!job.ok()) return ToGrpcStatus(job.status());
     job->clear_elapsed_seconds();  // only send when something else changed
@@ -126,12 +140,11 @@ grpc::Status JobServiceImpl::CancelJob(grpc::ServerContext* context,
   return grpc::Status::OK;
 }
 
-bool JobServiceImpl::TakeDownloadSlot() {
-  const int limit = manager_->options().limits.max_downloads;
-  int n = downloads_.load();
+bool JobServiceImpl::TakeSlot(std::atomic<int>& in_use, int limit) {
+  int n = in_use.load();
   do {
     if (n >= limit) return false;
-  } while (!downloads_.compare_exchange_weak(n, n + 1));
+  } while (!in_use.compare_exchange_weak(n, n + 1));
   return true;
 }
 
@@ -140,7 +153,8 @@ grpc::Status JobServiceImpl::GetResult(grpc::ServerContext* context,
                                        grpc::ServerWriter<v1::GetResultResponse>* writer) {
   ScopedTimer timer(latency_[kResult]);
   IRFARM_AUTHENTICATE(caller);
-  if (!TakeDownloadSlot()) return DownloadsBusy(manager_->options().limits.max_downloads);
+  if (!TakeSlot(downloads_, manager_->options().limits.max_downloads))
+    return DownloadsBusy(manager_->options().limits.max_downloads);
   const DownloadSlot slot{&downloads_};
   return StreamBytes(manager_->ResultExr(request->job_id(), caller), writer);
 }
@@ -150,7 +164,8 @@ grpc::Status JobServiceImpl::ExportCache(grpc::ServerContext* context,
                                          grpc::ServerWriter<v1::ExportCacheResponse>* writer) {
   ScopedTimer timer(latency_[kExport]);
   IRFARM_AUTHENTICATE(caller);
-  if (!TakeDownloadSlot()) return DownloadsBusy(manager_->options().limits.max_downloads);
+  if (!TakeSlot(downloads_, manager_->options().limits.max_downloads))
+    return DownloadsBusy(manager_->options().limits.max_downloads);
   const DownloadSlot slot{&downloads_};
   return StreamBytes(manager_->ExportSnapshot(request->job_id(), caller), writer);
 }

@@ -41,12 +41,13 @@ class JobServiceImpl final : public v1::JobService::Service {
 
   enum Method { kSubmit, kGet, kList, kCancel, kResult, kExport, kCluster, kDelete, kNumMethods };
 
-  // Takes one of limits().max_downloads slots for a GetResult / ExportCache call; false (and
-  // nothing taken) when all are in use.
-  bool TakeDownloadSlot();
+  // Takes one of `limit` slots counted by `in_use` (GetResult / ExportCache calls: max_downloads;
+  // WatchJob streams: max_watches); false (and nothing taken) when all are in use.
+  static bool TakeSlot(std::atomic<int>& in_use, int limit);
 
   JobManager* manager_;
   std::atomic<int> downloads_{0};  // GetResult / ExportCache calls in progress
+  std::atomic<int> watches_{0};    // WatchJob streams open
   Authenticator* auth_;
   Histogram* latency_[kNumMethods];  // WatchJob is a long stream: not timed
 };

@@ -128,6 +128,10 @@ int main(int argc, char** argv) {
                  "GetResult / ExportCache calls in progress at once; more are refused "
                  "RESOURCE_EXHAUSTED (4)")
       ->check(CLI::Range(1, 1024));
+  app.add_option("--max-watches", lim.max_watches,
+                 "WatchJob streams open at once, each a server thread until its job ends; more "
+                 "are refused RESOURCE_EXHAUSTED (64)")
+      ->check(CLI::Range(1, 65536));
   app.add_option("--max-outbox-mib", max_outbox_mib,
                  "record fan-out queued per worker before batches are dropped (64)");
   std::string fanout = "region";

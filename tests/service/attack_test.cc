@@ -226,6 +226,7 @@ class AttackTest : public ::testing::Test {
     options.limits.max_outbox_bytes = size_t(1) << 20;
     options.limits.max_job_records = max_job_records_;
     options.limits.max_downloads = max_downloads_;
+    options.limits.max_watches = max_watches_;
     manager_ = std::move(*JobManager::Create(options, &store_));
     auth_ =
         std::make_unique<Authenticator>(std::vector<NamedToken>{{"alice", kAlice}, {"bob", kBob}},
@@ -384,6 +385,7 @@ class AttackTest : public ::testing::Test {
   std::string dir_, worker_token_file_;
   int64_t max_job_records_ = int64_t(1) << 24;
   int max_downloads_ = 4;
+  int max_watches_ = 64;
   InMemoryJobStore store_;
   std::unique_ptr<JobManager> manager_;
   std::unique_ptr<Authenticator> auth_;
@@ -919,6 +921,54 @@ TEST_F(AttackTest, AStoppedWorkerFinishesItsTileAndTakesNoOther) {
 // (noise, so that the EXR does not compress: tens of MB, past what the transport buffers) and
 // stops reading holds the slot; a second download is refused RESOURCE_EXHAUSTED with the reason,
 // and once the first is cancelled a download goes through again.
+// WatchJob streams are bounded as downloads are: each holds a server thread until its job ends,
+// so a client opening thousands of them held thousands of threads, each reading the job under
+// the coordinator's lock at every record batch. Past --max-watches: RESOURCE_EXHAUSTED with the
+// reason; a slot comes back when a watch ends.
+TEST_F(AttackTest, WatchesPastTheLimitAreRefusedUntilOneEnds) {
+  max_watches_ = 2;
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  struct Watch {
+    grpc::ClientContext context;
+    std::unique_ptr<grpc::ClientReader<v1::WatchJobResponse>> reader;
+  };
+  const auto open = [&](Watch* w) {
+    Auth(&w->context, kAlice);
+    v1::WatchJobRequest r;
+    r.set_job_id(a);
+    w->reader = stub_->WatchJob(&w->context, r);
+    v1::WatchJobResponse first;
+    return w->reader->Read(&first);  // the job as it is: the watch is open
+  };
+  Watch one, two, three;
+  ASSERT_TRUE(open(&one));
+  ASSERT_TRUE(open(&two));
+  EXPECT_FALSE(open(&three));
+  const grpc::Status refused = three.reader->Finish();
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << refused.error_message();
+  EXPECT_NE(refused.error_message().find("--max-watches"), std::string::npos)
+      << refused.error_message();
+  one.context.TryCancel();
+  one.reader->Finish();
+  bool reopened = false;  // the server sees the cancel soon after
+  for (int i = 0; i < 100 && !reopened; ++i) {
+    Watch again;
+    reopened = open(&again);
+    if (!reopened) {
+      again.reader->Finish();
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    } else {
+      again.context.TryCancel();
+      again.reader->Finish();
+    }
+  }
+  EXPECT_TRUE(reopened);
+  two.context.TryCancel();
+  two.reader->Finish();
+}
+
 TEST_F(AttackTest, DownloadsPastTheLimitAreRefusedUntilOneEnds) {
   max_downloads_ = 1;
   StartServer();
@@ -1327,6 +1377,54 @@ TEST_F(AttackTest, SnapshotRecordsDoNotSeedAnotherClientsJob) {
   ASSERT_TRUE(Get(kAlice, alices, &job).ok());
   EXPECT_NE(job.seeded_from().find(poisoned), std::string::npos) << job.seeded_from();
   EXPECT_GE(job.records_seeded(), 64u);
+  f.Cancel();
+}
+
+// A snapshot's records count against the job's record limit as a worker's do, and a job is
+// seeded with at most half of it (the newest records): a client's earlier jobs, each importing
+// records up to the limit, were copied whole into its next job, under the coordinator's lock,
+// and the workers' own records were then refused as past the limit.
+TEST_F(AttackTest, ImportsAndSeedsStayWithinTheJobsRecordLimit) {
+  max_job_records_ = 100;
+  StartServer();
+  std::string probe;
+  ASSERT_TRUE(Submit(kAlice, Request(), &probe).ok());
+  v1::Job job;
+  ASSERT_TRUE(Get(kAlice, probe, &job).ok());
+  const auto snapshot = [&](int n, float z) {
+    Snapshot snap;
+    snap.scene_hash = job.scene_hash();
+    for (int i = 0; i < n; ++i)
+      snap.records.push_back(Record(Vec3(-0.9f + 0.018f * float(i % 100), -0.5f, z), 0.05f, 0));
+    return SerializeSnapshot(snap);
+  };
+  v1::SubmitJobRequest req = Request();
+  req.set_cache_snapshot(snapshot(101, 0.1f));
+  std::string refused;
+  const grpc::Status over = Submit(kAlice, req, &refused);
+  EXPECT_EQ(over.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << over.error_message();
+  EXPECT_NE(over.error_message().find("101 records, over the limit of 100"), std::string::npos)
+      << over.error_message();
+  // Two earlier jobs of 90 and 80 distinct records: the next job takes 50, the newest first.
+  std::string first, second, next;
+  req.set_cache_snapshot(snapshot(90, 0.1f));
+  ASSERT_TRUE(Submit(kAlice, req, &first).ok());
+  req.set_cache_snapshot(snapshot(80, 0.2f));
+  ASSERT_TRUE(Submit(kAlice, req, &second).ok());
+  ASSERT_TRUE(Submit(kAlice, Request(), &next).ok());
+  FakeWorker f(channel_, kWorker, "w");
+  for (int i = 0; i < 64; ++i) {
+    const std::optional<v1::TileLease> l = f.NextLease();
+    ASSERT_TRUE(l.has_value());
+    if (l->job_id() == next) break;
+    ASSERT_TRUE(
+        f.Send(Result(l->job_id(), l->tile_index(), l->lease_token(), LeaseFloats(*l), 0.5f)));
+  }
+  ASSERT_TRUE(Get(kAlice, next, &job).ok());
+  std::printf("MEASURED seeded %llu records from '%s'\n",
+              static_cast<unsigned long long>(job.records_seeded()), job.seeded_from().c_str());
+  EXPECT_EQ(job.records_seeded(), 50u);
+  EXPECT_EQ(job.seeded_from().rfind(second, 0), 0u) << job.seeded_from();
   f.Cancel();
 }
 
