@@ -322,6 +322,7 @@ class IrradianceCache {
   Node* roots_[kTrees][kClasses];
   std::atomic<uint64_t> all_{0};  // newest completed record (a RecordRef), for ForEach
   std::atomic<size_t> size_{0};
+  std::atomic<uint64_t> inserts_published_{0};  // Insert's ordering point (see there)
 };
 
 }  // namespace irfarm
