@@ -329,7 +329,10 @@ absl::Status JobManager::Resume() {
                                                  options_.tile_retry);
     job->cache = std::make_unique<GlobalCache>(CacheSettingsOf(s), RecordBoundsOf(s));
     job->camera = CameraOf(s);
-    absl::StatusOr<std::map<int, std::string>> tiles = store_->LoadTiles(j.id());
+    // A failed or cancelled job's pixels are not fetched by anyone (FinishJob released them).
+    const bool wants_pixels = !FinalState(j.state()) || j.state() == v1::JOB_STATE_SUCCEEDED;
+    absl::StatusOr<std::map<int, std::string>> tiles =
+        wants_pixels ? store_->LoadTiles(j.id()) : std::map<int, std::string>();
     // A damaged key (DATA_LOSS) is reported and skipped: the job renders those tiles again.
     if (!tiles.ok() && !absl::IsDataLoss(tiles.status())) return Unavailable(tiles.status());
     if (!tiles.ok()) {
@@ -356,6 +359,14 @@ absl::Status JobManager::Resume() {
       records = std::vector<IrradianceRecord>();
     }
     job->cache->Merge(*records);  // validated again on the way in
+    if (j.state() == v1::JOB_STATE_SUCCEEDED && !job->tiles->all_done()) {
+      // Its tiles are gone from the store (evicted, or damaged): not an image to serve as black.
+      const std::string why = std::to_string(job->tiles->num_tiles() - job->tiles->num_done()) +
+                              " of " + std::to_string(job->tiles->num_tiles()) +
+                              " finished tiles were lost from the store";
+      spdlog::error("job {}: {}: failed", j.id(), why);
+      FinishJob(*job, v1::JOB_STATE_FAILED, why);
+    }
     if (FinalState(j.state())) {
       job->tiles->Clear();
       job->cache->Close();
@@ -933,7 +944,8 @@ absl::Status JobManager::Delete(const std::string& id, const Caller& caller) {
                                            v1::JobState_Name((*found)->stored.job().state()) +
                                            ": cancel it first");
   }
-  if (!RemoveJob(id)) return absl::UnavailableError("job store: cannot delete job '" + id + "'");
+  const absl::Status removed = RemoveJob(id);
+  if (!removed.ok()) return removed;
   metrics_.jobs_deleted->Add();
   return absl::OkStatus();
 }
@@ -941,22 +953,28 @@ absl::Status JobManager::Delete(const std::string& id, const Caller& caller) {
 // Called without mu_: the store is asked first (it may hang up to its deadline), the job leaves
 // memory only once the store no longer has it. A final job never changes, so nothing is lost
 // between the two.
-bool JobManager::RemoveJob(const std::string& id) {
+absl::Status JobManager::RemoveJob(const std::string& id) {
   // Job-state writes queued before (the job's final state) must land first, or one would put
   // the job back into the store after the delete.
   if (!writer_->Flush(std::chrono::seconds(2))) {
     spdlog::warn("cannot delete job {}: earlier store writes are still pending", id);
-    return false;
+    return absl::UnavailableError("job store: cannot delete job '" + id +
+                                  "': " + std::to_string(writer_->pending()) +
+                                  " earlier store writes are still pending (is the store up?); "
+                                  "retry later");
   }
   absl::Status st = store_->DeleteJob(id);
   if (!st.ok()) {
     spdlog::warn("cannot delete job {} from the store: {}", id, st.ToString());
-    return false;  // kept in memory: retried by the next ExpireJobs
+    // Kept in memory: retried by the next ExpireJobs. The store's own code (a fenced store's
+    // FAILED_PRECONDITION is not worth retrying) and reason go to the client.
+    return absl::Status(st.code(),
+                        "job store: cannot delete job '" + id + "': " + std::string(st.message()));
   }
   std::lock_guard<std::mutex> lock(mu_);
   jobs_.erase(id);
   Changed();
-  return true;
+  return absl::OkStatus();
 }
 
 int JobManager::ExpireJobs() {
@@ -980,7 +998,7 @@ int JobManager::ExpireJobs() {
     }
   }
   int removed = 0;
-  for (const std::string& id : expired) removed += RemoveJob(id) ? 1 : 0;
+  for (const std::string& id : expired) removed += RemoveJob(id).ok() ? 1 : 0;
   metrics_.jobs_expired->Add(uint64_t(removed));
   return removed;
 }

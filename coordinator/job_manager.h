@@ -371,9 +371,9 @@ class JobManager {
   std::vector<uint32_t> OtherEligibleWorkers(uint32_t worker_id, SteadyTime now) const;
   void TryAssign(uint32_t worker_id, Worker& worker, std::vector<v1::CoordinatorMessage>* out);
   void FinishJob(Job& job, v1::JobState state, const std::string& error);
-  // Removes job `id` from the store, then from memory (mu_ NOT held); false when the store
-  // failed.
-  bool RemoveJob(const std::string& id);
+  // Removes job `id` from the store, then from memory (mu_ NOT held); the store's error (its
+  // code, the reason) when it failed.
+  absl::Status RemoveJob(const std::string& id);
   // When `job` starts: merges the records of earlier jobs of the same sensor-free scene and
   // record settings (cache_seed.h) into its cache, so its workers get them on joining.
   void SeedCache(Job& job);

@@ -235,5 +235,60 @@ TEST(RedisStartupTest, DamagedKeysAreSkippedAndTheRestResumes) {
   EXPECT_EQ(jobs[1].tiles_done(), 0);
 }
 
+// Delete says why it failed: with Redis gone, the cancelled job's final state is still queued for
+// the store, and the client hears that (UNAVAILABLE, "store writes are still pending"), not only
+// "cannot delete job" (a review's finding: no reason, whatever the cause).
+TEST(RedisStartupTest, DeleteSaysWhyTheStoreRefused) {
+  auto redis = std::make_unique<RedisServer>();
+  std::unique_ptr<RedisJobStore> store = redis->Connect();
+  ASSERT_TRUE(store) << "redis-server did not start";
+  std::unique_ptr<JobManager> manager =
+      std::move(*JobManager::Create(JobManagerOptions(), store.get()));
+  v1::SubmitJobRequest req;
+  *req.mutable_scene()->mutable_bundle() =
+      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+  (*req.mutable_settings()->mutable_defines())["resx"] = "32";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "32";
+  absl::StatusOr<v1::Job> job = manager->Submit(req);
+  ASSERT_TRUE(job.ok()) << job.status();
+  redis.reset();  // SIGKILL
+  ASSERT_TRUE(manager->Cancel(job->id(), Caller()).ok());
+  const absl::Status st = manager->Delete(job->id(), Caller());
+  EXPECT_TRUE(absl::IsUnavailable(st)) << st;
+  EXPECT_NE(st.message().find("store writes are still pending"), std::string::npos) << st;
+  EXPECT_TRUE(manager->GetJob(job->id()).ok()) << "a job the store still has left memory";
+}
+
+// A finished job whose tiles are gone from the store after a restart (evicted by a Redis
+// maxmemory policy, or damaged) fails with the count, instead of serving an image with black
+// tiles as SUCCEEDED (a review's finding: GetResult answered OK with 1 of 4 tiles black).
+TEST(RedisStartupTest, ASucceededJobMissingTilesFailsWithTheCount) {
+  RedisServer redis;
+  std::unique_ptr<RedisJobStore> store = redis.Connect();
+  ASSERT_TRUE(store) << "redis-server did not start";
+  v1::StoredJob s;
+  s.mutable_job()->set_id("job-5");
+  s.mutable_job()->set_state(v1::JOB_STATE_SUCCEEDED);
+  s.mutable_job()->set_width(32);
+  s.mutable_job()->set_height(32);
+  s.mutable_job()->mutable_settings()->set_tile_size(16);  // 4 tiles
+  RawRedis(redis, {"SET", "irfarm:job:job-5", s.SerializeAsString()});
+  RawRedis(redis, {"SADD", "irfarm:jobs", "job-5"});
+  const std::vector<float> pixels(16 * 16 * 3, 0.5f);
+  for (const char* tile : {"0", "1", "2"})  // of 4: tile 3 is lost
+    RawRedis(redis, {"HSET", "irfarm:job:job-5:tiles", tile,
+                     std::string(reinterpret_cast<const char*>(pixels.data()),
+                                 pixels.size() * sizeof(float))});
+  absl::StatusOr<std::unique_ptr<JobManager>> manager =
+      JobManager::Create(JobManagerOptions(), store.get());
+  ASSERT_TRUE(manager.ok()) << manager.status();
+  const absl::StatusOr<v1::Job> job = (*manager)->GetJob("job-5");
+  ASSERT_TRUE(job.ok()) << job.status();
+  EXPECT_EQ(job->state(), v1::JOB_STATE_FAILED);
+  EXPECT_NE(job->error().find("1 of 4 finished tiles were lost from the store"), std::string::npos)
+      << job->error();
+  EXPECT_FALSE((*manager)->ResultExr("job-5").ok());
+}
+
 }  // namespace
 }  // namespace irfarm
