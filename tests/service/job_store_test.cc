@@ -20,6 +20,16 @@
 namespace irfarm {
 namespace {
 
+// cornell-box at 32 x 32, as a client submits it.
+v1::SubmitJobRequest CornellRequest() {
+  v1::SubmitJobRequest req;
+  *req.mutable_scene()->mutable_bundle() =
+      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+  (*req.mutable_settings()->mutable_defines())["resx"] = "32";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "32";
+  return req;
+}
+
 class JobStoreTest : public ::testing::TestWithParam<std::string> {
  protected:
   void SetUp() override {
@@ -109,11 +119,7 @@ TEST(RedisRecordsTest, RecordsAreMergedOnlyOnceStored) {
   ASSERT_TRUE(store) << "redis-server did not start";
   std::unique_ptr<JobManager> manager =
       std::move(*JobManager::Create(JobManagerOptions(), store.get()));
-  v1::SubmitJobRequest req;
-  *req.mutable_scene()->mutable_bundle() =
-      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
-  (*req.mutable_settings()->mutable_defines())["resx"] = "32";
-  (*req.mutable_settings()->mutable_defines())["resy"] = "32";
+  const v1::SubmitJobRequest req = CornellRequest();
   absl::StatusOr<v1::Job> job = manager->Submit(req);
   ASSERT_TRUE(job.ok()) << job.status();
   const uint32_t worker = manager->RegisterWorker("w");
@@ -168,11 +174,7 @@ TEST(RedisStartupTest, DamagedKeysAreSkippedAndTheRestResumes) {
   {
     std::unique_ptr<JobManager> manager =
         std::move(*JobManager::Create(JobManagerOptions(), store.get()));
-    v1::SubmitJobRequest req;
-    *req.mutable_scene()->mutable_bundle() =
-        *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
-    (*req.mutable_settings()->mutable_defines())["resx"] = "32";
-    (*req.mutable_settings()->mutable_defines())["resy"] = "32";
+    const v1::SubmitJobRequest req = CornellRequest();
     for (int i = 0; i < 2; ++i) {
       absl::StatusOr<v1::Job> job = manager->Submit(req);
       ASSERT_TRUE(job.ok()) << job.status();
@@ -244,11 +246,7 @@ TEST(RedisStartupTest, DeleteSaysWhyTheStoreRefused) {
   ASSERT_TRUE(store) << "redis-server did not start";
   std::unique_ptr<JobManager> manager =
       std::move(*JobManager::Create(JobManagerOptions(), store.get()));
-  v1::SubmitJobRequest req;
-  *req.mutable_scene()->mutable_bundle() =
-      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
-  (*req.mutable_settings()->mutable_defines())["resx"] = "32";
-  (*req.mutable_settings()->mutable_defines())["resy"] = "32";
+  const v1::SubmitJobRequest req = CornellRequest();
   absl::StatusOr<v1::Job> job = manager->Submit(req);
   ASSERT_TRUE(job.ok()) << job.status();
   redis.reset();  // SIGKILL
