@@ -997,8 +997,19 @@ int JobManager::ExpireJobs() {
       if (too_old || too_many) expired.push_back(finished[k].second);
     }
   }
+  // The round ends when the store is unavailable: each try may wait on it (up to 2 s for
+  // pending writes), and lease expiry runs on the same thread after this (a stuck store with 30
+  // expired jobs held it a minute a round); the next round tries again. Another failure is that
+  // job's own: the others are still removed.
   int removed = 0;
-  for (const std::string& id : expired) removed += RemoveJob(id).ok() ? 1 : 0;
+  for (const std::string& id : expired) {
+    const absl::Status st = RemoveJob(id);
+    if (st.ok()) {
+      ++removed;
+    } else if (absl::IsUnavailable(st) || absl::IsDeadlineExceeded(st)) {
+      break;
+    }
+  }
   metrics_.jobs_expired->Add(uint64_t(removed));
   return removed;
 }
