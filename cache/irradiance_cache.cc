@@ -194,10 +194,7 @@ struct IrradianceCache::Accumulator {
               const Vec3& irradiance) {
     if (!(narrow > 0)) return;
     const bool within =
-        w < kWardMaxWeight
-            ? w > 1 / narrow
-            : Length(x - position) / radius + std::sqrt(std::max(0.0f, 1.0f - Dot(n, normal))) <
-                  narrow;
+        w < kWardMaxWeight ? w > 1 / narrow : WardEpsilon(x, n, position, normal, radius) < narrow;
     if (within && !IsInFront(x, n, narrow, position, normal, radius)) {
       counts_at_narrow = true;
       narrow_weight += w;
@@ -503,20 +500,27 @@ float IrradianceCache::ClampToNeighbours(const IrradianceRecord& r) const {
   return radius;
 }
 
+namespace {
+
+// Lowers a record's clamped radius to `bound` if that is lower, with a CAS loop: concurrent
+// inserts may both lower one record.
+void LowerClamped(std::atomic<float>& clamped, float bound) {
+  float old = clamped.load(std::memory_order_relaxed);
+  while (bound < old && !clamped.compare_exchange_weak(old, bound, std::memory_order_relaxed)) {
+  }
+}
+
+}  // namespace
+
 void IrradianceCache::LowerNeighbours(const IrradianceRecord& r) const {
   const float slack = float(1 + kReachSlack);
-  ForEachNeighbour(
-      TreeOf(r.level), r.position, slack / neighbour_slope_, -r.radius / neighbour_slope_ * slack,
-      [&](const Block* b, int i) {
-        const Vec3 xj(b->x()[i], b->y()[i], b->z()[i]);
-        const float bound = r.radius + neighbour_slope_ * Length(xj - r.position);
-        if (!(bound < b->radius()[i])) return;
-        // Lowered only, with a CAS loop: concurrent inserts may both lower one record.
-        std::atomic<float>& c = const_cast<Block*>(b)->cold()[i].clamped;
-        float old = c.load(std::memory_order_relaxed);
-        while (bound < old && !c.compare_exchange_weak(old, bound, std::memory_order_relaxed)) {
-        }
-      });
+  ForEachNeighbour(TreeOf(r.level), r.position, slack / neighbour_slope_,
+                   -r.radius / neighbour_slope_ * slack, [&](const Block* b, int i) {
+                     const Vec3 xj(b->x()[i], b->y()[i], b->z()[i]);
+                     const float bound = r.radius + neighbour_slope_ * Length(xj - r.position);
+                     if (!(bound < b->radius()[i])) return;
+                     LowerClamped(const_cast<Block*>(b)->cold()[i].clamped, bound);
+                   });
 }
 
 void IrradianceCache::LowerOwn(const IrradianceRecord& r, float bound) const {
@@ -525,10 +529,7 @@ void IrradianceCache::LowerOwn(const IrradianceRecord& r, float bound) const {
     if (b->radius()[i] != r.radius || b->x()[i] != r.position.x || b->y()[i] != r.position.y ||
         b->z()[i] != r.position.z)
       return;
-    std::atomic<float>& c = const_cast<Block*>(b)->cold()[i].clamped;
-    float old = c.load(std::memory_order_relaxed);
-    while (bound < old && !c.compare_exchange_weak(old, bound, std::memory_order_relaxed)) {
-    }
+    LowerClamped(const_cast<Block*>(b)->cold()[i].clamped, bound);
   });
 }
 

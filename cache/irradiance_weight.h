@@ -30,8 +30,13 @@ constexpr float kInFrontTolerance = 0.05f;
 
 // Ward's error estimate eps_i(x, n) = |x - x_i| / R_i + sqrt(1 - n . n_i). Dimensionless.
 // n must be unit length (records' normals are, see IsValidRecord).
+// (The record given by its position x_i, normal n_i and radius R_i: for copies of its fields.)
+inline float WardEpsilon(const Vec3& x, const Vec3& n, const Vec3& position, const Vec3& normal,
+                         float radius) {
+  return Length(x - position) / radius + std::sqrt(std::max(0.0f, 1.0f - Dot(n, normal)));
+}
 inline float WardEpsilon(const Vec3& x, const Vec3& n, const IrradianceRecord& r) {
-  return Length(x - r.position) / r.radius + std::sqrt(std::max(0.0f, 1.0f - Dot(n, r.normal)));
+  return WardEpsilon(x, n, r.position, r.normal, r.radius);
 }
 
 // w_i = 1 / eps_i, capped at kWardMaxWeight (also for eps = 0).

@@ -25,9 +25,9 @@ grpc::Status StreamBytes(const absl::StatusOr<std::string>& bytes,
 }
 
 // Gives a download or watch slot (JobServiceImpl::TakeSlot) back when the call ends.
-struct DownloadSlot {
+struct Slot {
   std::atomic<int>* in_use;
-  ~DownloadSlot() { in_use->fetch_sub(1); }
+  ~Slot() { in_use->fetch_sub(1); }
 };
 
 grpc::Status DownloadsBusy(int limit) {
@@ -102,7 +102,7 @@ grpc::Status JobServiceImpl::WatchJob(grpc::ServerContext* context,
                         std::to_string(limit) +
                             " job watches are open (--max-watches); poll GetJob, or retry "
                             "when one has ended");
-  const DownloadSlot slot{&watches_};
+  const Slot slot{&watches_};
   uint64_t version = 0;
   std::string last;
   auto looked = std::chrono::steady_clock::now() - std::chrono::milliseconds(100);
@@ -155,7 +155,7 @@ grpc::Status JobServiceImpl::GetResult(grpc::ServerContext* context,
   IRFARM_AUTHENTICATE(caller);
   if (!TakeSlot(downloads_, manager_->options().limits.max_downloads))
     return DownloadsBusy(manager_->options().limits.max_downloads);
-  const DownloadSlot slot{&downloads_};
+  const Slot slot{&downloads_};
   return StreamBytes(manager_->ResultExr(request->job_id(), caller), writer);
 }
 
@@ -166,7 +166,7 @@ grpc::Status JobServiceImpl::ExportCache(grpc::ServerContext* context,
   IRFARM_AUTHENTICATE(caller);
   if (!TakeSlot(downloads_, manager_->options().limits.max_downloads))
     return DownloadsBusy(manager_->options().limits.max_downloads);
-  const DownloadSlot slot{&downloads_};
+  const Slot slot{&downloads_};
   return StreamBytes(manager_->ExportSnapshot(request->job_id(), caller), writer);
 }
 

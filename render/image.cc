@@ -77,11 +77,24 @@ Image ReadChannels(Imf::InputFile& file, const std::vector<std::string>& names) 
   return image;
 }
 
+// A texture image larger than `cap` texels (ReadTextureImage, ReadExr's max_texels).
+absl::Status TooLarge(const std::string& path, uint64_t w, uint64_t h, uint64_t cap) {
+  return absl::InvalidArgumentError(path + ": image of " + std::to_string(w) + " x " +
+                                    std::to_string(h) + " texels is larger than the " +
+                                    std::to_string(cap) + " texels a texture may have");
+}
+
 }  // namespace
 
-absl::StatusOr<Image> ReadExr(const std::string& path) {
+absl::StatusOr<Image> ReadExr(const std::string& path, uint64_t max_texels) {
   try {
     Imf::InputFile file(path.c_str());
+    if (max_texels > 0) {  // from the header, before anything is allocated
+      const Imath::Box2i dw = file.header().dataWindow();
+      const uint64_t w = uint64_t(int64_t(dw.max.x) - dw.min.x + 1),
+                     h = uint64_t(int64_t(dw.max.y) - dw.min.y + 1);
+      if (w * h > max_texels) return TooLarge(path, w, h, max_texels);
+    }
     // Channels are classified as Mitsuba's read_exr does, by the part of their name after the
     // last '.', in any case: "R", "diffuse.r" and "B" are colour channels. Taken: an R, G and B
     // of one layer (the unnamed layer first, then layers in name order), else a Y (luminance, as
@@ -198,23 +211,9 @@ absl::Status ReadTextureImage(const std::string& path, bool raw, Image* floats, 
   // size (a PNG of 40000 x 40000 would take 4.8 GB as bytes). Floats (EXR, HDR, 16-bit PNG)
   // take 12 bytes a texel: 2^27 texels is a 16K x 8K environment map; bytes 3: 2^28.
   constexpr uint64_t kMaxFloatTexels = uint64_t{1} << 27, kMaxByteTexels = uint64_t{1} << 28;
-  const auto too_large = [&](uint64_t w, uint64_t h, uint64_t cap) {
-    return absl::InvalidArgumentError(path + ": image of " + std::to_string(w) + " x " +
-                                      std::to_string(h) + " texels is larger than the " +
-                                      std::to_string(cap) + " texels a texture may have");
-  };
   const std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
   if (ext == ".exr" || ext == ".EXR") {
-    try {
-      Imf::InputFile file(path.c_str());
-      const Imath::Box2i dw = file.header().dataWindow();
-      const uint64_t w = uint64_t(int64_t(dw.max.x) - dw.min.x + 1),
-                     h = uint64_t(int64_t(dw.max.y) - dw.min.y + 1);
-      if (w * h > kMaxFloatTexels) return too_large(w, h, kMaxFloatTexels);
-    } catch (const std::exception& e) {
-      return absl::InvalidArgumentError(path + ": cannot read EXR: " + e.what());
-    }
-    absl::StatusOr<Image> exr = ReadExr(path);
+    absl::StatusOr<Image> exr = ReadExr(path, kMaxFloatTexels);
     if (!exr.ok()) return exr.status();
     *floats = std::move(*exr);
     return absl::OkStatus();
@@ -223,7 +222,7 @@ absl::Status ReadTextureImage(const std::string& path, bool raw, Image* floats, 
   if (stbi_info(path.c_str(), &w, &h, &n)) {
     const bool wide = stbi_is_hdr(path.c_str()) || stbi_is_16_bit(path.c_str());
     const uint64_t cap = wide ? kMaxFloatTexels : kMaxByteTexels;
-    if (uint64_t(w) * uint64_t(h) > cap) return too_large(uint64_t(w), uint64_t(h), cap);
+    if (uint64_t(w) * uint64_t(h) > cap) return TooLarge(path, uint64_t(w), uint64_t(h), cap);
   }
   if (stbi_is_hdr(path.c_str())) {
     // Radiance RGBE (.hdr): linear floats. stbi_load would tone-map it to 8 bits.

@@ -35,8 +35,8 @@ absl::Status WriteExr(const Image& image, const std::string& path,
                       const std::vector<ExrLayer>& layers = {});
 // An EXR's colour: the R, G, B channels of one layer (names classified by their last part, in any
 // case, as Mitsuba's read_exr does: "diffuse.r"), else a Y channel as grey; INVALID_ARGUMENT when
-// it has neither.
-absl::StatusOr<Image> ReadExr(const std::string& path);
+// it has neither. With max_texels > 0, a larger image is refused from its header.
+absl::StatusOr<Image> ReadExr(const std::string& path, uint64_t max_texels = 0);
 // Reads channels "layer.C" for C in `channels` (1 to 3) into x, y, z; an error if one is missing.
 absl::StatusOr<Image> ReadExrLayer(const std::string& path, const std::string& layer,
                                    const std::vector<std::string>& channels);

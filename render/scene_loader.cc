@@ -178,10 +178,26 @@ class Parser {
     bool upgraded = false;         // a Mitsuba 0.5/0.6 file, upgraded on load
     std::vector<size_t> newlines;  // offsets of '\n' in its text, for line numbers
     pugi::xml_document doc;
+    // The line (from 1) of byte `offset` of its text.
+    int LineAt(ptrdiff_t offset) const {
+      return int(std::lower_bound(newlines.begin(), newlines.end(),
+                                  size_t(std::max<ptrdiff_t>(offset, 0))) -
+                 newlines.begin()) +
+             1;
+    }
+    // Parses `xml` into doc: INVALID_ARGUMENT "path:line: malformed XML: ..." when it is not.
+    absl::Status Load(const std::string& xml) {
+      for (size_t i = 0; i < xml.size(); ++i)
+        if (xml[i] == '\n') newlines.push_back(i);
+      const pugi::xml_parse_result result =
+          doc.load_buffer(xml.data(), xml.size(), pugi::parse_default);
+      if (result) return absl::OkStatus();
+      return absl::InvalidArgumentError(absl::StrCat(path, ":", LineAt(result.offset),
+                                                     ": malformed XML: ", result.description()));
+    }
   };
-  // Mitsuba's ParserConfig::max_include_depth; the file count bounds what an upload can make the
+  // With kMaxIncludeDepth (scene_loader.h), the file count bounds what an upload can make the
   // loader read (a file including itself twice, 15 deep, would be 2^15 reads).
-  static constexpr int kMaxIncludeDepth = 15;
   static constexpr size_t kMaxIncludedFiles = 1024;
   static constexpr uintmax_t kMaxIncludedBytes = uintmax_t{256} << 20;  // all included files read
   // Parse calls nested in each other (objects in objects, includes, references to objects defined
@@ -206,6 +222,8 @@ class Parser {
   // Indexes the top-level bsdfs, textures and shapegroups with an id under `root`, included
   // scenes' too (their files are read now), for <ref>s that come before them.
   absl::Status IndexForward(pugi::xml_node root);
+  // A <default>'s name, its attributes checked (name and value, both given).
+  absl::StatusOr<std::string> DefaultName(pugi::xml_node d) const;
   class DepthGuard;
   absl::Status CheckNesting(pugi::xml_node root) const;
 
@@ -342,7 +360,7 @@ class Parser {
                                                                 absl::string_view name) const;
 };
 
-// Counts one level of nested parsing for as long as it lives; ok() is false past kMaxParseDepth.
+// Counts one level of nested parsing for as long as it lives; Check fails past kMaxParseDepth.
 class Parser::DepthGuard {
  public:
   explicit DepthGuard(Parser& p) : p_(p) { ++p_.parse_depth_; }
@@ -368,11 +386,7 @@ const Parser::SourceFile& Parser::FileOf(pugi::xml_node n) const {
 
 int Parser::Line(pugi::xml_node n) const {
   const ptrdiff_t offset = n.offset_debug();
-  if (offset < 0) return 0;
-  const std::vector<size_t>& newlines = FileOf(n).newlines;
-  return int(std::lower_bound(newlines.begin(), newlines.end(), size_t(offset)) -
-             newlines.begin()) +
-         1;
+  return offset < 0 ? 0 : FileOf(n).LineAt(offset);
 }
 
 std::string Parser::Describe(pugi::xml_node n) {
@@ -864,7 +878,8 @@ absl::StatusOr<pugi::xml_node> Parser::LoadInclude(pugi::xml_node inc) {
   LOADER_ASSIGN_OR_RETURN(const FoundFile found, ResolveFile(inc, value, "include filename", true));
   std::error_code ec;
   const uintmax_t size = fs::file_size(found.full, ec);
-  if (ec || size > kMaxIncludedBytes - included_bytes_) {
+  if (ec) return Error(inc, absl::StrCat("cannot read included file '", found.full, "'"));
+  if (size > kMaxIncludedBytes - included_bytes_) {
     return Error(inc, absl::StrCat("included files would take more than ", kMaxIncludedBytes >> 20,
                                    " MB in all"));
   }
@@ -881,19 +896,9 @@ absl::StatusOr<pugi::xml_node> Parser::LoadInclude(pugi::xml_node inc) {
   file->rel_dir = found.rel.parent_path();
   file->depth = from.depth + 1;
   file->parent = parent;
-  for (size_t i = 0; i < xml.size(); ++i)
-    if (xml[i] == '\n') file->newlines.push_back(i);
-  const pugi::xml_parse_result result =
-      file->doc.load_buffer(xml.data(), xml.size(), pugi::parse_default);
-  if (!result) {
-    const int line = int(std::lower_bound(file->newlines.begin(), file->newlines.end(),
-                                          size_t(std::max<ptrdiff_t>(result.offset, 0))) -
-                         file->newlines.begin()) +
-                     1;
-    return absl::InvalidArgumentError(absl::StrCat(file->path, ":", line,
-                                                   ": malformed XML: ", result.description(),
-                                                   " (included at ", Where(inc), ")"));
-  }
+  if (const absl::Status st = file->Load(xml); !st.ok())
+    return absl::InvalidArgumentError(
+        absl::StrCat(st.message(), " (included at ", Where(inc), ")"));
   pugi::xml_node root = file->doc.document_element();
   files_.push_back(std::move(file));
   if (!root) return Error(inc, absl::StrCat("included file '", found.full, "' has no element"));
@@ -940,6 +945,13 @@ absl::Status Parser::CheckNesting(pugi::xml_node root) const {
   return absl::OkStatus();
 }
 
+absl::StatusOr<std::string> Parser::DefaultName(pugi::xml_node d) const {
+  LOADER_RETURN_IF_ERROR(CheckAttributes(d, {"name", "value"}));
+  const std::string name = d.attribute("name").value();
+  if (name.empty() || !d.attribute("value")) return Error(d, "<default> needs a name and a value");
+  return name;
+}
+
 absl::Status Parser::IndexForward(pugi::xml_node root) {
   for (const pugi::xml_node c : root.children()) {
     const absl::string_view tag = c.name();
@@ -950,10 +962,7 @@ absl::Status Parser::IndexForward(pugi::xml_node root) {
         // An included scene's <default>s set what is not set yet (the including file's defaults
         // and the -D defines win), before anything in it is parsed.
         for (const pugi::xml_node d : object.children("default")) {
-          LOADER_RETURN_IF_ERROR(CheckAttributes(d, {"name", "value"}));
-          const std::string name = d.attribute("name").value();
-          if (name.empty() || !d.attribute("value"))
-            return Error(d, "<default> needs a name and a value");
+          LOADER_ASSIGN_OR_RETURN(const std::string name, DefaultName(d));
           vars_.try_emplace(name, d.attribute("value").value());
         }
         LOADER_RETURN_IF_ERROR(IndexForward(object));
@@ -1072,8 +1081,8 @@ absl::Status Parser::ParseIntegrator(pugi::xml_node n) {
   if (hide_emitters) {
     return Error(NodeOf(p, "hide_emitters"), "hide_emitters=true is not supported");
   }
-  if (FileOf(n)
-          .upgraded) {  // Mitsuba 0.5's strictNormals: irfarm always checks both normals' sides
+  // Mitsuba 0.5's strictNormals: irfarm always checks both normals' sides.
+  if (FileOf(n).upgraded) {
     LOADER_RETURN_IF_ERROR(GetBool(p, "strict_normals", false).status());
   }
   if (type == "irrcache") {
@@ -1899,22 +1908,9 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
   files_.push_back(std::make_unique<SourceFile>());
   SourceFile& main = *files_[0];
   main.path = path_;
-  for (size_t i = 0; i < xml.size(); ++i) {
-    if (xml[i] == '\n') main.newlines.push_back(i);
-  }
   scene_.path = path_;
-  pugi::xml_document& doc = main.doc;
-  const pugi::xml_parse_result result =
-      doc.load_buffer(xml.data(), xml.size(), pugi::parse_default);
-  if (!result) {
-    const int line = int(std::lower_bound(main.newlines.begin(), main.newlines.end(),
-                                          size_t(std::max<ptrdiff_t>(result.offset, 0))) -
-                         main.newlines.begin()) +
-                     1;
-    return absl::InvalidArgumentError(
-        absl::StrCat(path_, ":", line, ": malformed XML: ", result.description()));
-  }
-  const pugi::xml_node root = doc.document_element();
+  LOADER_RETURN_IF_ERROR(main.Load(xml));
+  const pugi::xml_node root = main.doc.document_element();
   if (!root) return absl::InvalidArgumentError(absl::StrCat(path_, ":1: no <scene> element"));
   if (absl::string_view(root.name()) != "scene") {
     return Error(root, absl::StrCat("the root element must be <scene>, not <", root.name(), ">"));
@@ -1926,11 +1922,7 @@ absl::StatusOr<SceneDesc> Parser::Parse(const std::string& xml) {
   // <default>s first, so that $name works anywhere; then the -D defines override them.
   std::map<std::string, int> default_lines;
   for (const pugi::xml_node d : root.children("default")) {
-    LOADER_RETURN_IF_ERROR(CheckAttributes(d, {"name", "value"}));
-    const std::string name = d.attribute("name").value();
-    if (name.empty() || !d.attribute("value")) {
-      return Error(d, "<default> needs a name and a value");
-    }
+    LOADER_ASSIGN_OR_RETURN(const std::string name, DefaultName(d));
     if (const auto [it, inserted] = default_lines.try_emplace(name, Line(d)); !inserted) {
       return Error(d, absl::StrCat("duplicate <default name=\"", name, "\"> (first at line ",
                                    it->second, ")"));

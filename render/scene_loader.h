@@ -22,6 +22,10 @@ struct LoadOptions {
   std::map<std::string, std::string> defines;
 };
 
+// How deep <include>s may nest (Mitsuba's ParserConfig::max_include_depth): the loader refuses
+// deeper ones, and service/scene_bundle.cc follows them as far.
+inline constexpr int kMaxIncludeDepth = 15;
+
 // Reads and parses the scene file at `path`. File names inside it are relative to its folder.
 absl::StatusOr<SceneDesc> LoadSceneFile(const std::string& path, const LoadOptions& options);
 

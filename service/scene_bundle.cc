@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "absl/strings/str_split.h"
+#include "render/scene_loader.h"
 
 namespace irfarm {
 namespace fs = std::filesystem;
@@ -42,7 +43,7 @@ std::string IncludePathOf(const fs::path& folder, const std::vector<fs::path>& d
 }
 
 // Every file named under `node` (<string name="filename">, <include filename=...>) as a bundle
-// path; included files are read and searched too, as deep as the loader follows them (15).
+// path; included files are read and searched too, as deep as the loader follows them.
 void CollectFilenames(const fs::path& folder, const std::vector<fs::path>& dirs,
                       const pugi::xml_node& node, int depth, std::set<std::string>* out) {
   for (const pugi::xml_node& c : node.children()) {
@@ -56,7 +57,7 @@ void CollectFilenames(const fs::path& folder, const std::vector<fs::path>& dirs,
       const std::string path = tag == "include" ? IncludePathOf(folder, dirs, value)
                                                 : fs::path(value).lexically_normal().string();
       const bool first = out->insert(path).second;
-      if (tag == "include" && first && depth + 1 < 15) {
+      if (tag == "include" && first && depth + 1 < kMaxIncludeDepth) {
         absl::StatusOr<std::string> xml = ReadFile((folder / path).string());
         pugi::xml_document doc;
         if (xml.ok() && doc.load_buffer(xml->data(), xml->size())) {  // else the loader reports

@@ -234,6 +234,17 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
     }
   });
 
+  // Tells the coordinator a leased tile will not come (it holds the lease until it hears).
+  const auto tile_failed = [&](const v1::TileLease& lease, const std::string& reason) {
+    v1::WorkerMessage m;
+    v1::TileFailed* tf = m.mutable_tile_failed();
+    tf->set_job_id(lease.job_id());
+    tf->set_tile_index(lease.tile_index());
+    tf->set_lease_token(lease.lease_token());
+    tf->set_reason(reason);
+    write(m);
+  };
+
   // Render loop (this thread).
   for (;;) {
     v1::TileLease lease;
@@ -266,13 +277,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       job.reset();
     }
     if (!job) {
-      v1::WorkerMessage m;
-      v1::TileFailed* tf = m.mutable_tile_failed();
-      tf->set_job_id(lease.job_id());
-      tf->set_tile_index(lease.tile_index());
-      tf->set_lease_token(lease.lease_token());
-      tf->set_reason(failure);
-      write(m);
+      tile_failed(lease, failure);
       metrics_.tiles_failed->Add();
       continue;
     }
@@ -327,15 +332,9 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       metrics_.tiles_cancelled->Add();
       spdlog::info("job {}: tile {} stopped (the job was closed or the session broke)",
                    lease.job_id(), lease.tile_index());
-      // The coordinator holds the worker's lease until it hears of it (a closed job's tile
-      // included): it is told, and leases the next tile. A broken session ends at the loop's top.
-      v1::WorkerMessage stopped;
-      v1::TileFailed* tf = stopped.mutable_tile_failed();
-      tf->set_job_id(lease.job_id());
-      tf->set_tile_index(lease.tile_index());
-      tf->set_lease_token(lease.lease_token());
-      tf->set_reason("stopped: the job was closed while the tile rendered");
-      write(stopped);
+      // A closed job's tile too (it is not counted as a failure there): the coordinator then
+      // leases the next tile. A broken session ends at the loop's top.
+      tile_failed(lease, "stopped: the job was closed while the tile rendered");
       continue;
     }
     publish_all();  // the tile's records go out before its result

@@ -13,6 +13,7 @@
 #include "render/renderer.h"
 #include "render/scene.h"
 #include "render/scene_loader.h"
+#include "render_test_util.h"
 
 namespace irfarm {
 namespace {
@@ -82,15 +83,8 @@ std::pair<double, double> MeanAndVariance(
   const Image a = Render(*b.scene, s).image;
   s.seed = 2;
   const Image c = Render(*b.scene, s).image;
-  double sum = 0, sq = 0;
-  const double n = double(a.pixels.size()) * 3;
-  for (size_t i = 0; i < a.pixels.size(); ++i)
-    for (int k = 0; k < 3; ++k) {
-      sum += (double(a.pixels[i][k]) + c.pixels[i][k]) / 2;
-      const double d = double(a.pixels[i][k]) - c.pixels[i][k];
-      sq += d * d / 4;  // variance of the two renders' mean, per pixel
-    }
-  return {sum / n, sq / (n * n)};
+  const ImageMean m = MeanOfTwo(a, c);
+  return {m.mean, m.std_err * m.std_err};
 }
 
 TEST(DirectLightTest, UnoccludedLampIsNoiseFreeAtOneSpp) {

@@ -219,27 +219,6 @@ class RandomSceneWriter {
   double offset_[3] = {0, 0, 0};
 };
 
-struct ImageMean {
-  double mean = 0;     // over pixels and channels
-  double std_err = 0;  // of `mean`, from two independent images
-};
-
-// The mean of two images of the same scene with different seeds, and its standard error: pixels
-// are independent, so Var(mean of one image) = sum_p Var(pixel p) / n^2 with Var(pixel p)
-// estimated by (a_p - b_p)^2 / 2; the mean of both images has half of that.
-ImageMean MeanOfTwo(const Image& a, const Image& b) {
-  double sum = 0, var_sum = 0;
-  const double n = 3.0 * a.pixels.size();
-  for (size_t i = 0; i < a.pixels.size(); ++i) {
-    for (int c = 0; c < 3; ++c) {
-      sum += a.pixels[i][c] + b.pixels[i][c];
-      const double d = double(a.pixels[i][c]) - b.pixels[i][c];
-      var_sum += d * d / 2;
-    }
-  }
-  return {sum / (2 * n), std::sqrt(var_sum / 2) / n};
-}
-
 // Every pixel finite and non-negative, and no non-finite sample counted.
 void ExpectClean(const RenderOutput& out, const std::string& what) {
   EXPECT_EQ(out.stats.nonfinite_pixels, 0) << what;

@@ -17,20 +17,6 @@
 namespace irfarm {
 namespace {
 
-// The mean over pixels and channels of two images of one scene (independent seeds) and its
-// standard error, from the pixels' differences: Var(pixel) ~ (a - b)^2 / 2.
-std::pair<double, double> MeanOfTwo(const Image& a, const Image& b) {
-  double mean = 0, var = 0;
-  for (size_t i = 0; i < a.pixels.size(); ++i)
-    for (int k = 0; k < 3; ++k) {
-      const double x = a.pixels[i][k], y = b.pixels[i][k];
-      mean += (x + y) / 2;
-      var += (x - y) * (x - y) / 2;
-    }
-  const double n = 3.0 * double(a.pixels.size());
-  return {mean / n, std::sqrt(var) / n / std::sqrt(2.0)};
-}
-
 TEST(RenderPropertiesTest, PathIsDeterministicWhateverTheThreadCount) {
   const LoadedScene s = LoadQuarter("cornell-box");
   const RenderOutput one = RenderWith(s, "path", 8, 42, 1);

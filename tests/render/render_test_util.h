@@ -165,6 +165,26 @@ inline LoadedScene LoadVariant(const std::string& name, const std::string& from,
   return BuildLoaded(LoadSceneString(xml, TestScenePath(name), {}));
 }
 
+// The mean over pixels and channels of two images of one scene (different seeds) and its
+// standard error: pixels are independent, so Var(mean of one image) = sum_p Var(pixel p) / n^2
+// with Var(pixel p) estimated by (a_p - b_p)^2 / 2; the mean of both images has half of that.
+struct ImageMean {
+  double mean = 0;
+  double std_err = 0;
+};
+inline ImageMean MeanOfTwo(const Image& a, const Image& b) {
+  double sum = 0, var_sum = 0;
+  const double n = 3.0 * double(a.pixels.size());
+  for (size_t i = 0; i < a.pixels.size(); ++i) {
+    for (int c = 0; c < 3; ++c) {
+      sum += double(a.pixels[i][c]) + b.pixels[i][c];
+      const double d = double(a.pixels[i][c]) - b.pixels[i][c];
+      var_sum += d * d / 2;
+    }
+  }
+  return {sum / (2 * n), std::sqrt(var_sum / 2) / n};
+}
+
 inline RenderOutput RenderWith(const LoadedScene& s, const std::string& integrator, int spp,
                                uint64_t seed, int threads = 0) {
   RenderRequest request;

@@ -119,8 +119,7 @@ TEST(RedisRecordsTest, RecordsAreMergedOnlyOnceStored) {
   ASSERT_TRUE(store) << "redis-server did not start";
   std::unique_ptr<JobManager> manager =
       std::move(*JobManager::Create(JobManagerOptions(), store.get()));
-  const v1::SubmitJobRequest req = CornellRequest();
-  absl::StatusOr<v1::Job> job = manager->Submit(req);
+  absl::StatusOr<v1::Job> job = manager->Submit(CornellRequest());
   ASSERT_TRUE(job.ok()) << job.status();
   const uint32_t worker = manager->RegisterWorker("w");
   bool leased = false;
@@ -246,8 +245,7 @@ TEST(RedisStartupTest, DeleteSaysWhyTheStoreRefused) {
   ASSERT_TRUE(store) << "redis-server did not start";
   std::unique_ptr<JobManager> manager =
       std::move(*JobManager::Create(JobManagerOptions(), store.get()));
-  const v1::SubmitJobRequest req = CornellRequest();
-  absl::StatusOr<v1::Job> job = manager->Submit(req);
+  absl::StatusOr<v1::Job> job = manager->Submit(CornellRequest());
   ASSERT_TRUE(job.ok()) << job.status();
   redis.reset();  // SIGKILL
   ASSERT_TRUE(manager->Cancel(job->id(), Caller()).ok());

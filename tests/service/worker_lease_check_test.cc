@@ -29,6 +29,54 @@ v1::PixelRect Rect(int x0, int y0, int x1, int y1) {
   return r;
 }
 
+using Stream = grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>;
+
+// A stand-in coordinator's first steps: reads the worker's Register, registers it as worker 1
+// and sends job "job-1", cornell-box at 32 x 32 rendered by path at `spp`. False when the worker
+// did not register.
+bool RegisterAndSendJob(Stream* stream, int spp) {
+  v1::WorkerMessage in;
+  if (!stream->Read(&in) || !in.has_register_()) return false;
+  v1::CoordinatorMessage out;
+  out.mutable_registered()->set_worker_id(1);
+  out.mutable_registered()->set_heartbeat_ms(5000);
+  stream->Write(out);
+  out.Clear();
+  v1::JobSpec* spec = out.mutable_job_spec();
+  spec->set_job_id("job-1");
+  *spec->mutable_scene()->mutable_bundle() =
+      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+  (*spec->mutable_settings()->mutable_defines())["resx"] = "32";
+  (*spec->mutable_settings()->mutable_defines())["resy"] = "32";
+  spec->mutable_settings()->set_integrator("path");
+  spec->mutable_settings()->set_spp(spp);
+  stream->Write(out);
+  return true;
+}
+
+// Serves `service` on loopback, runs a real Worker (one thread, named `name`) against it until
+// `done` or `seconds` passed, then stops both.
+void RunWorkerAgainst(v1::WorkerService::Service* service, const std::string& name,
+                      const std::atomic<bool>& done, int seconds) {
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  builder.RegisterService(service);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  ASSERT_GT(port, 0);
+  WorkerOptions options;
+  options.coordinator = "127.0.0.1:" + std::to_string(port);
+  options.name = name;
+  options.threads = 1;
+  Worker worker(options);
+  std::thread run([&] { worker.Run(); });
+  for (int i = 0; i < 20 * seconds && !done; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  worker.Stop();
+  run.join();
+  server->Shutdown(std::chrono::system_clock::now());
+}
+
 // Registers the worker, sends a 32 x 32 cornell-box job and `leases` in order (tile index = the
 // lease's position), then reads until the worker answered every one; keeps what it answered.
 class BadLeaseCoordinator final : public v1::WorkerService::Service {
@@ -38,22 +86,9 @@ class BadLeaseCoordinator final : public v1::WorkerService::Service {
   grpc::Status Session(
       grpc::ServerContext*,
       grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>* stream) override {
+    if (!RegisterAndSendJob(stream, 4)) return grpc::Status::CANCELLED;
     v1::WorkerMessage in;
-    if (!stream->Read(&in) || !in.has_register_()) return grpc::Status::CANCELLED;
     v1::CoordinatorMessage out;
-    out.mutable_registered()->set_worker_id(1);
-    out.mutable_registered()->set_heartbeat_ms(5000);
-    stream->Write(out);
-    out.Clear();
-    v1::JobSpec* spec = out.mutable_job_spec();
-    spec->set_job_id("job-1");
-    *spec->mutable_scene()->mutable_bundle() =
-        *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
-    (*spec->mutable_settings()->mutable_defines())["resx"] = "32";
-    (*spec->mutable_settings()->mutable_defines())["resy"] = "32";
-    spec->mutable_settings()->set_integrator("path");
-    spec->mutable_settings()->set_spp(4);
-    stream->Write(out);
     for (size_t i = 0; i < leases_.size(); ++i) {
       out.Clear();
       v1::TileLease* l = out.mutable_lease();
@@ -88,23 +123,7 @@ class BadLeaseCoordinator final : public v1::WorkerService::Service {
 TEST(WorkerLeaseCheckTest, BadLeaseRectanglesFailTheTileAndTheSessionGoesOn) {
   BadLeaseCoordinator service({Rect(0, 0, -16, 16), Rect(-16, -16, -32, -32), Rect(8, 0, 8, 16),
                                Rect(0, 0, 64, 16), Rect(0, 0, 2147483647, 16), Rect(0, 0, 16, 8)});
-  grpc::ServerBuilder builder;
-  int port = 0;
-  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-  builder.RegisterService(&service);
-  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
-  ASSERT_GT(port, 0);
-  WorkerOptions options;
-  options.coordinator = "127.0.0.1:" + std::to_string(port);
-  options.name = "checker";
-  options.threads = 1;
-  Worker worker(options);
-  std::thread run([&] { worker.Run(); });
-  for (int i = 0; i < 600 && !service.done_; ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  worker.Stop();
-  run.join();
-  server->Shutdown(std::chrono::system_clock::now());
+  RunWorkerAgainst(&service, "checker", service.done_, 30);
   ASSERT_TRUE(service.done_);
   std::lock_guard<std::mutex> lock(service.mu_);
   ASSERT_EQ(service.failed_.size(), 5u);
@@ -129,22 +148,9 @@ class ClosingCoordinator final : public v1::WorkerService::Service {
   grpc::Status Session(
       grpc::ServerContext*,
       grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>* stream) override {
+    if (!RegisterAndSendJob(stream, 65536)) return grpc::Status::CANCELLED;
     v1::WorkerMessage in;
-    if (!stream->Read(&in) || !in.has_register_()) return grpc::Status::CANCELLED;
     v1::CoordinatorMessage out;
-    out.mutable_registered()->set_worker_id(1);
-    out.mutable_registered()->set_heartbeat_ms(5000);
-    stream->Write(out);
-    out.Clear();
-    v1::JobSpec* spec = out.mutable_job_spec();
-    spec->set_job_id("job-1");
-    *spec->mutable_scene()->mutable_bundle() =
-        *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
-    (*spec->mutable_settings()->mutable_defines())["resx"] = "32";
-    (*spec->mutable_settings()->mutable_defines())["resy"] = "32";
-    spec->mutable_settings()->set_integrator("path");
-    spec->mutable_settings()->set_spp(65536);
-    stream->Write(out);
     const auto lease = [&](int tile) {
       out.Clear();
       v1::TileLease* l = out.mutable_lease();
@@ -190,23 +196,7 @@ class ClosingCoordinator final : public v1::WorkerService::Service {
 // count), not rendered to its end and sent: it held the worker for the whole tile before.
 TEST(WorkerLeaseCheckTest, ATileOfAClosedJobStopsRendering) {
   ClosingCoordinator service;
-  grpc::ServerBuilder builder;
-  int port = 0;
-  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-  builder.RegisterService(&service);
-  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
-  ASSERT_GT(port, 0);
-  WorkerOptions options;
-  options.coordinator = "127.0.0.1:" + std::to_string(port);
-  options.name = "closer";
-  options.threads = 1;
-  Worker worker(options);
-  std::thread run([&] { worker.Run(); });
-  for (int i = 0; i < 1200 && !service.done_; ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  worker.Stop();
-  run.join();
-  server->Shutdown(std::chrono::system_clock::now());
+  RunWorkerAgainst(&service, "closer", service.done_, 60);
   ASSERT_TRUE(service.done_) << "the worker never got to the second lease";
   std::lock_guard<std::mutex> lock(service.mu_);
   const double seconds = std::chrono::duration<double>(service.answered_after_).count();
