@@ -113,7 +113,11 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     SampleAov* aov = settings.aovs && inside ? &sample_aov : nullptr;
     // Splat weights along each axis: offsets -g..g from (x, y).
     std::array<float, 2 * PixelFilter::kMaxSplatReach + 1> wx{}, wy{};
-    for (int s = from; s < to; ++s) {
+    // The cancel flag is looked at every 256 samples: a pixel of many samples (a worker's tile
+    // of 65536 path samples a pixel) stops within a fraction of a second, not at its end.
+    int s = from;
+    for (; s < to; ++s) {
+      if (((s - from) & 255) == 255 && settings.Cancelled()) break;
       float fu, fv;
       ps.film.Get(s, &fu, &fv);
       const float fx = float(x) + fu, fy = float(y) + fv;
@@ -160,7 +164,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
       }
       if (aov) aov_sums[own].Add(L, *aov);
     }
-    taken[q] = std::max(taken[q], to);
+    taken[q] = std::max(taken[q], s);
     work[q] += sample_work(c) - work_before;
     if (made && inside && !marks->empty()) (*marks)[own] = 1;
   };
