@@ -132,9 +132,10 @@ absl::StatusOr<Snapshot> ReadSnapshotFile(const std::string& path) {
 absl::Status CheckSnapshotScene(const Snapshot& snapshot, uint64_t scene_hash,
                                 const std::string& name) {
   if (snapshot.scene_hash == scene_hash) return absl::OkStatus();
-  return absl::FailedPreconditionError(name + ": snapshot is of another scene (scene hash " +
-                                       Hex(snapshot.scene_hash) + ", this scene " +
-                                       Hex(scene_hash) + "); refusing to warm-start from it");
+  return absl::FailedPreconditionError(
+      name + ": snapshot is of another scene, or of other record settings (caustics, direct sun) " +
+      "(scene hash " + Hex(snapshot.scene_hash) + ", this render " + Hex(scene_hash) +
+      "); refusing to warm-start from it");
 }
 
 }  // namespace irfarm

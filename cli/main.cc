@@ -96,7 +96,10 @@ int RunRender(const RenderArgs& args) {
   if (!args.cache_in.empty()) {
     absl::StatusOr<Snapshot> snap = ReadSnapshotFile(args.cache_in);
     absl::Status st =
-        snap.ok() ? CheckSnapshotScene(*snap, SceneHash(desc), args.cache_in) : snap.status();
+        snap.ok() ? CheckSnapshotScene(
+                        *snap, CacheHash(SceneHash(desc), request.caustics, request.direct_sun),
+                        args.cache_in)
+                  : snap.status();
     if (!st.ok()) {
       std::fprintf(stderr, "error: %s\n", std::string(st.message()).c_str());
       return 1;
@@ -349,8 +352,9 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   add_connection(submit, &sa.coordinator);
   submit->add_option("--priority", sa.priority, "higher runs first (0-100, default 50)");
-  submit->add_flag("--wait", sa.wait, "follow progress until the jobs end");
-  submit->add_option("-o,--output", sa.output, "with --wait: write the image(s) here");
+  CLI::Option* wait = submit->add_flag("--wait", sa.wait, "follow progress until the jobs end");
+  // Without --wait nothing would be written, and the command would still succeed.
+  submit->add_option("-o,--output", sa.output, "with --wait: write the image(s) here")->needs(wait);
   submit->add_option("--cache-in", sa.cache_in, "warm-start from this cache snapshot")
       ->check(CLI::ExistingFile);
   submit->add_option("--integrator", sa.integrator, "path or irrcache (default irrcache)");

@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "cache/irradiance_cache.h"
-#include "render/record_bounds.h"
 #include "coordinator/record_log.h"
+#include "render/record_bounds.h"
 
 namespace irfarm {
 

@@ -24,6 +24,7 @@ absl::StatusOr<std::vector<v1::StoredJob>> InMemoryJobStore::LoadJobs() {
 absl::Status InMemoryJobStore::PutTile(const std::string& job_id, int tile,
                                        const std::string& pixels) {
   std::lock_guard<std::mutex> lock(mu_);
+  if (jobs_.count(job_id) == 0) return absl::NotFoundError("no job " + job_id);
   tiles_[job_id][tile] = pixels;
   return absl::OkStatus();
 }
@@ -38,6 +39,7 @@ absl::StatusOr<std::map<int, std::string>> InMemoryJobStore::LoadTiles(const std
 absl::Status InMemoryJobStore::AppendRecords(const std::string& job_id,
                                              const std::vector<IrradianceRecord>& records) {
   std::lock_guard<std::mutex> lock(mu_);
+  if (jobs_.count(job_id) == 0) return absl::NotFoundError("no job " + job_id);
   std::vector<IrradianceRecord>& all = records_[job_id];
   all.insert(all.end(), records.begin(), records.end());
   return absl::OkStatus();

@@ -25,6 +25,7 @@
 #include "service/record_codec.h"
 #include "service/scene_bundle.h"
 #include "service/scene_hash.h"
+#include "service/unix_time.h"
 
 namespace irfarm {
 namespace {
@@ -117,6 +118,15 @@ std::string JobSizeProblem(int64_t w, int64_t h, const v1::RenderSettings& setti
   if (tiles > lim.max_tiles)
     return std::to_string(tiles) + " tiles of " + std::to_string(tile) +
            " px is over the limit of " + std::to_string(lim.max_tiles) + " tiles per job";
+  // 3 floats a pixel, 6 more for the denoiser's guides.
+  const int64_t result_bytes =
+      std::min(tile, w) * std::min(tile, h) * (settings.denoise() ? 9 : 3) * int64_t(sizeof(float));
+  if (result_bytes > int64_t(lim.max_tile_result_bytes))
+    return "a tile of " + std::to_string(std::min(tile, w)) + "x" +
+           std::to_string(std::min(tile, h)) + " px" + (settings.denoise() ? " with denoise" : "") +
+           " is a " + std::to_string(result_bytes) + "-byte result, over the coordinator's " +
+           std::to_string(lim.max_tile_result_bytes) +
+           "-byte message limit: use a smaller tile_size";
   return "";
 }
 
@@ -154,12 +164,6 @@ bool SaneTile(const std::string& bytes, size_t pixel_floats) {
 
 bool FinalState(v1::JobState s) {
   return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
-}
-
-int64_t UnixMs() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
 }
 
 absl::Status Unavailable(const absl::Status& st) {
@@ -433,6 +437,7 @@ size_t JobManager::QueueRecords(Worker& worker, const std::string& job_id,
   PackRecords(records, kSnapshotOrigin, m->mutable_records()->mutable_batch());
   const size_t bytes = BatchBytes(m->records().batch()) - before;
   worker.outbox_bytes += bytes;
+  total_outbox_bytes_ += bytes;
   if (was_empty) {
     worker.records_queued_at = std::chrono::steady_clock::now();
     WakeWorker(worker);
@@ -523,6 +528,9 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     return absl::InvalidArgumentError("job name is " + std::to_string(name.size()) +
                                       " bytes, over the limit of " +
                                       std::to_string(lim.max_name_bytes));
+  // Shown to other clients' admins (irfarm status, the dashboard): no control characters (a
+  // terminal escape in a name reached an admin's terminal) and valid UTF-8, as worker names.
+  name = Printable(name, lim.max_name_bytes);
   const int w = desc->camera.width, h = desc->camera.height;
   if (std::string why = JobSizeProblem(w, h, request.settings(), lim); !why.empty())
     return absl::InvalidArgumentError(why);
@@ -541,7 +549,8 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     absl::StatusOr<const Denoiser*> denoiser = GetDenoiser();
     if (!denoiser.ok()) return absl::FailedPreconditionError(denoiser.status().message());
   }
-  const uint64_t scene_hash = SceneHash(*desc);
+  // Jobs have no direct-sun setting (it is on): the settings part is the photon map's.
+  const uint64_t scene_hash = CacheHash(SceneHash(*desc), !request.settings().no_caustics(), true);
   const RecordBounds record_bounds = RecordBoundsForScene(*desc);
   std::vector<IrradianceRecord> imported;
   if (!request.cache_snapshot().empty()) {
@@ -602,7 +611,13 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   StoreCamera(desc->camera, s.mutable_camera());
   job->camera = CameraOf(s);
   absl::Status st = store_->PutJob(s);
-  if (!st.ok()) return Unavailable(st);
+  if (!st.ok()) {
+    // A write that timed out may still land (Redis hung, not down): the client is told the
+    // submit failed, so the job is deleted once the store answers, or it would resume after a
+    // restart.
+    if (absl::IsUnavailable(st)) writer_->DeleteJob(j->id());
+    return Unavailable(st);
+  }
   if (!imported.empty()) {
     std::vector<IrradianceRecord> merged = job->cache->Merge(imported);
     st = store_->AppendRecords(j->id(), merged);
@@ -610,9 +625,13 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
       // Refused, so not stored either: a restart must not resume a job the client was told
       // failed (without the records it was submitted with).
       const absl::Status del = store_->DeleteJob(j->id());
-      if (!del.ok())
-        spdlog::error("job {}: refused (records not stored: {}), and deleting it failed: {}",
-                      j->id(), st.ToString(), del.ToString());
+      if (!del.ok()) {
+        spdlog::error(
+            "job {}: refused (records not stored: {}), and deleting it failed: {} "
+            "(retried)",
+            j->id(), st.ToString(), del.ToString());
+        writer_->DeleteJob(j->id());
+      }
       return Unavailable(st);
     }
   }
@@ -754,15 +773,27 @@ void JobManager::RebuildIndex(Job& job) {
   job.index_stale = false;
 }
 
+size_t JobManager::OutboxRoom(const Worker& w) const {
+  const JobLimits& lim = options_.limits;
+  return std::min(
+      lim.max_outbox_bytes - std::min(lim.max_outbox_bytes, w.outbox_bytes),
+      lim.max_total_outbox_bytes - std::min(lim.max_total_outbox_bytes, total_outbox_bytes_));
+}
+
+void JobManager::TakeOutboxBytes(Worker& w, size_t bytes) {
+  bytes = std::min(bytes, w.outbox_bytes);
+  w.outbox_bytes -= bytes;
+  total_outbox_bytes_ -= std::min(total_outbox_bytes_, bytes);
+}
+
 size_t JobManager::Deliver(Job& job, uint32_t other, const std::vector<IrradianceRecord>& records) {
   auto owit = workers_.find(other);
   if (owit == workers_.end() || records.empty()) return 0;
   Worker& ow = owit->second;
   const size_t n = records.size();
-  // A worker that does not keep up (or does not read) gets no more fan-out past the bound: the
-  // records are an optimisation, it computes its own instead.
-  if (ow.outbox_bytes + n * (kFloatsPerRecord + 1) * sizeof(float) >
-      options_.limits.max_outbox_bytes) {
+  // A worker that does not keep up (or does not read) gets no more fan-out past the bound, nor
+  // does a silent one: the records are an optimisation, it computes its own instead.
+  if (ow.silent || n * (kFloatsPerRecord + 1) * sizeof(float) > OutboxRoom(ow)) {
     ++ow.batches_dropped;
     metrics_.fanout_batches_dropped->Add();
     return n;
@@ -854,9 +885,7 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
   // What the outbox bound leaves room for now (collected past it, the backlog would be a copy of
   // every record in memory); the rest is dropped below.
   constexpr size_t kRecordBytes = (kFloatsPerRecord + 1) * sizeof(float);
-  const size_t room = (options_.limits.max_outbox_bytes -
-                       std::min(options_.limits.max_outbox_bytes, w.outbox_bytes)) /
-                      kRecordBytes;
+  const size_t room = OutboxRoom(w) / kRecordBytes;
   lock.unlock();
   std::vector<IrradianceRecord> backlog;
   size_t over = 0;
@@ -897,15 +926,16 @@ absl::Status JobManager::AddTileRegion(uint32_t worker_id, const v1::TileRegion&
   size_t queued = 0, dropped_batches = over > 0 ? 1 : 0;
   for (size_t k = 0; k < messages.size(); ++k) {
     const size_t bytes = BatchBytes(messages[k].records().batch());
-    // The backlog is fan-out too: past max_outbox_bytes the rest is dropped and counted, as
+    // The backlog is fan-out too: past the outbox bounds the rest is dropped and counted, as
     // Deliver drops batches (the worker computes those records itself).
-    if (w2.outbox_bytes + bytes > options_.limits.max_outbox_bytes) {
+    if (bytes > OutboxRoom(w2)) {
       dropped_batches += messages.size() - k;
       break;
     }
     ++queued;
     w2.outbox.push_back(std::move(messages[k]));
     w2.outbox_bytes += bytes;
+    total_outbox_bytes_ += bytes;
     v1::WorkerJobStats& ws = job2.worker_stats[worker_id];
     ws.set_bytes_received(ws.bytes_received() + bytes);
     metrics_.records_sent->Add(counts[k]);
@@ -1180,13 +1210,17 @@ absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
 absl::StatusOr<std::string> JobManager::ExportSnapshot(const std::string& id,
                                                        const Caller& caller) const {
   Snapshot snap;
+  RecordLog::View records;
   {
     std::lock_guard<std::mutex> lock(mu_);
     absl::StatusOr<Job*> found = Find(id, caller);
     if (!found.ok()) return found.status();
     snap.scene_hash = (*found)->stored.job().scene_hash();
-    snap.records = (*found)->cache->records().ToVector();
+    records = (*found)->cache->records().Snapshot();
   }
+  // Copied without the lock (a job's cache may hold a GB of records: every worker's and client's
+  // call waited for the copy before).
+  snap.records = records.ToVector();
   return SerializeSnapshot(snap);
 }
 
@@ -1235,6 +1269,7 @@ void JobManager::WorkerGone(uint32_t worker, const std::string& reason) {
       h->second.quarantined_until <= std::chrono::steady_clock::now())
     health_.erase(h);
   WakeWorker(wit->second);  // its Poll returns now
+  TakeOutboxBytes(wit->second, wit->second.outbox_bytes);
   workers_.erase(wit);
   Changed();
 }
@@ -1327,8 +1362,12 @@ bool JobManager::Quarantined(const Worker& worker, SteadyTime now) const {
 
 std::vector<uint32_t> JobManager::OtherEligibleWorkers(uint32_t worker_id, SteadyTime now) const {
   std::vector<uint32_t> out;
+  // One whose lease is overdue is left out: it gets no lease before it reports (has_lease), so
+  // a tile that failed on every other worker would wait for it for ever (the job never ended).
   for (const auto& [id, w] : workers_)
-    if (id != worker_id && !w.silent && !w.draining && !Quarantined(w, now)) out.push_back(id);
+    if (id != worker_id && !w.silent && !w.draining && !Quarantined(w, now) &&
+        !(w.has_lease && w.lease_deadline < now))
+      out.push_back(id);
   return out;
 }
 
@@ -1393,6 +1432,11 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
   const std::string job_id = job.stored.job().id();
   lock.unlock();
   absl::Status st = store_->AppendRecords(job_id, accepted);
+  if (absl::IsNotFound(st))
+    st = RestoreLostJob(job_id, [&] { return store_->AppendRecords(job_id, accepted); });
+  if (absl::IsNotFound(st))  // deleted meanwhile: stale, as a result for a closed job
+    return absl::FailedPreconditionError("job '" + job_id +
+                                         "' was deleted: its records are not stored");
   if (!st.ok()) return Unavailable(st);
   lock.lock();
   it = jobs_.find(job_id);
@@ -1474,6 +1518,26 @@ absl::StatusOr<JobManager::HeldLease> JobManager::ReleaseHeldLease(uint32_t work
   return HeldLease{&w, it->second.get(), lease, *token};
 }
 
+absl::Status JobManager::RestoreLostJob(const std::string& job_id,
+                                        const std::function<absl::Status()>& retry) {
+  v1::StoredJob stored;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = jobs_.find(job_id);
+    // A final job may be being deleted (RemoveJob asks the store first): not written back.
+    if (it == jobs_.end() || IsFinal(*it->second))
+      return absl::NotFoundError("job store: job '" + job_id + "' is not stored");
+    stored = it->second->stored;
+  }
+  spdlog::warn(
+      "job {}: the store does not hold this running job (its data was lost: flushed or "
+      "evicted); written again",
+      job_id);
+  absl::Status st = store_->PutJob(stored);
+  if (!st.ok()) return st;
+  return retry();
+}
+
 absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& result) {
   std::unique_lock<std::mutex> lock(mu_);
   const int tile = result.tile_index();
@@ -1543,6 +1607,8 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   const std::string job_id = job.stored.job().id();
   lock.unlock();
   absl::Status st = store_->PutTile(job_id, tile, bytes);
+  if (absl::IsNotFound(st))
+    st = RestoreLostJob(job_id, [&] { return store_->PutTile(job_id, tile, bytes); });
   lock.lock();
   auto it = jobs_.find(job_id);
   if (it == jobs_.end() || IsFinal(*it->second) ||
@@ -1740,7 +1806,8 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
           m.mutable_records()->set_job_id(id);
           PackRecords(chunk, kSnapshotOrigin, m.mutable_records()->mutable_batch());
           const size_t bytes = BatchBytes(m.records().batch());
-          if (copied_bytes + bytes > options_.limits.max_outbox_bytes) {
+          if (copied_bytes + bytes > options_.limits.max_outbox_bytes ||
+              copied_bytes - worker.outbox_bytes + bytes > OutboxRoom(worker)) {
             dropped += chunk.size();
           } else {
             copied_bytes += bytes;
@@ -1808,11 +1875,13 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   l->set_deadline_unix_ms(
       std::chrono::duration_cast<std::chrono::milliseconds>(wall_deadline.time_since_epoch())
           .count());
+  l->set_lease_ms(int64_t(options_.lease_time.count()));
   out->push_back(std::move(m));
   worker.has_lease = true;
   worker.lease_job = id;
   worker.lease = lease->token;
   worker.lease_tile = lease->tile;
+  worker.lease_deadline = lease->deadline;
   worker.past_leases.emplace_back(lease->token, id);
   if (worker.past_leases.size() > kPastLeases) worker.past_leases.pop_front();
   Touched(nullptr);  // job views; the lease goes out with this Poll
@@ -1842,7 +1911,7 @@ std::vector<v1::CoordinatorMessage> JobManager::Poll(uint32_t worker,
     }
     while (!w.outbox.empty()) {
       if (w.outbox.front().has_records())
-        w.outbox_bytes -= std::min(w.outbox_bytes, BatchBytes(w.outbox.front().records().batch()));
+        TakeOutboxBytes(w, BatchBytes(w.outbox.front().records().batch()));
       out.push_back(std::move(w.outbox.front()));
       w.outbox.pop_front();
     }
@@ -1863,6 +1932,17 @@ void JobManager::ExpireLeases() {
     if (w.silent || now - w.last_heard <= 3 * options_.heartbeat) continue;
     w.silent = true;
     w.has_lease = false;
+    // Its queued fan-out is dropped (it gets none while silent): other messages stay.
+    for (auto m = w.outbox.begin(); m != w.outbox.end();) {
+      if (!m->has_records()) {
+        ++m;
+        continue;
+      }
+      TakeOutboxBytes(w, BatchBytes(m->records().batch()));
+      ++w.batches_dropped;
+      metrics_.fanout_batches_dropped->Add();
+      m = w.outbox.erase(m);
+    }
     spdlog::warn("worker {} ({}) silent for {:.1f} s: its leases go to other workers", wid, w.name,
                  std::chrono::duration<double>(now - w.last_heard).count());
     for (auto& [id, job] : jobs_) {

@@ -44,6 +44,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -91,6 +92,13 @@ struct JobLimits {
   // Queued + running jobs of one client, counting its submits still in progress.
   int max_live_jobs_per_client = 64;
   size_t max_outbox_bytes = size_t(64) << 20;  // record fan-out queued for one worker
+  // ... and for all workers together: sessions that do not read (each up to max_outbox_bytes)
+  // must not add up to the coordinator's memory; past it fan-out is dropped for everyone.
+  size_t max_total_outbox_bytes = size_t(1) << 30;
+  // A tile's result (its pixels, and the denoiser's guides) must fit in this many bytes: the
+  // coordinator's message size limit less 1 MiB for the rest of the message (irfarm-coordinator
+  // sets both from --max-upload-mib). A job whose tiles could never be delivered is refused.
+  size_t max_tile_result_bytes = size_t(64) << 20;
   // GetResult and ExportCache calls in progress at once (each holds a whole image or snapshot,
   // and its file, in memory); past it RESOURCE_EXHAUSTED, to be retried.
   int max_downloads = 4;
@@ -290,6 +298,9 @@ class JobManager {
     std::string lease_job;
     LeaseToken lease;
     int lease_tile = -1;
+    // The lease's deadline: past it, a worker still holding it (never reported; a hung render,
+    // or a worker that does not report at all) is not counted on to take a tile (TryAssign).
+    SteadyTime lease_deadline;
     int threads = 0;  // as registered (0: all its cores)
     // The last kPastLeases leases it was given (token, job id): a late message about one of
     // them is stale, not invalid.
@@ -401,6 +412,16 @@ class JobManager {
   // Queues a fan-out batch of `records` (sent by another worker) for `other`, or drops it when
   // its outbox is over max_outbox_bytes; counts it. Returns the records delivered or dropped.
   size_t Deliver(Job& job, uint32_t other, const std::vector<IrradianceRecord>& records);
+  // Fan-out bytes `w`'s outbox may still take: within max_outbox_bytes, and within
+  // max_total_outbox_bytes over all workers. mu_ held.
+  size_t OutboxRoom(const Worker& w) const;
+  // A tile or record write the store refused NOT_FOUND (JobStore: it holds no such job): when the
+  // job still runs here, the store lost it (FLUSHALL, eviction), so the job is written again and
+  // `retry` run once; else NOT_FOUND. mu_ not held.
+  absl::Status RestoreLostJob(const std::string& job_id,
+                              const std::function<absl::Status()>& retry);
+  // `bytes` of `w`'s queued fan-out left its outbox (sent, dropped, or the worker gone). mu_ held.
+  void TakeOutboxBytes(Worker& w, size_t bytes);
   // Records withheld from `worker_id` in `job` since its tally was settled (Job::Tally).
   static uint64_t Unsettled(const Job& job, const Job::Tally& t) {
     return job.offered_total - t.total_mark - t.own - t.handled;
@@ -426,6 +447,7 @@ class JobManager {
   mutable std::mutex mu_;
   mutable std::condition_variable changed_cv_;  // any change (WaitForChange, Poll)
   uint64_t version_ = 0;
+  size_t total_outbox_bytes_ = 0;  // sum of the workers' outbox_bytes
   uint64_t next_sequence_ = 1;
   uint32_t next_worker_ = 1;
   std::map<std::string, std::unique_ptr<Job>> jobs_;

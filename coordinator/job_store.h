@@ -28,7 +28,8 @@ class JobStore {
   // Every stored job, in no particular order.
   virtual absl::StatusOr<std::vector<v1::StoredJob>> LoadJobs() = 0;
 
-  // A finished tile's pixels (width*height*3 floats, as bytes). Idempotent per tile.
+  // A finished tile's pixels (width*height*3 floats, as bytes). Idempotent per tile. Tiles and
+  // records of a job the store does not hold (never put, or deleted) are refused NOT_FOUND.
   virtual absl::Status PutTile(const std::string& job_id, int tile, const std::string& pixels) = 0;
   virtual absl::StatusOr<std::map<int, std::string>> LoadTiles(const std::string& job_id) = 0;
 
@@ -39,6 +40,8 @@ class JobStore {
   virtual absl::StatusOr<std::vector<IrradianceRecord>> LoadRecords(const std::string& job_id) = 0;
 
   // Removes the job, its tiles and its records (retention, DeleteJob). OK when it is not there.
+  // RedisJobStore also refuses (NOT_FOUND) a later PutJob of that id for a day: a write sent
+  // before the delete may land after it.
   virtual absl::Status DeleteJob(const std::string& job_id) = 0;
 };
 

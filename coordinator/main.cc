@@ -134,6 +134,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 65536));
   app.add_option("--max-outbox-mib", max_outbox_mib,
                  "record fan-out queued per worker before batches are dropped (64)");
+  double max_total_outbox_mib = 1024;
+  app.add_option("--max-total-outbox-mib", max_total_outbox_mib,
+                 "record fan-out queued for all workers together before batches are dropped "
+                 "(1024)");
   std::string fanout = "region";
   app.add_option("--fanout", fanout,
                  "which records a worker is sent: 'region' (those reaching what its tiles see) "
@@ -321,6 +325,8 @@ int main(int argc, char** argv) {
   irfarm::TimedJobStore timed_store(store.get(), &metrics);
   options.max_upload_bytes = size_t(max_upload_mib * 1024 * 1024);
   lim.max_outbox_bytes = size_t(max_outbox_mib * 1024 * 1024);
+  lim.max_total_outbox_bytes = size_t(max_total_outbox_mib * 1024 * 1024);
+  lim.max_tile_result_bytes = options.max_upload_bytes;  // the receive limit less 1 MiB
   options.filter_fanout = fanout == "region";
   options.fanout_linger = std::chrono::milliseconds(fanout_linger_ms);
   options.lease_time = std::chrono::milliseconds(int64_t(lease_seconds * 1000));

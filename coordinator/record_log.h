@@ -28,6 +28,12 @@ class BlockLog {
    public:
     size_t size() const { return size_; }
     const T& operator[](size_t i) const { return blocks_[i / kBlock]->items[i % kBlock]; }
+    std::vector<T> ToVector() const {
+      std::vector<T> out;
+      out.reserve(size_);
+      for (size_t i = 0; i < size_; ++i) out.push_back((*this)[i]);
+      return out;
+    }
 
    private:
     friend class BlockLog;
@@ -49,12 +55,7 @@ class BlockLog {
     v.size_ = size_;
     return v;
   }
-  std::vector<T> ToVector() const {
-    std::vector<T> out;
-    out.reserve(size_);
-    for (size_t i = 0; i < size_; ++i) out.push_back((*this)[i]);
-    return out;
-  }
+  std::vector<T> ToVector() const { return Snapshot().ToVector(); }
 
  private:
   std::vector<std::shared_ptr<Block>> blocks_;

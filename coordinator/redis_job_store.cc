@@ -32,14 +32,29 @@ constexpr char kFenceCheck[] =
     "return redis.error_reply('FENCED this coordinator does not hold the lease ' .. KEYS[1]) "
     "end ";
 constexpr char kIncr[] = "return redis.call('INCR', KEYS[2])";
-// The job and its set membership appear together.
+// The job and its set membership appear together; a deleted job's id is refused (its tombstone,
+// KEYS[4]), so a state write that lands late (sent before a delete, on a connection that timed
+// out while Redis hung) cannot bring the job back.
 constexpr char kPutJob[] =
+    "if redis.call('EXISTS', KEYS[4]) == 1 then "
+    "return redis.error_reply('GONE job ' .. ARGV[3] .. ' was deleted') end "
     "redis.call('SET', KEYS[2], ARGV[2]) redis.call('SADD', KEYS[3], ARGV[3]) return 1";
-constexpr char kPutTile[] = "return redis.call('HSET', KEYS[2], ARGV[2], ARGV[3])";
-constexpr char kAppend[] = "return redis.call('RPUSH', KEYS[2], ARGV[2])";
-// The job leaves the set together with its keys (a restart never sees half).
+// Tiles and records are written only for a job in the set (ARGV[4] / ARGV[3]): one that arrives
+// after the job was deleted (a worker's result stored while a client deleted the cancelled job)
+// would otherwise leave keys nothing ever reads or deletes.
+constexpr char kPutTile[] =
+    "if redis.call('SISMEMBER', KEYS[3], ARGV[4]) == 0 then "
+    "return redis.error_reply('GONE no job ' .. ARGV[4]) end "
+    "return redis.call('HSET', KEYS[2], ARGV[2], ARGV[3])";
+constexpr char kAppend[] =
+    "if redis.call('SISMEMBER', KEYS[3], ARGV[3]) == 0 then "
+    "return redis.error_reply('GONE no job ' .. ARGV[3]) end "
+    "return redis.call('RPUSH', KEYS[2], ARGV[2])";
+// The job leaves the set together with its keys (a restart never sees half), and leaves a
+// tombstone for a day (job ids are never reused: the counter).
 constexpr char kDeleteJob[] =
-    "redis.call('SREM', KEYS[2], ARGV[2]) return redis.call('DEL', KEYS[3], KEYS[4], KEYS[5])";
+    "redis.call('SREM', KEYS[2], ARGV[2]) redis.call('SET', KEYS[6], '1', 'EX', 86400) "
+    "return redis.call('DEL', KEYS[3], KEYS[4], KEYS[5])";
 
 }  // namespace
 
@@ -173,6 +188,7 @@ absl::StatusOr<long long> RedisJobStore::Write(const char* body,
     if (why.rfind("FENCED", 0) == 0) return absl::FailedPreconditionError("redis: " + why);
     // a key of the wrong type is damage, not an outage
     if (why.find("WRONGTYPE") != std::string::npos) return absl::DataLossError("redis: " + why);
+    if (why.rfind("GONE", 0) == 0) return absl::NotFoundError("redis: " + why.substr(5));
     return absl::UnavailableError("redis: " + why);
   }
   if (r->type != REDIS_REPLY_INTEGER)
@@ -187,8 +203,9 @@ absl::StatusOr<uint64_t> RedisJobStore::NextJobNumber() {
 }
 
 absl::Status RedisJobStore::PutJob(const v1::StoredJob& job) {
-  return Write(kPutJob, {prefix_ + "job:" + job.job().id(), prefix_ + "jobs"},
-               {job.SerializeAsString(), job.job().id()})
+  const std::string& id = job.job().id();
+  return Write(kPutJob, {prefix_ + "job:" + id, prefix_ + "jobs", prefix_ + "deleted:" + id},
+               {job.SerializeAsString(), id})
       .status();
 }
 
@@ -223,7 +240,8 @@ absl::StatusOr<std::vector<v1::StoredJob>> RedisJobStore::LoadJobs() {
 
 absl::Status RedisJobStore::PutTile(const std::string& job_id, int tile,
                                     const std::string& pixels) {
-  return Write(kPutTile, {prefix_ + "job:" + job_id + ":tiles"}, {std::to_string(tile), pixels})
+  return Write(kPutTile, {prefix_ + "job:" + job_id + ":tiles", prefix_ + "jobs"},
+               {std::to_string(tile), pixels, job_id})
       .status();
 }
 
@@ -244,7 +262,8 @@ absl::Status RedisJobStore::AppendRecords(const std::string& job_id,
   if (records.empty()) return absl::OkStatus();
   v1::RecordBatch batch;
   PackRecords(records, 0, &batch);
-  return Write(kAppend, {prefix_ + "job:" + job_id + ":records"}, {batch.SerializeAsString()})
+  return Write(kAppend, {prefix_ + "job:" + job_id + ":records", prefix_ + "jobs"},
+               {batch.SerializeAsString(), job_id})
       .status();
 }
 
@@ -271,7 +290,10 @@ absl::StatusOr<std::vector<IrradianceRecord>> RedisJobStore::LoadRecords(
 
 absl::Status RedisJobStore::DeleteJob(const std::string& job_id) {
   const std::string key = prefix_ + "job:" + job_id;
-  return Write(kDeleteJob, {prefix_ + "jobs", key, key + ":tiles", key + ":records"}, {job_id})
+  return Write(kDeleteJob,
+               {prefix_ + "jobs", key, key + ":tiles", key + ":records",
+                prefix_ + "deleted:" + job_id},
+               {job_id})
       .status();
 }
 

@@ -40,6 +40,12 @@ void StoreWriter::AppendRecords(const std::string& job_id, std::vector<Irradianc
   cv_.notify_all();
 }
 
+void StoreWriter::DeleteJob(const std::string& job_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  queue_.push_back(Op{job_id, std::nullopt, {}, true});
+  cv_.notify_all();
+}
+
 bool StoreWriter::Flush(std::chrono::milliseconds timeout) {
   std::unique_lock<std::mutex> lock(mu_);
   return cv_.wait_for(lock, timeout, [&] { return queue_.empty() && !busy_; });
@@ -56,6 +62,7 @@ uint64_t StoreWriter::failures() const {
 }
 
 absl::Status StoreWriter::Write(const Op& op) {
+  if (op.remove) return store_->DeleteJob(op.job_id);
   if (op.job) return store_->PutJob(*op.job);
   return store_->AppendRecords(op.job_id, op.records);
 }
@@ -74,6 +81,11 @@ void StoreWriter::Run() {
     busy_ = false;
     if (st.ok()) {
       cv_.notify_all();  // Flush
+      continue;
+    }
+    if (absl::IsNotFound(st)) {  // the job was deleted: nothing of it is to be written again
+      spdlog::info("job store: a write for deleted job {} dropped: {}", op.job_id, st.ToString());
+      cv_.notify_all();
       continue;
     }
     ++failures_;

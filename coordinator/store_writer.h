@@ -2,7 +2,8 @@
 // own: job-state changes (a job starting, finishing, being cancelled; JobManager::FinishJob and
 // friends run under the coordinator's lock, which must never wait on Redis) and the records a
 // job was seeded with. Writes run in the order queued; one that fails (Redis down or hung) is
-// retried every `retry` until it succeeds, so once the store answers again it ends up with the
+// retried every `retry` until it succeeds (one refused NOT_FOUND is dropped: the job was
+// deleted, JobStore::DeleteJob), so once the store answers again it ends up with the
 // latest state of every job. A PutJob replaces a PutJob of the same job still queued behind
 // nothing else of that job, so a store that is down for long holds one state per job here, not
 // one per change. What is lost if the coordinator dies before a queued write lands is only a job
@@ -35,6 +36,10 @@ class StoreWriter {
 
   void PutJob(const v1::StoredJob& job);
   void AppendRecords(const std::string& job_id, std::vector<IrradianceRecord> records);
+  // Deletes the job once the store answers: for a job whose submit was refused because its
+  // PutJob failed, which may yet land (sent before Redis hung); the delete's tombstone keeps
+  // out one that lands later still.
+  void DeleteJob(const std::string& job_id);
   // Waits until nothing is queued or being written, or `timeout` passed; true when empty.
   bool Flush(std::chrono::milliseconds timeout);
   // Writes queued or in progress.
@@ -46,7 +51,8 @@ class StoreWriter {
   struct Op {
     std::string job_id;
     std::optional<v1::StoredJob> job;       // PutJob
-    std::vector<IrradianceRecord> records;  // else AppendRecords
+    std::vector<IrradianceRecord> records;  // AppendRecords
+    bool remove = false;                    // DeleteJob
   };
   void Run();
   absl::Status Write(const Op& op);

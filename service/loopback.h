@@ -3,13 +3,18 @@
 // dashboard names (DNS rebinding).
 #pragma once
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+
 #include <cctype>
 #include <string>
 
 namespace irfarm {
 
-// True for HOST or HOST:PORT where HOST is 127.0.0.0/8, ::1 (bracketed or not) or localhost (any
-// case), and for unix: sockets.
+// True for HOST or HOST:PORT where HOST is an IPv4 address in 127.0.0.0/8, the IPv6 loopback
+// (::1 in any spelling, bracketed or not; also ::ffff:127.x.y.z) or localhost (any case), and for
+// unix: sockets. Addresses are parsed (inet_pton), not matched by prefix: "127.0.0.1.nip.io" and
+// "127.evil.example" are names that resolve anywhere (an attacker's, rebound to 127.0.0.1).
 inline bool IsLoopbackAddress(const std::string& address) {
   if (address.rfind("unix:", 0) == 0) return true;
   std::string host = address;
@@ -21,7 +26,13 @@ inline bool IsLoopbackAddress(const std::string& address) {
     host.resize(colon);  // one colon: HOST:PORT (more: a bare IPv6 address)
   }
   for (char& c : host) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+  if (host == "localhost") return true;
+  in_addr v4;
+  if (inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6;
+  if (inet_pton(AF_INET6, host.c_str(), &v6) == 1)
+    return IN6_IS_ADDR_LOOPBACK(&v6) || (IN6_IS_ADDR_V4MAPPED(&v6) && v6.s6_addr[12] == 127);
+  return false;
 }
 
 }  // namespace irfarm

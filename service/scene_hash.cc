@@ -2,6 +2,7 @@
 #include "service/scene_hash.h"
 
 #include <cstring>
+#include <fstream>
 #include <string>
 
 namespace irfarm {
@@ -26,6 +27,25 @@ class Hasher {
     Pod(v.y);
     Pod(v.z);
   }
+  // A file a parameter names (a texture's or an environment map's image): its name without the
+  // folder (a scene is hashed the same in the folder a bundle is unpacked to) and its bytes (an
+  // image replaced under the same name is another scene). A file that cannot be read adds its
+  // name only: the scene does not load then anyway.
+  void File(const std::string& path) {
+    if (path.empty()) return;
+    Str(path.substr(path.find_last_of('/') + 1));
+    std::ifstream in(path, std::ios::binary);
+    char buf[1 << 16];
+    uint64_t n = 0;
+    while (in) {
+      in.read(buf, sizeof(buf));
+      const std::streamsize got = in.gcount();
+      if (got <= 0) break;
+      Bytes(buf, size_t(got));
+      n += uint64_t(got);
+    }
+    Pod(n);
+  }
   uint64_t value() const { return h_; }
 
  private:
@@ -40,7 +60,7 @@ uint64_t SceneHash(const SceneDesc& desc) {
   h.Pod(desc.integrator.rr_depth);
   for (const TextureDesc& t : desc.textures) {
     h.Str(t.type);
-    h.Str(t.filename.substr(t.filename.find_last_of('/') + 1));
+    h.File(t.filename);
     h.Pod(t.raw);
     h.Str(t.filter_type);
     h.Str(t.wrap_mode);
@@ -94,9 +114,19 @@ uint64_t SceneHash(const SceneDesc& desc) {
     h.V(e.radiance);
     h.Pod(e.cutoff_angle_deg);
     h.Pod(e.beam_width_deg);
-    h.Str(e.filename.substr(e.filename.find_last_of('/') + 1));
+    h.File(e.filename);
     h.Pod(e.scale);
+    h.Pod(e.to_world);  // an environment map's rotation (where its sun is)
   }
+  return h.value();
+}
+
+uint64_t CacheHash(uint64_t scene_hash, bool caustics, bool direct_sun) {
+  if (caustics && direct_sun) return scene_hash;
+  Hasher h;
+  h.Pod(scene_hash);
+  h.Pod(caustics);
+  h.Pod(direct_sun);
   return h.value();
 }
 

@@ -11,4 +11,11 @@ namespace irfarm {
 
 uint64_t SceneHash(const SceneDesc& desc);
 
+// What a snapshot's records were computed for: the scene (SceneHash) and the settings that change
+// what a record holds. With the photon map on (caustics, the default) records leave caustics out;
+// with direct_sun (the default) they leave an environment map's sun to direct light. A cache made
+// with one of these off and loaded with it on counts that light twice (or the reverse, not at
+// all). The defaults give SceneHash itself, so snapshots made before this check still load.
+uint64_t CacheHash(uint64_t scene_hash, bool caustics, bool direct_sun);
+
 }  // namespace irfarm

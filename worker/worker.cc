@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <optional>
 #include <thread>
+#include <tuple>
 
 #include "service/coordinator_list.h"
 #include "service/record_codec.h"
@@ -18,12 +19,15 @@ namespace {
 
 // How long a warm-started job's tile waits for its region's records (RegionReady).
 constexpr auto kRegionReadyWait = std::chrono::seconds(5);
+// How long a stopped worker waits for the coordinator to end the session after its last message.
+constexpr auto kGoodbyeWait = std::chrono::seconds(5);
 
 // State shared by a session's reader, publisher and render threads.
 struct SessionState {
   std::mutex mu;
   std::condition_variable cv;
-  std::deque<v1::TileLease> leases;
+  // Leases not yet started, each with when it arrived (its lease time runs from then).
+  std::deque<std::pair<v1::TileLease, std::chrono::steady_clock::time_point>> leases;
   std::map<std::string, std::shared_ptr<JobContext>> jobs;
   std::map<std::string, std::string> failed_jobs;  // job id -> why its scene did not load
   bool broken = false;
@@ -32,6 +36,12 @@ struct SessionState {
   // its result would go nowhere. A stopped worker (Stop) still finishes its tile.
   std::string tile_job;
   std::atomic<bool>* tile_cancel = nullptr;
+  // The tile's lease deadline (received + TileLease::lease_ms; none when that is 0): past it the
+  // coordinator has given the tile to another worker, so the render stops (tile_overdue) and the
+  // worker is free for its next lease, rather than finish a tile whose result is stale (or hang
+  // on one).
+  std::optional<std::chrono::steady_clock::time_point> tile_deadline;
+  bool tile_overdue = false;
   // The lease token a warm-started job's tile waits on (empty: none) and whether its RegionReady
   // has arrived.
   std::string region_wait;
@@ -160,7 +170,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
         if (job && recs.ok()) job->InsertRemote(*recs);
       } else if (m.has_lease()) {
         std::lock_guard<std::mutex> lock(s.mu);
-        s.leases.push_back(m.lease());
+        s.leases.emplace_back(m.lease(), std::chrono::steady_clock::now());
         s.cv.notify_all();
       } else if (m.has_region_ready()) {
         // In stream order: the region's records, read before it, are in the job's cache.
@@ -173,6 +183,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       } else if (m.has_job_closed()) {
         std::lock_guard<std::mutex> lock(s.mu);
         s.jobs.erase(m.job_closed().job_id());  // a tile in progress keeps its shared_ptr
+        s.failed_jobs.erase(m.job_closed().job_id());
         if (s.tile_cancel != nullptr && s.tile_job == m.job_closed().job_id())
           s.tile_cancel->store(true);
       } else if (m.has_drain()) {
@@ -223,6 +234,14 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
     auto last_heartbeat = std::chrono::steady_clock::now();
     while (!session_done) {
       std::this_thread::sleep_for(options_.flush_interval);
+      {
+        std::lock_guard<std::mutex> lock(s.mu);
+        if (s.tile_cancel != nullptr && s.tile_deadline && !s.tile_overdue &&
+            std::chrono::steady_clock::now() > *s.tile_deadline) {
+          s.tile_overdue = true;
+          s.tile_cancel->store(true);
+        }
+      }
       send_drain();
       publish_all();
       if (std::chrono::steady_clock::now() - last_heartbeat >= heartbeat) {
@@ -248,6 +267,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
   // Render loop (this thread).
   for (;;) {
     v1::TileLease lease;
+    std::chrono::steady_clock::time_point received;
     std::shared_ptr<JobContext> job;
     std::string failure;
     {
@@ -256,7 +276,7 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
                     [&] { return !s.leases.empty() || s.broken || stop_; });
       if (s.broken || stop_) break;
       if (s.leases.empty()) continue;
-      lease = s.leases.front();
+      std::tie(lease, received) = s.leases.front();
       s.leases.pop_front();
       auto it = s.jobs.find(lease.job_id());
       if (it != s.jobs.end()) job = it->second;
@@ -318,23 +338,31 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       std::lock_guard<std::mutex> lock(s.mu);
       s.tile_job = lease.job_id();
       s.tile_cancel = &cancel;
+      s.tile_deadline.reset();
+      if (lease.lease_ms() > 0)
+        s.tile_deadline = received + std::chrono::milliseconds(lease.lease_ms());
+      s.tile_overdue = false;
       if (s.broken || s.jobs.count(lease.job_id()) == 0) cancel = true;  // closed meanwhile
     }
     tile_settings.cancel = &cancel;
     RenderOutput out = RenderRect(job->scene(), tile_settings, job->cache(), rect);
+    bool overdue = false;
     {
       std::lock_guard<std::mutex> lock(s.mu);
       s.tile_cancel = nullptr;
       s.tile_job.clear();
+      overdue = s.tile_overdue;
     }
     job->AddBudgetCarry(out.stats.budget_left);
     if (out.stats.cancelled) {
       metrics_.tiles_cancelled->Add();
-      spdlog::info("job {}: tile {} stopped (the job was closed or the session broke)",
-                   lease.job_id(), lease.tile_index());
-      // A closed job's tile too (it is not counted as a failure there): the coordinator then
-      // leases the next tile. A broken session ends at the loop's top.
-      tile_failed(lease, "stopped: the job was closed while the tile rendered");
+      const std::string why =
+          overdue ? "the lease deadline passed" : "the job was closed or the session broke";
+      spdlog::info("job {}: tile {} stopped ({})", lease.job_id(), lease.tile_index(), why);
+      // A closed job's tile too (it is not counted as a failure there), and an overdue one
+      // (stale there: the lease expired): the coordinator then leases the next tile. A broken
+      // session ends at the loop's top.
+      tile_failed(lease, "stopped: " + why + " while the tile rendered");
       continue;
     }
     publish_all();  // the tile's records go out before its result
@@ -382,10 +410,25 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
   if (stop_) {
     send_drain();
     stream->WritesDone();
+    // The coordinator ends the session once it has read all that was sent (the last tile's
+    // result and records): wait for that, a bounded time, before cancelling the call, which
+    // could otherwise drop a result still on its way (the tile would be rendered again).
+    std::unique_lock<std::mutex> lock(s.mu);
+    s.cv.wait_for(lock, kGoodbyeWait, [&] { return s.broken; });
   }
-  context.TryCancel();
+  bool ended = false;  // by the coordinator (or the network), not by this worker
+  {
+    std::lock_guard<std::mutex> lock(s.mu);
+    ended = s.broken;
+  }
+  if (!ended) context.TryCancel();
   reader.join();
-  stream->Finish();
+  const grpc::Status status = stream->Finish();
+  // Why it ended (PERMISSION_DENIED when the coordinator expelled this worker, a message over
+  // its size limit, ...): it went unsaid before.
+  if (ended && !status.ok())
+    spdlog::warn("session with {} ended: {} ({})", address, status.error_message(),
+                 int(status.error_code()));
   metrics_.connected->Set(0);
 }
 

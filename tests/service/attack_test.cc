@@ -202,8 +202,13 @@ int LeaseFloats(const v1::TileLease& l) {
   return (l.rect().x1() - l.rect().x0()) * (l.rect().y1() - l.rect().y0()) * 3;
 }
 
+class AttackTest;
+struct Flood;
+Flood FloodSleepyWorkers(AttackTest* t, int n);
+
 class AttackTest : public ::testing::Test {
  protected:
+  friend Flood FloodSleepyWorkers(AttackTest* t, int n);
   void SetUp() override {
     char tmpl[] = "/tmp/irfarm-attack.XXXXXX";
     dir_ = mkdtemp(tmpl);
@@ -227,6 +232,7 @@ class AttackTest : public ::testing::Test {
     options.limits.max_job_records = max_job_records_;
     options.limits.max_downloads = max_downloads_;
     options.limits.max_watches = max_watches_;
+    options.limits.max_total_outbox_bytes = max_total_outbox_;
     manager_ = std::move(*JobManager::Create(options, &store_));
     auth_ =
         std::make_unique<Authenticator>(std::vector<NamedToken>{{"alice", kAlice}, {"bob", kBob}},
@@ -386,6 +392,7 @@ class AttackTest : public ::testing::Test {
   int64_t max_job_records_ = int64_t(1) << 24;
   int max_downloads_ = 4;
   int max_watches_ = 64;
+  size_t max_total_outbox_ = size_t(1) << 30;
   InMemoryJobStore store_;
   std::unique_ptr<JobManager> manager_;
   std::unique_ptr<Authenticator> auth_;
@@ -496,6 +503,40 @@ TEST_F(AttackTest, PoisonedSnapshotIsRefused) {
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_NE(st.error_message().find("record 1"), std::string::npos) << st.error_message();
   EXPECT_EQ(JobList(), list);
+}
+
+// A snapshot's records hold caustics or not by the photon-map setting of the job it came from: a
+// snapshot of a --no-caustics job goes only into --no-caustics jobs of the scene (and the
+// reverse). Both were accepted before (the hash was the scene's alone): caustics counted twice,
+// or lost.
+TEST_F(AttackTest, ASnapshotOfOtherRecordSettingsIsRefused) {
+  StartServer();
+  std::string a, b;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  v1::SubmitJobRequest no_caustics = Request();
+  no_caustics.mutable_settings()->set_no_caustics(true);
+  ASSERT_TRUE(Submit(kAlice, no_caustics, &b).ok());
+  v1::Job ja, jb;
+  ASSERT_TRUE(Get(kAlice, a, &ja).ok());
+  ASSERT_TRUE(Get(kAlice, b, &jb).ok());
+  EXPECT_NE(ja.scene_hash(), jb.scene_hash());
+  Snapshot snap;
+  snap.records = {Record(Vec3(0, 0, 0), 0.1f, 1)};
+  snap.scene_hash = ja.scene_hash();
+  v1::SubmitJobRequest req = no_caustics;
+  req.set_cache_snapshot(SerializeSnapshot(snap));
+  grpc::Status st = Submit(kAlice, req);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << st.error_message();
+  EXPECT_NE(st.error_message().find("caustics"), std::string::npos) << st.error_message();
+  snap.scene_hash = jb.scene_hash();
+  req = Request();
+  req.set_cache_snapshot(SerializeSnapshot(snap));
+  st = Submit(kAlice, req);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << st.error_message();
+  req = no_caustics;
+  req.set_cache_snapshot(SerializeSnapshot(snap));
+  st = Submit(kAlice, req);
+  EXPECT_TRUE(st.ok()) << st.error_message();
 }
 
 // Why 2: results for leases the worker does not hold (sequential guesses), NaN pixels and forged
@@ -1066,6 +1107,20 @@ TEST_F(AttackTest, AFailureReasonIsCutBetweenCharacters) {
   EXPECT_TRUE(back.ParseFromString(serialized));
 }
 
+// A job's name reaches other clients' admins (irfarm status prints it, the dashboard shows it):
+// control characters become '?' at submit (a name holding a terminal escape sequence was printed
+// raw into an admin's terminal), printable UTF-8 stays.
+TEST_F(AttackTest, AJobNameHoldsNoControlCharacters) {
+  StartServer();
+  v1::SubmitJobRequest req = Request();
+  req.set_name("frame\x1b]0;owned\x07\x1b[2J \xc3\xa9t\xc3\xa9\n");
+  std::string id;
+  ASSERT_TRUE(Submit(kAlice, req, &id).ok());
+  v1::Job job;
+  ASSERT_TRUE(Get(kAdmin, id, &job).ok());
+  EXPECT_EQ(job.name(), "frame?]0;owned??[2J \xc3\xa9t\xc3\xa9?");
+}
+
 // The dashboard's preview of a large job is at most 1024 px on its longer side (it was the
 // whole film in floats, 0.8 GB for a 67 M-pixel job, asked for every second): a 2048 x 1536 job
 // previews at 1024 x 768, each pixel the mean of its finished 2 x 2 block, black where no tile
@@ -1218,6 +1273,18 @@ TEST_F(AttackTest, ResourceLimits) {
   (*req.mutable_settings()->mutable_defines())["resx"] = "2048";
   (*req.mutable_settings()->mutable_defines())["resy"] = "2048";
   expect(req, grpc::StatusCode::INVALID_ARGUMENT, "262144 tiles");
+  // One tile whose result (4096^2 x 3 floats, 201 MB) no message to the coordinator can carry:
+  // accepted before, each worker's result ended its session (RESOURCE_EXHAUSTED) and after three
+  // the job failed with "disconnected".
+  req = Request(4096);
+  (*req.mutable_settings()->mutable_defines())["resx"] = "4096";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "4096";
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "a 4096^2 tile");
+  req = Request(1600);
+  (*req.mutable_settings()->mutable_defines())["resx"] = "4096";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "4096";
+  req.mutable_settings()->set_denoise(true);
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "1600^2 tiles with guides: 92 MB results");
   req = Request(64);
   req.mutable_settings()->set_spp(1 << 20);
   (*req.mutable_settings()->mutable_defines())["resx"] = "8192";
@@ -1428,18 +1495,34 @@ TEST_F(AttackTest, ImportsAndSeedsStayWithinTheJobsRecordLimit) {
   f.Cancel();
 }
 
-// Part 5: a worker that stops reading its stream does not make the coordinator queue record
-// fan-out for it without bound (1 MiB here): the batches past the bound are dropped and counted,
-// and the records are still merged.
-TEST_F(AttackTest, OutboxOfAWorkerThatDoesNotReadIsBounded) {
-  StartServer();
+// Submits a job and connects `n` workers ("sleepy0", ...) that take a lease and then never read,
+// while another sends 60 batches of 4000 records (10.6 MB) to the job. Returns the most the
+// sleepy workers' outboxes held together, sampled after each batch (an outbox empties into its
+// stream as far as gRPC's flow control lets it, and is 0 again by the end), and the fan-out
+// batches dropped for them; every record must be merged.
+struct Flood {
+  uint64_t most = 0, dropped = 0;
+};
+Flood FloodSleepyWorkers(AttackTest* t, int n) {
+  Flood out;
   std::string a;
-  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
-  FakeWorker sleepy(channel_, kWorker, "sleepy");
-  ASSERT_TRUE(sleepy.NextLease().has_value());  // then never reads again
-  FakeWorker chatty(channel_, kWorker, "chatty");
-  ASSERT_TRUE(chatty.NextLease().has_value());
-  const int kBatches = 60, kPerBatch = 4000;  // 10.6 MB of payload
+  EXPECT_TRUE(t->Submit(kAlice, t->Request(), &a).ok());
+  std::vector<std::unique_ptr<FakeWorker>> sleepy;
+  for (int i = 0; i < n; ++i) {
+    sleepy.push_back(
+        std::make_unique<FakeWorker>(t->channel_, kWorker, "sleepy" + std::to_string(i)));
+    EXPECT_TRUE(sleepy.back()->NextLease().has_value());  // then never reads again
+  }
+  FakeWorker chatty(t->channel_, kWorker, "chatty");
+  EXPECT_TRUE(chatty.NextLease().has_value());
+  const auto sleepy_sum = [&](auto field) {
+    const v1::GetClusterResponse cluster = t->Cluster();
+    uint64_t sum = 0;
+    for (const v1::WorkerInfo& w : cluster.workers())
+      if (w.name().rfind("sleepy", 0) == 0) sum += field(w);
+    return sum;
+  };
+  const int kBatches = 60, kPerBatch = 4000;
   for (int b = 0; b < kBatches; ++b) {
     std::vector<IrradianceRecord> recs;
     for (int i = 0; i < kPerBatch; ++i) {
@@ -1448,29 +1531,51 @@ TEST_F(AttackTest, OutboxOfAWorkerThatDoesNotReadIsBounded) {
                    -0.9f + 1.8f * float(k % 83) / 83);
       recs.push_back(Record(p, 0.05f, 0.3f));
     }
-    ASSERT_TRUE(chatty.Send(Records(a, recs)));
+    EXPECT_TRUE(chatty.Send(Records(a, recs)));
+    out.most =
+        std::max(out.most, sleepy_sum([](const v1::WorkerInfo& w) { return w.outbox_bytes(); }));
   }
   v1::Job job;
   for (int i = 0; i < 400; ++i) {
-    ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+    EXPECT_TRUE(t->Get(kAdmin, a, &job).ok());
     if (job.records_merged() >= uint64_t(kBatches) * kPerBatch) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   EXPECT_EQ(job.records_merged(), uint64_t(kBatches) * kPerBatch);
-  const v1::GetClusterResponse cluster = Cluster();
-  bool seen = false;
-  for (const v1::WorkerInfo& w : cluster.workers()) {
-    if (w.name() != "sleepy") continue;
-    seen = true;
-    std::printf("MEASURED sleepy worker: outbox %llu bytes, %llu batches dropped\n",
-                static_cast<unsigned long long>(w.outbox_bytes()),
-                static_cast<unsigned long long>(w.batches_dropped()));
-    EXPECT_LE(w.outbox_bytes(), 1u << 20);
-    EXPECT_GT(w.batches_dropped(), 0u);
-  }
-  EXPECT_TRUE(seen);
-  sleepy.Cancel();
+  out.dropped = sleepy_sum([](const v1::WorkerInfo& w) { return w.batches_dropped(); });
+  for (auto& w : sleepy) w->Cancel();
   chatty.Cancel();
+  return out;
+}
+
+// Part 5: a worker that stops reading its stream does not make the coordinator queue record
+// fan-out for it without bound (1 MiB here): the batches past the bound are dropped and counted,
+// and the records are still merged.
+TEST_F(AttackTest, OutboxOfAWorkerThatDoesNotReadIsBounded) {
+  StartServer();
+  const Flood f = FloodSleepyWorkers(this, 1);
+  std::printf("MEASURED sleepy worker: outbox at most %llu bytes, %llu batches dropped\n",
+              static_cast<unsigned long long>(f.most), static_cast<unsigned long long>(f.dropped));
+  EXPECT_LE(f.most, 1u << 20);
+  EXPECT_GE(f.most, 1u << 19);  // it did fill
+  EXPECT_GT(f.dropped, 0u);
+}
+
+// Many workers that stop reading (sessions of one worker token, each within its own 1 MiB bound)
+// do not add up without bound either: all outboxes together stay within
+// max_total_outbox_bytes (1.5 MiB here), past which fan-out is dropped; three sleepy workers held
+// 2.7 MB before, and a thousand sessions would hold 64 GiB at the default 64 MiB each.
+TEST_F(AttackTest, OutboxesOfWorkersThatDoNotReadAreBoundedTogether) {
+  max_total_outbox_ = size_t(3) << 19;
+  StartServer();
+  const Flood f = FloodSleepyWorkers(this, 3);
+  std::printf(
+      "MEASURED three sleepy workers: outboxes at most %llu bytes together, %llu batches "
+      "dropped\n",
+      static_cast<unsigned long long>(f.most), static_cast<unsigned long long>(f.dropped));
+  EXPECT_LE(f.most, max_total_outbox_);
+  EXPECT_GE(f.most, size_t(1) << 20);  // the budget is used, not refused outright
+  EXPECT_GT(f.dropped, 0u);
 }
 
 // TLS and mutual TLS with certificates made now by openssl: a client with the CA and (for mTLS)

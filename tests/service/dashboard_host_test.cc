@@ -42,10 +42,14 @@ TEST(DashboardHostTest, AnOpenDashboardAnswersOnlyItsLoopbackNames) {
                                                      {"POST", "/api/cancel"},
                                                      {"POST", "/api/priority"}};
   for (const auto& [method, path] : all) {
-    for (const char* host : {"evil.example", "evil.example:8080", "10.0.0.5:8080", ""})
+    // Names that start like a loopback address are names (they passed a prefix match before).
+    for (const char* host :
+         {"evil.example", "evil.example:8080", "10.0.0.5:8080", "", "127.0.0.1.nip.io:8080",
+          "127.evil.example", "localhost.evil.example", "[::1.evil]:8080", "128.0.0.1:8080"})
       EXPECT_EQ(Call(routes, method, path, host).status, 421)
           << method << " " << path << " " << host;
-    for (const char* host : {"127.0.0.1:8080", "localhost:8080", "LOCALHOST", "[::1]:8080"}) {
+    for (const char* host : {"127.0.0.1:8080", "127.3.2.1", "localhost:8080", "LOCALHOST",
+                             "[::1]:8080", "[0:0:0:0:0:0:0:1]:8080", "[::ffff:127.0.0.1]:80"}) {
       const int status = Call(routes, method, path, host).status;
       EXPECT_NE(status, 421) << method << " " << path << " " << host;
     }

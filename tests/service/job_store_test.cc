@@ -13,6 +13,7 @@
 #include "coordinator/in_memory_job_store.h"
 #include "coordinator/job_manager.h"
 #include "coordinator/redis_job_store.h"
+#include "coordinator/store_writer.h"
 #include "service/record_codec.h"
 #include "service/scene_bundle.h"
 #include "tests/service/redis_server.h"
@@ -72,6 +73,9 @@ TEST_P(JobStoreTest, JobsRoundTripAndReplace) {
 }
 
 TEST_P(JobStoreTest, TilesAndRecordsRoundTrip) {
+  v1::StoredJob job;
+  job.mutable_job()->set_id("job-1");
+  ASSERT_TRUE(store_->PutJob(job).ok());
   ASSERT_TRUE(store_->PutTile("job-1", 3, std::string("\0\1\2", 3)).ok());
   ASSERT_TRUE(store_->PutTile("job-1", 5, "abc").ok());
   std::map<int, std::string> tiles = *store_->LoadTiles("job-1");
@@ -94,7 +98,68 @@ TEST_P(JobStoreTest, TilesAndRecordsRoundTrip) {
   EXPECT_EQ(recs[1].position.y, 2.0f);
 }
 
+// A tile or record batch that arrives after its job was deleted (a worker's result stored while a
+// client deleted the cancelled job; a write that timed out while Redis hung and lands later) is
+// refused NOT_FOUND and leaves nothing behind: it recreated the job's tile hash and record list
+// before, which nothing ever read or deleted again. In Redis a deleted job cannot be put back
+// either (its tombstone).
+TEST_P(JobStoreTest, WritesForAJobNotStoredAreRefused) {
+  IrradianceRecord r;
+  r.normal = Vec3(0, 0, 1);
+  r.irradiance = Vec3(0.5f);
+  r.radius = 0.25f;
+  EXPECT_TRUE(absl::IsNotFound(store_->PutTile("job-9", 0, "abc")));
+  EXPECT_TRUE(absl::IsNotFound(store_->AppendRecords("job-9", {r})));
+  v1::StoredJob job;
+  job.mutable_job()->set_id("job-9");
+  ASSERT_TRUE(store_->PutJob(job).ok());
+  ASSERT_TRUE(store_->PutTile("job-9", 0, "abc").ok());
+  ASSERT_TRUE(store_->AppendRecords("job-9", {r}).ok());
+  ASSERT_TRUE(store_->DeleteJob("job-9").ok());
+  EXPECT_TRUE(absl::IsNotFound(store_->PutTile("job-9", 1, "def")));
+  EXPECT_TRUE(absl::IsNotFound(store_->AppendRecords("job-9", {r, r})));
+  EXPECT_TRUE(store_->LoadTiles("job-9")->empty());
+  EXPECT_TRUE(store_->LoadRecords("job-9")->empty());
+  if (GetParam() != "redis") return;
+  job.mutable_job()->set_state(v1::JOB_STATE_CANCELLED);
+  const absl::Status late = store_->PutJob(job);
+  EXPECT_TRUE(absl::IsNotFound(late)) << late;
+  EXPECT_NE(late.message().find("job-9 was deleted"), std::string::npos) << late;
+  EXPECT_TRUE(store_->LoadJobs()->empty());
+  // What is left in Redis is the tombstone, for a day.
+  redisContext* c = redisConnect("127.0.0.1", redis_->port());
+  ASSERT_TRUE(c != nullptr && c->err == 0);
+  auto* keys = static_cast<redisReply*>(redisCommand(c, "KEYS *"));
+  ASSERT_TRUE(keys != nullptr);
+  ASSERT_EQ(keys->elements, 1u);
+  EXPECT_EQ(std::string(keys->element[0]->str), "irfarm:deleted:job-9");
+  freeReplyObject(keys);
+  auto* ttl = static_cast<redisReply*>(redisCommand(c, "TTL irfarm:deleted:job-9"));
+  ASSERT_TRUE(ttl != nullptr);
+  EXPECT_GT(ttl->integer, 86000);
+  EXPECT_LE(ttl->integer, 86400);
+  freeReplyObject(ttl);
+  redisFree(c);
+}
+
 INSTANTIATE_TEST_SUITE_P(Stores, JobStoreTest, ::testing::Values("memory", "redis"));
+
+// The store writer drops a queued write the store refuses NOT_FOUND (its job was deleted) after
+// one try; it retried it at the head of its queue forever before, holding up every later write.
+TEST(StoreWriterTest, AWriteForADeletedJobIsDroppedNotRetried) {
+  InMemoryJobStore store;
+  StoreWriter writer(&store, std::chrono::milliseconds(20));
+  IrradianceRecord r;
+  r.normal = Vec3(0, 0, 1);
+  r.radius = 0.25f;
+  v1::StoredJob job;
+  job.mutable_job()->set_id("job-2");
+  writer.AppendRecords("job-1", {r});  // never stored
+  writer.PutJob(job);
+  writer.AppendRecords("job-2", {r, r});
+  ASSERT_TRUE(writer.Flush(std::chrono::seconds(5))) << "the refused write is retried";
+  EXPECT_EQ(store.LoadRecords("job-2")->size(), 2u);
+}
 
 TEST(RedisJobStoreTest, RedisDownIsUnavailable) {
   absl::StatusOr<std::unique_ptr<RedisJobStore>> s =

@@ -22,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <fstream>
 #include <string>
@@ -44,19 +45,18 @@ constexpr std::chrono::milliseconds kRedisTimeout{500};
 
 double Ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
 
-// Whether process `pid` is in the stopped state ('T' in /proc/PID/stat) within `limit`.
-bool WaitStopped(pid_t pid, std::chrono::milliseconds limit) {
-  const Clock::time_point end = Clock::now() + limit;
-  do {
-    std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
-    std::string line;
-    std::getline(stat, line);
-    const size_t close = line.rfind(')');  // the command name may hold spaces
-    if (close != std::string::npos && close + 2 < line.size() && line[close + 2] == 'T')
-      return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  } while (Clock::now() < end);
-  return false;
+// cornell-box at 64 x 64 in 64 tiles.
+v1::SubmitJobRequest Request(int priority) {
+  v1::SubmitJobRequest req;
+  *req.mutable_scene()->mutable_bundle() =
+      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+  (*req.mutable_settings()->mutable_defines())["resx"] = "64";
+  (*req.mutable_settings()->mutable_defines())["resy"] = "64";
+  req.mutable_settings()->set_tile_size(8);  // 64 tiles
+  req.mutable_settings()->set_share_records(true);
+  req.mutable_settings()->set_seed(1);
+  req.set_priority(priority);
+  return req;
 }
 
 class RedisHangTest : public ::testing::Test {
@@ -77,7 +77,7 @@ class RedisHangTest : public ::testing::Test {
                                                         grpc::InsecureChannelCredentials()));
   }
   void TearDown() override {
-    kill(redis_.pid(), SIGCONT);  // whatever happened, let the teardown writes finish
+    redis_.Resume();  // whatever happened, let the teardown writes finish
     if (worker_) {
       worker_->Stop();
       worker_thread_.join();
@@ -91,18 +91,6 @@ class RedisHangTest : public ::testing::Test {
     o.threads = 2;
     worker_ = std::make_unique<Worker>(o);
     worker_thread_ = std::thread([this] { worker_->Run(); });
-  }
-  static v1::SubmitJobRequest Request(int priority) {
-    v1::SubmitJobRequest req;
-    *req.mutable_scene()->mutable_bundle() =
-        *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
-    (*req.mutable_settings()->mutable_defines())["resx"] = "64";
-    (*req.mutable_settings()->mutable_defines())["resy"] = "64";
-    req.mutable_settings()->set_tile_size(8);  // 64 tiles
-    req.mutable_settings()->set_share_records(true);
-    req.mutable_settings()->set_seed(1);
-    req.set_priority(priority);
-    return req;
   }
   grpc::Status Submit(const v1::SubmitJobRequest& req, std::string* id = nullptr) {
     grpc::ClientContext c;
@@ -148,12 +136,11 @@ TEST_F(RedisHangTest, ReadsAnswerFromMemorySubmitFailsFastAndNothingIsLost) {
   } while (job.tiles_done() < 1 && Clock::now() < wait_end);
   ASSERT_GE(job.tiles_done(), 1u) << "the job never started";
 
-  ASSERT_EQ(kill(redis_.pid(), SIGSTOP), 0);
   const Clock::time_point stopped = Clock::now();
   // kill() returns before the stop takes hold: Redis may still answer a write it was handed, and
   // that tile would then count after at_stop below. So: until /proc says it is stopped, then
   // long enough for a reply already sent to be taken in.
-  ASSERT_TRUE(WaitStopped(redis_.pid(), std::chrono::seconds(5))) << "redis-server did not stop";
+  ASSERT_TRUE(redis_.Hang()) << "redis-server did not stop";
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   v1::Job at_stop;
   ASSERT_TRUE(Get(a, &at_stop).ok());
@@ -196,7 +183,7 @@ TEST_F(RedisHangTest, ReadsAnswerFromMemorySubmitFailsFastAndNothingIsLost) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   const v1::GetClusterResponse cluster = manager_->Cluster();
-  ASSERT_EQ(kill(redis_.pid(), SIGCONT), 0);
+  redis_.Resume();
   std::sort(get_ms.begin(), get_ms.end());
   std::sort(list_ms.begin(), list_ms.end());
   ASSERT_GE(get_ms.size(), 20u);
@@ -249,6 +236,65 @@ TEST_F(RedisHangTest, ReadsAnswerFromMemorySubmitFailsFastAndNothingIsLost) {
   ASSERT_TRUE(b2.ok()) << b2.status();
   EXPECT_EQ(b2->state(), v1::JOB_STATE_CANCELLED);
   EXPECT_EQ((*again)->ListJobs().size(), 3u);
+}
+
+// A store on Redis that hangs Redis (SIGSTOP) just before the first PutJob is handed to it: that
+// write times out, but stays in Redis's socket and runs when Redis resumes.
+class HangAtFirstPutJob final : public JobStore {
+ public:
+  HangAtFirstPutJob(JobStore* inner, const RedisServer* redis) : inner_(inner), redis_(redis) {}
+  absl::StatusOr<uint64_t> NextJobNumber() override { return inner_->NextJobNumber(); }
+  absl::Status PutJob(const v1::StoredJob& job) override {
+    if (!hung_.exchange(true) && !redis_->Hang())
+      return absl::InternalError("redis-server did not stop");
+    return inner_->PutJob(job);
+  }
+  absl::StatusOr<std::vector<v1::StoredJob>> LoadJobs() override { return inner_->LoadJobs(); }
+  absl::Status PutTile(const std::string& id, int tile, const std::string& pixels) override {
+    return inner_->PutTile(id, tile, pixels);
+  }
+  absl::StatusOr<std::map<int, std::string>> LoadTiles(const std::string& id) override {
+    return inner_->LoadTiles(id);
+  }
+  absl::Status AppendRecords(const std::string& id,
+                             const std::vector<IrradianceRecord>& records) override {
+    return inner_->AppendRecords(id, records);
+  }
+  absl::StatusOr<std::vector<IrradianceRecord>> LoadRecords(const std::string& id) override {
+    return inner_->LoadRecords(id);
+  }
+  absl::Status DeleteJob(const std::string& id) override { return inner_->DeleteJob(id); }
+  bool hung() const { return hung_; }
+
+ private:
+  JobStore* const inner_;
+  const RedisServer* const redis_;
+  std::atomic<bool> hung_{false};
+};
+
+// A submit refused because its job's write timed out (Redis hung, not down) is not resumed after
+// a restart when that write lands later: the coordinator deletes the job once Redis answers
+// again, and the delete's tombstone refuses a write that lands later still. Before, the job the
+// client was told had failed came back at the next start and rendered.
+TEST(RedisLateWriteTest, ARefusedSubmitIsNotResumedWhenItsWriteLandsLater) {
+  RedisServer redis;
+  std::unique_ptr<RedisJobStore> inner = redis.Connect(RedisOptions{"irfarm:", kRedisTimeout});
+  ASSERT_TRUE(inner) << "redis-server did not start";
+  HangAtFirstPutJob store(inner.get(), &redis);
+  std::unique_ptr<JobManager> manager = std::move(*JobManager::Create(JobManagerOptions(), &store));
+  const absl::StatusOr<v1::Job> job = manager->Submit(Request(0));
+  redis.Resume();
+  ASSERT_TRUE(store.hung());
+  EXPECT_EQ(job.status().code(), absl::StatusCode::kUnavailable) << job.status();
+  EXPECT_TRUE(manager->ListJobs().empty());
+  ASSERT_TRUE(manager->FlushStore(std::chrono::seconds(10))) << "the delete never landed";
+  std::unique_ptr<RedisJobStore> store2 = redis.Connect();
+  ASSERT_TRUE(store2);
+  EXPECT_TRUE(store2->LoadJobs()->empty()) << "the refused job is in the store";
+  absl::StatusOr<std::unique_ptr<JobManager>> again =
+      JobManager::Create(JobManagerOptions(), store2.get());
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_TRUE((*again)->ListJobs().empty()) << "the refused job resumed";
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <thread>
@@ -47,6 +48,23 @@ class RedisServer {
   std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
   int port() const { return port_; }
   pid_t pid() const { return pid_; }
+  // Stops the server (SIGSTOP: a hung Redis) and waits until /proc shows it stopped ('T' in
+  // /proc/PID/stat; kill() returns before the stop takes hold), at most `limit`.
+  bool Hang(std::chrono::milliseconds limit = std::chrono::seconds(5)) const {
+    if (kill(pid_, SIGSTOP) != 0) return false;
+    const auto end = std::chrono::steady_clock::now() + limit;
+    do {
+      std::ifstream stat("/proc/" + std::to_string(pid_) + "/stat");
+      std::string line;
+      std::getline(stat, line);
+      const size_t close = line.rfind(')');  // the command name may hold spaces
+      if (close != std::string::npos && close + 2 < line.size() && line[close + 2] == 'T')
+        return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    } while (std::chrono::steady_clock::now() < end);
+    return false;
+  }
+  void Resume() const { kill(pid_, SIGCONT); }
   // A store connected to this server, retried for up to 5 s while it starts; null if it never
   // answered.
   std::unique_ptr<RedisJobStore> Connect(const RedisOptions& options = RedisOptions()) const {

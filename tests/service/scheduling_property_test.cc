@@ -16,9 +16,11 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
+#include <thread>
 
 #include "coordinator/in_memory_job_store.h"
 #include "coordinator/job_manager.h"
@@ -316,6 +318,65 @@ TEST(SchedulingPropertyTest, JobStatesOnlyMoveForwardAndEveryTileCountsOnce) {
   EXPECT_GT(succeeded, 0);
   EXPECT_GT(failed, 0);
   EXPECT_GT(cancelled, 0);
+}
+
+// A tile that failed on one worker waits for the others (TryAssign gives it to a worker it
+// failed on only when no other could take it), but not for one whose lease is overdue: that
+// worker never reported (a hung render, or a worker that keeps its stream alive and does not
+// report), gets no lease before it does, and so never takes the tile. The job stayed RUNNING for
+// ever before, with an honest worker idle.
+TEST(SchedulingTest, AWorkerWithAnOverdueLeaseDoesNotHoldBackATile) {
+  v1::SubmitJobRequest request;
+  *request.mutable_scene()->mutable_bundle() =
+      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+  (*request.mutable_settings()->mutable_defines())["resx"] = "16";
+  (*request.mutable_settings()->mutable_defines())["resy"] = "8";
+  request.mutable_settings()->set_tile_size(8);  // 2 tiles
+  InMemoryJobStore store;
+  JobManagerOptions options;
+  options.lease_time = milliseconds(300);
+  std::unique_ptr<JobManager> m = std::move(*JobManager::Create(options, &store));
+  const absl::StatusOr<v1::Job> job = m->Submit(request);
+  ASSERT_TRUE(job.ok()) << job.status();
+  const uint32_t holder = m->RegisterWorker("holder"), honest = m->RegisterWorker("honest");
+  auto lease = [&](uint32_t w) -> std::optional<v1::TileLease> {
+    for (const v1::CoordinatorMessage& msg : m->Poll(w, milliseconds(0)))
+      if (msg.has_lease()) return msg.lease();
+    return std::nullopt;
+  };
+  auto complete = [&](uint32_t w, const v1::TileLease& l) {
+    v1::TileResult r;
+    r.set_job_id(l.job_id());
+    r.set_tile_index(l.tile_index());
+    r.set_lease_token(l.lease_token());
+    for (int i = 0; i < 8 * 8 * 3; ++i) r.add_pixels(0.5f);
+    return m->CompleteTile(w, r);
+  };
+  const std::optional<v1::TileLease> held = lease(holder);
+  const std::optional<v1::TileLease> failing = lease(honest);
+  ASSERT_TRUE(held && failing);
+  v1::TileFailed f;
+  f.set_job_id(failing->job_id());
+  f.set_tile_index(failing->tile_index());
+  f.set_lease_token(failing->lease_token());
+  f.set_reason("out of memory");
+  ASSERT_TRUE(m->FailTile(honest, f).ok());
+  // The failed tile waits for the holder while its lease runs.
+  EXPECT_FALSE(lease(honest));
+  std::this_thread::sleep_for(milliseconds(400));
+  m->Heard(holder);  // alive, not reporting
+  m->ExpireLeases();
+  // The holder's expired tile and the failed one both go to the honest worker (which first does
+  // not matter; before, it got the expired one and then nothing).
+  std::set<int> done;
+  for (int k = 0; k < 2; ++k) {
+    const std::optional<v1::TileLease> l = lease(honest);
+    ASSERT_TRUE(l) << "lease " << k << ": a tile waits for a worker whose lease is overdue";
+    ASSERT_TRUE(complete(honest, *l).ok());
+    done.insert(l->tile_index());
+  }
+  EXPECT_EQ(done, (std::set<int>{held->tile_index(), failing->tile_index()}));
+  EXPECT_EQ(m->GetJob(job->id())->state(), v1::JOB_STATE_SUCCEEDED);
 }
 
 }  // namespace
