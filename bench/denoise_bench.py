@@ -243,6 +243,10 @@ def main():
     ap.add_argument("--summarize", metavar="JSON",
                     help="only print the summary of a past run and redraw its plots into --out")
     args = ap.parse_args()
+    if not os.path.isdir(args.scenes_dir):
+        sys.exit(f"--scenes-dir {args.scenes_dir}: no such folder (a clone has none by default); pass "
+                 "the folder that holds SCENE/scene.xml and SCENE/reference.exr: the shared "
+                 "scenes, or rooms made by bench/make_room.py")
     os.makedirs(args.out, exist_ok=True)
     if args.summarize:
         with open(args.summarize) as f:

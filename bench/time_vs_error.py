@@ -296,6 +296,10 @@ def main():
                     help="only print the --target-error table of a stored run's directory (its "
                          "SCENE.json files) against --scenes-dir's references, and exit")
     a = ap.parse_args()
+    if not os.path.isdir(a.scenes_dir):
+        sys.exit(f"--scenes-dir {a.scenes_dir}: no such folder (a clone has none by default); pass "
+                 "the folder that holds SCENE/scene.xml and SCENE/reference.exr: the shared "
+                 "scenes, or rooms made by bench/make_room.py")
     if a.summarize_targets:
         print("\n".join(summarize_targets(a.summarize_targets, a.scenes_dir)))
         return
