@@ -10,16 +10,15 @@
 namespace irfarm {
 namespace {
 
-constexpr int kMaxCount = 1 << 20;  // spp, rays, samples
 constexpr int kMaxThreads = 4096;
 
 absl::Status OutOfRange(absl::string_view name, absl::string_view range, double value) {
   return absl::InvalidArgumentError(absl::StrCat(name, " must be ", range, ", got ", value));
 }
 
-// 0 (the default) or in [1, kMaxCount].
+// 0 (the default) or in [1, kMaxRequestCount].
 absl::Status CheckCount(absl::string_view name, int v) {
-  if (v < 0 || v > kMaxCount) return OutOfRange(name, "in [1, 1048576] (0: the default)", v);
+  if (v < 0 || v > kMaxRequestCount) return OutOfRange(name, "in [1, 1048576] (0: the default)", v);
   return absl::OkStatus();
 }
 

@@ -15,6 +15,9 @@
 
 namespace irfarm {
 
+// The most spp, record rays or light samples a request (or a scene's irrcache integrator) may ask.
+inline constexpr int kMaxRequestCount = 1 << 20;
+
 struct RenderRequest {
   // "path" or "irrcache"; "" = irrcache, which a denoised render may swap for path where the
   // pilots predict path the better once denoised (RenderSettings::choose_integrator).

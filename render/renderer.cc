@@ -21,6 +21,7 @@
 #include "render/overture.h"
 #include "render/pilot.h"
 #include "render/record_balance.h"
+#include "render/render_request.h"
 
 namespace irfarm {
 namespace {
@@ -63,11 +64,16 @@ absl::StatusOr<RenderSettings> SettingsForScene(const SceneDesc& desc,
                                           ": unknown irrcache parameter '" + name +
                                           "' (supported: accuracy, record_rays, light_samples, "
                                           "min_spacing_px, max_spacing_px, spp, cache_levels)");
+      // Counts are bounded as the command's flags are (kMaxRequestCount): 1e300 rays made int()
+      // undefined, and spp x light samples overflowed.
+      const bool count = name == "record_rays" || name == "light_samples" || name == "spp";
       if (!absl::SimpleAtod(text, &v) || !std::isfinite(v) || v <= 0 ||
-          (name == "accuracy" && v > 1) || (name == "cache_levels" && v != 1 && v != 2 && v != 3))
+          (name == "accuracy" && v > 1) || (count && v > kMaxRequestCount) ||
+          (name == "cache_levels" && v != 1 && v != 2 && v != 3))
         return absl::InvalidArgumentError(
             desc.integrator.loc.ToString() + ": irrcache parameter '" + name +
             "' must be a positive number" + (name == "accuracy" ? " <= 1" : "") +
+            (count ? " up to " + std::to_string(kMaxRequestCount) : "") +
             (name == "cache_levels" ? " (1, 2 or 3)" : "") + ", got '" + text + "'");
       values[name] = v;
     }

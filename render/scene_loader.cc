@@ -204,6 +204,10 @@ class Parser {
   // later): bounded together, so that no combination of them (an include restarts a file's own
   // nesting count) can exhaust the stack; real scenes nest a handful.
   static constexpr int kMaxParseDepth = 128;
+  // $name substitution: what one attribute may expand to, and all attributes together (a 1 MiB
+  // <default> named a million times in one attribute was a 1 TiB string: the process died).
+  static constexpr size_t kMaxAttributeBytes = size_t{1} << 20;
+  static constexpr size_t kMaxExpandedBytes = size_t{256} << 20;
   const SourceFile& FileOf(pugi::xml_node n) const;
   // A file the scene names, relative to the scene folder and inside it. A parameter's file is
   // looked up in the scene folder; an <include>'s next to the file that names it, then next to
@@ -329,6 +333,7 @@ class Parser {
   std::set<pugi::xml_node_struct*> parsed_;
   std::vector<pugi::xml_node> resolving_;
   std::map<std::string, std::string> vars_;  // $name -> value: <default>s, then -D defines
+  mutable size_t expanded_bytes_ = 0;        // what $name substitutions added, for the bound
   std::map<std::string, IdInfo> ids_;
   SceneDesc scene_;
   pugi::xml_node sensor_, integrator_, environment_;  // to reject a second one
@@ -415,6 +420,13 @@ absl::StatusOr<std::string> Parser::Attr(pugi::xml_node n, const char* name) con
                                    " (declare <default name=\"", var,
                                    "\" value=\"...\"/> or pass -D ", var, "=...)"));
     }
+    if (out.size() + it->second.size() > kMaxAttributeBytes ||
+        it->second.size() > kMaxExpandedBytes - expanded_bytes_) {
+      return Error(n, absl::StrCat("'$", var, "' in ", Describe(n), " expands past the limit (",
+                                   kMaxAttributeBytes >> 20, " MiB an attribute, ",
+                                   kMaxExpandedBytes >> 20, " MiB a scene)"));
+    }
+    expanded_bytes_ += it->second.size();
     out += it->second;
     i = end;
   }
@@ -1260,7 +1272,7 @@ absl::Status Parser::ParseFilm(pugi::xml_node n) {
     return Error(NodeOf(p, "component_format"),
                  absl::StrCat("unknown component_format '", component_format, "'"));
   if (cam.crop_x < 0 || cam.crop_y < 0 || cam.width <= 0 || cam.height <= 0 ||
-      cam.crop_x + cam.width > film_w || cam.crop_y + cam.height > film_h) {
+      int64_t(cam.crop_x) + cam.width > film_w || int64_t(cam.crop_y) + cam.height > film_h) {
     return Error(
         NodeOf(p, "crop_width"),
         absl::StrCat("crop window ", cam.width, " x ", cam.height, " at (", cam.crop_x, ", ",

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 
+#include "absl/strings/ascii.h"
+
 #include "render/pipeline.h"
 #include "service/job_settings.h"
 #include "service/scene_bundle.h"
@@ -11,8 +13,19 @@ namespace irfarm {
 
 absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec& spec,
                                                                int threads) {
+  // The id comes from the coordinator and names a directory: a "../" in it would put the bundle
+  // elsewhere.
+  const std::string& id = spec.job_id();
+  if (id.empty() || id.size() > 64 ||
+      !std::all_of(
+          id.begin(), id.end(),
+          [](char ch) { return absl::ascii_isalnum(ch) || ch == '_' || ch == '-' || ch == '.'; }) ||
+      id.find("..") != std::string::npos)
+    return absl::InvalidArgumentError("job id '" + id.substr(0, 64) +
+                                      "' is not 1-64 of [A-Za-z0-9_.-] (without '..')");
   std::unique_ptr<JobContext> c(new JobContext());
-  c->job_id_ = spec.job_id();
+  c->job_id_ = id;
+  c->tile_size_ = JobTileSize(spec.settings());
   std::string scene_path = spec.scene().path();
   if (spec.scene().has_bundle()) {
     absl::StatusOr<std::string> dir = MakeTempDir("irfarm-worker-" + spec.job_id() + "-");
@@ -52,12 +65,14 @@ JobContext::~JobContext() {
 size_t JobContext::InsertRemote(const std::vector<IrradianceRecord>& records) {
   size_t n = 0;
   for (IrradianceRecord r : records) {
-    if (RecordProblem(record_bounds_, r) != nullptr) {  // as the coordinator checks them
+    if (RecordProblem(record_bounds_, r) != nullptr ||  // as the coordinator checks them
+        remote_ >= kMaxRemoteRecords) {
       ++rejected_;
       continue;
     }
     if (r.origin == 0) r.origin = kUnknownRemoteOrigin;
     cache_->Insert(r);
+    ++remote_;
     ++n;
   }
   received_since_ += n;

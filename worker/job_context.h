@@ -22,10 +22,14 @@ namespace irfarm {
 
 // `origin` for received records that carry none (never 0: 0 means "computed here").
 constexpr uint32_t kUnknownRemoteOrigin = 0xfffffffeu;
+// Records a job's local cache takes from the coordinator: the coordinator's own limit per job
+// (JobLimits::max_job_records); past it received records are dropped (and counted).
+constexpr size_t kMaxRemoteRecords = size_t(1) << 24;
 
 class JobContext {
  public:
-  // Writes the bundle (if any) to a temp dir, loads and builds the scene.
+  // Writes the bundle (if any) to a temp dir, loads and builds the scene. The job id must be
+  // [A-Za-z0-9_.-]{1,64} (it names the temp dir).
   static absl::StatusOr<std::unique_ptr<JobContext>> Create(const v1::JobSpec& spec, int threads);
   ~JobContext();
 
@@ -35,14 +39,18 @@ class JobContext {
   IrradianceCache* cache() const { return cache_.get(); }
   // Warm-started (JobSpec.warm_cache): its tiles wait for their regions' records (RegionReady).
   bool warm() const { return warm_; }
+  // The job's tile edge (JobTileSize): no lease covers more than this square.
+  int tile_size() const { return tile_size_; }
 
-  // Inserts other workers' records (validated); returns how many were inserted.
+  // Inserts other workers' records (validated; at most kMaxRemoteRecords in all); returns how
+  // many were inserted.
   size_t InsertRemote(const std::vector<IrradianceRecord>& records);
   // Own records (origin 0) computed since the last call, oldest first, at most `max` of them.
   std::vector<IrradianceRecord> TakeNewOwnRecords(size_t max);
   // Records received since the last call (for the next tile's stats).
   uint64_t TakeReceivedCount() { return received_since_.exchange(0); }
-  // Records from the coordinator dropped by InsertRemote (outside the scene's RecordBounds).
+  // Records from the coordinator dropped by InsertRemote (outside the scene's RecordBounds, or
+  // past kMaxRemoteRecords).
   uint64_t rejected() const { return rejected_.load(); }
 
   // Adaptive sampling's budget (RenderSettings::budget_carry): what this worker's earlier tiles
@@ -59,6 +67,8 @@ class JobContext {
   JobContext() = default;
   std::string job_id_, dir_;
   bool warm_ = false;
+  int tile_size_ = 0;
+  size_t remote_ = 0;  // records InsertRemote inserted (one reader thread calls it)
   std::unique_ptr<Scene> scene_;
   // The job's caustic photon map, built once for all of its tiles (settings_.irrcache.caustics
   // points here); null where the job uses none.

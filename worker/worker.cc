@@ -146,6 +146,15 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
     v1::CoordinatorMessage m;
     while (stream->Read(&m)) {
       if (m.has_job_spec()) {
+        {
+          // A job is loaded once: a second spec for it would replace the scene of a tile in
+          // progress (whose records then never went out) and load on this thread again.
+          std::lock_guard<std::mutex> lock(s.mu);
+          if (s.jobs.count(m.job_spec().job_id()) || s.failed_jobs.count(m.job_spec().job_id())) {
+            spdlog::warn("job {}: a second job spec ignored", m.job_spec().job_id().substr(0, 64));
+            continue;
+          }
+        }
         absl::StatusOr<std::unique_ptr<JobContext>> job =
             JobContext::Create(m.job_spec(), options_.threads);
         std::lock_guard<std::mutex> lock(s.mu);
@@ -287,12 +296,16 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
                          lease.rect().y1()};
     // The rectangle comes over the network: inside the film and not empty, or the tile fails
     // (a negative or huge one would reach the image allocation).
+    // Nor larger than the job's tiles (the coordinator leases no more): a whole 40000 x 40000
+    // film as one lease would be allocated as one image.
     if (job && !(0 <= rect.x0 && rect.x0 < rect.x1 && rect.x1 <= job->scene().camera().width() &&
-                 0 <= rect.y0 && rect.y0 < rect.y1 && rect.y1 <= job->scene().camera().height())) {
+                 0 <= rect.y0 && rect.y0 < rect.y1 && rect.y1 <= job->scene().camera().height() &&
+                 rect.x1 - rect.x0 <= job->tile_size() && rect.y1 - rect.y0 <= job->tile_size())) {
       failure = "lease rectangle [" + std::to_string(rect.x0) + ", " + std::to_string(rect.x1) +
                 ") x [" + std::to_string(rect.y0) + ", " + std::to_string(rect.y1) +
-                ") is empty or outside the " + std::to_string(job->scene().camera().width()) +
-                " x " + std::to_string(job->scene().camera().height()) + " film";
+                ") is empty, outside the " + std::to_string(job->scene().camera().width()) + " x " +
+                std::to_string(job->scene().camera().height()) + " film or larger than the job's " +
+                std::to_string(job->tile_size()) + " px tiles";
       spdlog::error("job {}: {}", lease.job_id(), failure);
       job.reset();
     }

@@ -276,7 +276,8 @@ TEST(GoldenImageTest, TargetErrorLandsWithinAFactorOfTwo) {
       settings.adaptive = true;
       const RenderOutput out = Render(*s.scene, settings);
       const double err = CompareImages(out.image, ref).relmse;
-      RecordProperty(std::string(name) + "_relmse", std::to_string(err));
+      RecordProperty(std::string(name) + "_E" + std::to_string(target) + "_relmse",
+                     std::to_string(err));
       // Their one-level records' noise is far inside the cache's share: one level.
       EXPECT_EQ(out.stats.cache_levels, 1) << name << " E " << target;
       // Its refinement's rounds are in the stats, the last one the cache the render used.

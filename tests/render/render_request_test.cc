@@ -98,6 +98,23 @@ TEST(RenderRequestTest, MinSpacingAboveMaxSpacingIsRefused) {
       << s.status();
 }
 
+// A scene's own irrcache counts are bounded as the flags are: record_rays 1e300 was cast to int
+// (undefined), light_samples 3e9 overflowed spp x light samples.
+TEST(RenderRequestTest, AScenesIrrcacheCountsAreBounded) {
+  SceneDesc scene = CornellDesc();
+  scene.integrator.type = "irrcache";
+  for (const char* name : {"record_rays", "light_samples", "spp"}) {
+    for (const char* value : {"1e300", "3e9", "1048577"}) {
+      scene.integrator.params = {{name, value}};
+      const absl::StatusOr<RenderSettings> s = SettingsForScene(scene, "irrcache");
+      EXPECT_EQ(s.status().code(), absl::StatusCode::kInvalidArgument) << name << " " << value;
+      EXPECT_NE(s.status().message().find("up to 1048576"), std::string::npos) << s.status();
+    }
+    scene.integrator.params = {{name, "1048576"}};
+    EXPECT_TRUE(SettingsForScene(scene, "irrcache").ok()) << name;
+  }
+}
+
 TEST(RenderRequestTest, AnEmptyRequestIsTheScenesDefaults) {
   const SceneDesc desc = CornellDesc();
   const absl::StatusOr<RenderSettings> s = SettingsFor(desc, RenderRequest{});

@@ -396,6 +396,51 @@ TEST(SceneLoaderErrorTest, UndefinedParameter) {
       "scene.xml:3:", "undefined parameter '$depth'");
 }
 
+// $name substitution is bounded: a 1 MiB <default> named 2^20 times in one attribute (a 2 MiB
+// upload) expanded to 1 TiB and the process died (bad_alloc); many attributes of 1 MiB each are
+// bounded together. A few references to a long value still load.
+TEST(SceneLoaderErrorTest, ParameterExpansionIsBounded) {
+  const std::string big = "0.5" + std::string((size_t(1) << 20) - 3, '0');  // 1 MiB: 0.5
+  std::string refs;
+  for (int i = 0; i < (1 << 20); ++i) refs += "$x";
+  ExpectError(Load("  <default name=\"x\" value=\"" + big +
+                   "\"/>\n  <integrator type=\"path\">\n    <integer name=\"max_depth\" "
+                   "value=\"" +
+                   refs + "\"/>\n  </integrator>\n"),
+              "scene.xml:4:", "expands past the limit");
+  // 300 attributes of 1 MiB each: each within its limit, together past the scene's 256 MiB.
+  std::string many;
+  for (int i = 0; i < 300; ++i)
+    many += "  <bsdf type=\"diffuse\" id=\"b" + std::to_string(i) +
+            "\"><rgb name=\"reflectance\" value=\"$x\"/></bsdf>\n";
+  ExpectError(Load("  <default name=\"x\" value=\"" + big + "\"/>\n" + many),
+              "scene.xml:", "expands past the limit");
+  // Below both: 200 of them load.
+  many.clear();
+  for (int i = 0; i < 200; ++i)
+    many += "  <bsdf type=\"diffuse\" id=\"b" + std::to_string(i) +
+            "\"><rgb name=\"reflectance\" value=\"$x\"/></bsdf>\n";
+  const absl::StatusOr<SceneDesc> ok =
+      Load("  <default name=\"x\" value=\"" + big + "\"/>\n" + many);
+  EXPECT_TRUE(ok.ok()) << ok.status().message().substr(0, 300);
+}
+
+// A crop window is checked in 64 bits: an offset of 2^31 - 1 wrapped the sum negative and passed.
+TEST(SceneLoaderErrorTest, ACropWindowPastTheFilmIsRefused) {
+  const auto scene = [](int offset) {
+    return "<scene version=\"3.0.0\">\n<sensor type=\"perspective\">\n"
+           "  <film type=\"hdrfilm\"><integer name=\"width\" value=\"64\"/>"
+           "<integer name=\"height\" value=\"32\"/>"
+           "<integer name=\"crop_offset_x\" value=\"" +
+           std::to_string(offset) +
+           "\"/><integer name=\"crop_width\" value=\"16\"/></film>\n</sensor>\n</scene>\n";
+  };
+  EXPECT_TRUE(LoadSceneString(scene(48), "scene.xml", {}).ok());
+  ExpectError(LoadSceneString(scene(49), "scene.xml", {}), "scene.xml:", "is not inside the");
+  ExpectError(LoadSceneString(scene(2147483647), "scene.xml", {}),
+              "scene.xml:", "is not inside the");
+}
+
 TEST(SceneLoaderErrorTest, UnknownAndDuplicateIds) {
   ExpectError(Load("  <shape type=\"cube\">\n    <ref id=\"nope\"/>\n  </shape>\n"),
               "scene.xml:3:", "unknown id 'nope'");

@@ -132,5 +132,22 @@ TEST(JobContextTest, RemoteRecordsOutsideTheScenesBoundsAreDropped) {
   EXPECT_EQ((*job)->cache()->size(), 1u);
 }
 
+// The job id comes from the coordinator and names the bundle's temp dir: one with a path in it is
+// refused before anything is written ("x/../../../home/u/p" put the bundle elsewhere whenever
+// /tmp/irfarm-worker-x existed).
+TEST(JobContextTest, AJobIdThatIsNotANameIsRefused) {
+  for (const char* id : {"x/../../../tmp/p", "..", "a b", "", "job-1\n"}) {
+    v1::JobSpec spec = Spec("cornell-box", true);
+    spec.set_job_id(id);
+    const absl::StatusOr<std::unique_ptr<JobContext>> job = JobContext::Create(spec, 1);
+    EXPECT_EQ(job.status().code(), absl::StatusCode::kInvalidArgument) << id;
+  }
+  v1::JobSpec spec = Spec("cornell-box", true);
+  spec.set_job_id(std::string(65, 'j'));
+  EXPECT_FALSE(JobContext::Create(spec, 1).ok());
+  spec.set_job_id("job-12.a_b");
+  EXPECT_TRUE(JobContext::Create(spec, 1).ok());
+}
+
 }  // namespace
 }  // namespace irfarm

@@ -32,9 +32,9 @@ v1::PixelRect Rect(int x0, int y0, int x1, int y1) {
 using Stream = grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>;
 
 // A stand-in coordinator's first steps: reads the worker's Register, registers it as worker 1
-// and sends job "job-1", cornell-box at 32 x 32 rendered by path at `spp`. False when the worker
-// did not register.
-bool RegisterAndSendJob(Stream* stream, int spp) {
+// and sends job "job-1", cornell-box at 32 x 32 rendered by path at `spp` in tiles of
+// `tile_size` (0: the default, 32). False when the worker did not register.
+bool RegisterAndSendJob(Stream* stream, int spp, int tile_size = 0) {
   v1::WorkerMessage in;
   if (!stream->Read(&in) || !in.has_register_()) return false;
   v1::CoordinatorMessage out;
@@ -50,6 +50,7 @@ bool RegisterAndSendJob(Stream* stream, int spp) {
   (*spec->mutable_settings()->mutable_defines())["resy"] = "32";
   spec->mutable_settings()->set_integrator("path");
   spec->mutable_settings()->set_spp(spp);
+  spec->mutable_settings()->set_tile_size(tile_size);
   stream->Write(out);
   return true;
 }
@@ -86,7 +87,7 @@ class BadLeaseCoordinator final : public v1::WorkerService::Service {
   grpc::Status Session(
       grpc::ServerContext*,
       grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>* stream) override {
-    if (!RegisterAndSendJob(stream, 4)) return grpc::Status::CANCELLED;
+    if (!RegisterAndSendJob(stream, 4, 16)) return grpc::Status::CANCELLED;
     v1::WorkerMessage in;
     v1::CoordinatorMessage out;
     for (size_t i = 0; i < leases_.size(); ++i) {
@@ -121,21 +122,25 @@ class BadLeaseCoordinator final : public v1::WorkerService::Service {
 };
 
 TEST(WorkerLeaseCheckTest, BadLeaseRectanglesFailTheTileAndTheSessionGoesOn) {
+  // The job's tiles are 16 px: the whole 32 x 16 half of the film is inside it, but no tile.
   BadLeaseCoordinator service({Rect(0, 0, -16, 16), Rect(-16, -16, -32, -32), Rect(8, 0, 8, 16),
-                               Rect(0, 0, 64, 16), Rect(0, 0, 2147483647, 16), Rect(0, 0, 16, 8)});
+                               Rect(0, 0, 64, 16), Rect(0, 0, 2147483647, 16), Rect(0, 0, 32, 16),
+                               Rect(0, 0, 16, 8)});
   RunWorkerAgainst(&service, "checker", service.done_, 30);
   ASSERT_TRUE(service.done_);
   std::lock_guard<std::mutex> lock(service.mu_);
-  ASSERT_EQ(service.failed_.size(), 5u);
-  for (size_t i = 0; i < 5; ++i) {
+  ASSERT_EQ(service.failed_.size(), 6u);
+  for (size_t i = 0; i < 6; ++i) {
     EXPECT_EQ(service.failed_[i].first, int(i));
     EXPECT_NE(service.failed_[i].second.find("lease rectangle"), std::string::npos)
         << service.failed_[i].second;
   }
   EXPECT_NE(service.failed_[0].second.find("outside the 32 x 32 film"), std::string::npos)
       << service.failed_[0].second;
+  EXPECT_NE(service.failed_[5].second.find("larger than the job's 16 px tiles"), std::string::npos)
+      << service.failed_[5].second;
   ASSERT_EQ(service.results_.size(), 1u);
-  EXPECT_EQ(service.results_[0].first, 5);
+  EXPECT_EQ(service.results_[0].first, 6);
   EXPECT_EQ(service.results_[0].second, 16 * 8 * 3);
 }
 
