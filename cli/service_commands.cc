@@ -1,6 +1,7 @@
 // Client side of the job API for the `irfarm` command (see service_commands.h).
 #include "cli/service_commands.h"
 
+#include <fcntl.h>
 #include <google/protobuf/util/json_util.h>
 #include <grpcpp/grpcpp.h>
 #include <unistd.h>
@@ -152,19 +153,26 @@ int StreamToFile(Call call, const std::string& path, const std::string& token,
     if (absl::Status ok = check(bytes); !ok.ok()) return Fail(ok);
   }
   const std::string tmp = path + ".tmp." + std::to_string(getpid());
-  const auto failed = [&](const std::string& what) {
-    const std::string why = std::strerror(errno);
+  // POSIX calls, so that the reason is the errno of the call that failed (an ofstream's is not
+  // set reliably: a full disk read "Success").
+  const auto failed = [&](const std::string& what, int err) {
     std::remove(tmp.c_str());
-    return Fail(absl::InternalError(path + ": " + what + ": " + why));
+    return Fail(absl::InternalError(path + ": " + what + ": " + std::strerror(err)));
   };
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) return failed("cannot create " + tmp);
-    out.write(bytes.data(), std::streamsize(bytes.size()));
-    out.close();
-    if (!out) return failed("cannot write " + tmp);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return failed("cannot create " + tmp, errno);
+  for (size_t done = 0; done < bytes.size();) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = n < 0 ? errno : EIO;
+      ::close(fd);
+      return failed("cannot write " + tmp, err);
+    }
+    done += size_t(n);
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) return failed("cannot rename into place");
+  if (::close(fd) != 0) return failed("cannot write " + tmp, errno);
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) return failed("cannot rename into place", errno);
   return 0;
 }
 

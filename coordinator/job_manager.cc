@@ -1434,10 +1434,15 @@ absl::Status JobManager::AddRecords(uint32_t worker, const v1::JobRecords& recor
   absl::Status st = store_->AppendRecords(job_id, accepted);
   if (absl::IsNotFound(st))
     st = RestoreLostJob(job_id, [&] { return store_->AppendRecords(job_id, accepted); });
-  if (absl::IsNotFound(st))  // deleted meanwhile: stale, as a result for a closed job
+  // A violation recorded above stays the answer (it is what the session's expulsion names).
+  if (!result.ok()) {
+    if (!st.ok()) return result;
+  } else if (absl::IsNotFound(st)) {  // deleted meanwhile: stale, as a result for a closed job
     return absl::FailedPreconditionError("job '" + job_id +
                                          "' was deleted: its records are not stored");
-  if (!st.ok()) return Unavailable(st);
+  } else if (!st.ok()) {
+    return Unavailable(st);
+  }
   lock.lock();
   it = jobs_.find(job_id);
   if (it == jobs_.end()) return result;

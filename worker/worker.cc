@@ -21,6 +21,11 @@ namespace {
 constexpr auto kRegionReadyWait = std::chrono::seconds(5);
 // How long a stopped worker waits for the coordinator to end the session after its last message.
 constexpr auto kGoodbyeWait = std::chrono::seconds(5);
+// What one session holds for the coordinator at most (it is not trusted either): jobs loaded or
+// failed (each a scene, a cache and a temp dir until its JobClosed), and leases not yet started
+// (an honest coordinator sends one at a time).
+constexpr size_t kMaxSessionJobs = 64;
+constexpr size_t kMaxQueuedLeases = 256;
 
 // State shared by a session's reader, publisher and render threads.
 struct SessionState {
@@ -154,6 +159,11 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
             spdlog::warn("job {}: a second job spec ignored", m.job_spec().job_id().substr(0, 64));
             continue;
           }
+          if (s.jobs.size() + s.failed_jobs.size() >= kMaxSessionJobs) {
+            spdlog::warn("job {}: spec ignored, {} jobs are open already",
+                         m.job_spec().job_id().substr(0, 64), kMaxSessionJobs);
+            continue;
+          }
         }
         absl::StatusOr<std::unique_ptr<JobContext>> job =
             JobContext::Create(m.job_spec(), options_.threads);
@@ -179,6 +189,11 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
         if (job && recs.ok()) job->InsertRemote(*recs);
       } else if (m.has_lease()) {
         std::lock_guard<std::mutex> lock(s.mu);
+        if (s.leases.size() >= kMaxQueuedLeases) {
+          spdlog::warn("lease of tile {} ignored: {} leases are waiting already",
+                       m.lease().tile_index(), kMaxQueuedLeases);
+          continue;
+        }
         s.leases.emplace_back(m.lease(), std::chrono::steady_clock::now());
         s.cv.notify_all();
       } else if (m.has_region_ready()) {

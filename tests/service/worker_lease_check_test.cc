@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <map>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -271,6 +272,60 @@ TEST(WorkerLeaseCheckTest, ATilePastItsLeaseDeadlineStops) {
   EXPECT_NE(service.reason_.find("lease deadline passed"), std::string::npos) << service.reason_;
   EXPECT_GE(seconds, 0.95);  // not before the lease time (nor at once, by the wall clock)
   EXPECT_LT(seconds, 5.0);
+}
+
+// Registers the worker, sends 70 job specs whose scenes do not load ("j-0" ... "j-69"), then
+// leases a tile of j-0 and one of j-69 and reads both answers.
+class ManySpecsCoordinator final : public v1::WorkerService::Service {
+ public:
+  grpc::Status Session(grpc::ServerContext*, Stream* stream) override {
+    v1::WorkerMessage in;
+    if (!stream->Read(&in) || !in.has_register_()) return grpc::Status::CANCELLED;
+    v1::CoordinatorMessage out;
+    out.mutable_registered()->set_worker_id(1);
+    out.mutable_registered()->set_heartbeat_ms(5000);
+    stream->Write(out);
+    for (int i = 0; i < 70; ++i) {
+      out.Clear();
+      v1::JobSpec* spec = out.mutable_job_spec();
+      spec->set_job_id("j-" + std::to_string(i));
+      v1::BundleFile* f = spec->mutable_scene()->mutable_bundle()->add_files();
+      f->set_path("scene.xml");
+      f->set_content("<scene version=\"3.0.0\"><shape type=\"nope\"/></scene>");
+      stream->Write(out);
+    }
+    for (int i : {0, 69}) {
+      out.Clear();
+      v1::TileLease* l = out.mutable_lease();
+      l->set_job_id("j-" + std::to_string(i));
+      l->set_tile_index(i);
+      l->set_lease_token(std::string(16, 'a'));
+      *l->mutable_rect() = Rect(0, 0, 8, 8);
+      stream->Write(out);
+    }
+    while (reasons_.size() < 2 && stream->Read(&in)) {
+      std::lock_guard<std::mutex> lock(mu_);
+      if (in.has_tile_failed()) reasons_[in.tile_failed().tile_index()] = in.tile_failed().reason();
+    }
+    done_ = true;
+    return grpc::Status::OK;
+  }
+
+  std::mutex mu_;
+  std::map<int, std::string> reasons_;  // tile index (the job's number) -> why it failed
+  std::atomic<bool> done_{false};
+};
+
+// A session holds at most 64 jobs for its coordinator (loaded or failed, each until its
+// JobClosed): a coordinator sending spec after spec grew the worker's memory and temp dirs
+// without end. The 65th and later are ignored, and their leases fail for want of a spec.
+TEST(WorkerLeaseCheckTest, ASessionHoldsAtMost64Jobs) {
+  ManySpecsCoordinator service;
+  RunWorkerAgainst(&service, "many", service.done_, 60);
+  ASSERT_TRUE(service.done_);
+  std::lock_guard<std::mutex> lock(service.mu_);
+  EXPECT_NE(service.reasons_[0].find("nope"), std::string::npos) << service.reasons_[0];
+  EXPECT_EQ(service.reasons_[69], "job spec not received");
 }
 
 }  // namespace
