@@ -503,6 +503,8 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   }
   // Load the scene now, so that a bad scene is refused with the loader's file:line message.
   absl::StatusOr<SceneDesc> desc = absl::InvalidArgumentError("no scene given");
+  // The scene hash reads the scene's image files (SceneHash): taken while they are on disk.
+  uint64_t plain_hash = 0;
   std::string name = request.name();
   if (request.scene().has_bundle()) {
     const v1::SceneBundle& bundle = request.scene().bundle();
@@ -514,6 +516,7 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     if (!dir.ok()) return dir.status();
     absl::StatusOr<std::string> main = WriteBundle(bundle, *dir);
     if (main.ok()) desc = LoadJobScene(*main, request.settings());
+    if (desc.ok()) plain_hash = SceneHash(*desc);
     RemoveTree(*dir);
     if (!main.ok()) return main.status();
     if (name.empty()) name = bundle.main_file().empty() ? "scene.xml" : bundle.main_file();
@@ -521,6 +524,7 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     absl::Status st = CheckScenePath(request.scene().path(), caller);
     if (!st.ok()) return st;
     desc = LoadJobScene(request.scene().path(), request.settings());
+    if (desc.ok()) plain_hash = SceneHash(*desc);
     if (name.empty()) name = request.scene().path();
   }
   if (!desc.ok()) return desc.status();
@@ -550,7 +554,7 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     if (!denoiser.ok()) return absl::FailedPreconditionError(denoiser.status().message());
   }
   // Jobs have no direct-sun setting (it is on): the settings part is the photon map's.
-  const uint64_t scene_hash = CacheHash(SceneHash(*desc), !request.settings().no_caustics(), true);
+  const uint64_t scene_hash = CacheHash(plain_hash, !request.settings().no_caustics(), true);
   const RecordBounds record_bounds = RecordBoundsForScene(*desc);
   std::vector<IrradianceRecord> imported;
   if (!request.cache_snapshot().empty()) {
@@ -775,8 +779,9 @@ void JobManager::RebuildIndex(Job& job) {
 
 size_t JobManager::OutboxRoom(const Worker& w) const {
   const JobLimits& lim = options_.limits;
+  const size_t held = w.outbox_bytes + w.in_flight_bytes;
   return std::min(
-      lim.max_outbox_bytes - std::min(lim.max_outbox_bytes, w.outbox_bytes),
+      lim.max_outbox_bytes - std::min(lim.max_outbox_bytes, held),
       lim.max_total_outbox_bytes - std::min(lim.max_total_outbox_bytes, total_outbox_bytes_));
 }
 
@@ -1270,6 +1275,7 @@ void JobManager::WorkerGone(uint32_t worker, const std::string& reason) {
     health_.erase(h);
   WakeWorker(wit->second);  // its Poll returns now
   TakeOutboxBytes(wit->second, wit->second.outbox_bytes);
+  total_outbox_bytes_ -= std::min(total_outbox_bytes_, wit->second.in_flight_bytes);
   workers_.erase(wit);
   Changed();
 }
@@ -1540,6 +1546,14 @@ absl::Status JobManager::RestoreLostJob(const std::string& job_id,
       job_id);
   absl::Status st = store_->PutJob(stored);
   if (!st.ok()) return st;
+  {
+    // The job may have finished meanwhile, its final state queued (and perhaps written) before
+    // this older copy landed: queued again, so the store ends with the newest.
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = jobs_.find(job_id);
+    if (it != jobs_.end() && it->second->stored.job().state() != stored.job().state())
+      writer_->PutJob(it->second->stored);
+  }
   return retry();
 }
 
@@ -1704,7 +1718,7 @@ v1::GetClusterResponse JobManager::Cluster(const Caller& caller) const {
       }
     }
     i->set_violations(w.violations);
-    i->set_outbox_bytes(w.outbox_bytes);
+    i->set_outbox_bytes(w.outbox_bytes + w.in_flight_bytes);
     i->set_batches_dropped(w.batches_dropped);
     i->set_seconds_since_heard(std::chrono::duration<double>(now - w.last_heard).count());
     i->set_silent(w.silent);
@@ -1773,6 +1787,10 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   Job* chosen = nullptr;
   std::optional<TileLeaseInfo> lease;
   for (Job* candidate : candidates) {
+    // A worker holds at most kMaxWorkerJobs jobs (it ignores the spec of one more, whose leases
+    // it would then fail): no new job before one of its jobs closes.
+    if (worker.jobs.size() >= kMaxWorkerJobs && !worker.jobs.count(candidate->stored.job().id()))
+      continue;
     // Near its previous tile of the job: its tiles, and so its region, stay together.
     const int near = worker.lease_job == candidate->stored.job().id() ? worker.lease_tile : -1;
     lease = candidate->tiles->Lease(worker_id, now, options_.lease_time, others, near);
@@ -1801,7 +1819,7 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
     // The copy is bounded like fan-out (max_outbox_bytes, less what the outbox holds): it goes
     // out with this Poll, and a worker that does not read would hold it in its stream's writer;
     // batches past the bound are dropped and counted.
-    size_t withheld = 0, dropped = 0, copied_bytes = worker.outbox_bytes;
+    size_t withheld = 0, dropped = 0;
     const RecordLog& all = job.cache->records();
     std::vector<IrradianceRecord> chunk;
     for (size_t i = 0; i <= all.size(); ++i) {
@@ -1811,11 +1829,12 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
           m.mutable_records()->set_job_id(id);
           PackRecords(chunk, kSnapshotOrigin, m.mutable_records()->mutable_batch());
           const size_t bytes = BatchBytes(m.records().batch());
-          if (copied_bytes + bytes > options_.limits.max_outbox_bytes ||
-              copied_bytes - worker.outbox_bytes + bytes > OutboxRoom(worker)) {
+          if (bytes > OutboxRoom(worker)) {
             dropped += chunk.size();
           } else {
-            copied_bytes += bytes;
+            // Handed to the session's writer with this Poll: counted until its next Poll.
+            worker.in_flight_bytes += bytes;
+            total_outbox_bytes_ += bytes;
             v1::WorkerJobStats& ws = job.worker_stats[worker_id];
             ws.set_worker_id(worker_id);
             ws.set_bytes_received(ws.bytes_received() + bytes);
@@ -1897,6 +1916,11 @@ std::vector<v1::CoordinatorMessage> JobManager::Poll(uint32_t worker,
   std::unique_lock<std::mutex> lock(mu_);
   std::vector<v1::CoordinatorMessage> out;
   const auto deadline = std::chrono::steady_clock::now() + timeout;
+  // The session's writer polls only once it has written what the last Poll gave it.
+  if (auto it = workers_.find(worker); it != workers_.end()) {
+    total_outbox_bytes_ -= std::min(total_outbox_bytes_, it->second.in_flight_bytes);
+    it->second.in_flight_bytes = 0;
+  }
   for (;;) {
     auto it = workers_.find(worker);
     if (it == workers_.end()) return out;
@@ -1915,8 +1939,13 @@ std::vector<v1::CoordinatorMessage> JobManager::Poll(uint32_t worker,
       continue;
     }
     while (!w.outbox.empty()) {
-      if (w.outbox.front().has_records())
-        TakeOutboxBytes(w, BatchBytes(w.outbox.front().records().batch()));
+      if (w.outbox.front().has_records()) {
+        // To the session's writer, which may block on a worker that does not read: counted until
+        // the writer polls again (it does once all it was handed is written).
+        const size_t b = std::min(w.outbox_bytes, BatchBytes(w.outbox.front().records().batch()));
+        w.outbox_bytes -= b;
+        w.in_flight_bytes += b;
+      }
       out.push_back(std::move(w.outbox.front()));
       w.outbox.pop_front();
     }

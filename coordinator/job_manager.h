@@ -308,7 +308,11 @@ class JobManager {
     SteadyTime last_heard;
     bool silent = false;  // no message for 3 heartbeat periods: leases taken, gets none
     uint32_t violations = 0;
-    size_t outbox_bytes = 0;       // record payload queued in outbox
+    size_t outbox_bytes = 0;  // record payload queued in outbox
+    // Record payload the last Poll handed to the session's writer (moved from the outbox, and a
+    // late joiner's copy): held there, maybe blocked on a worker that does not read, until the
+    // writer polls again. Counted in the bounds with outbox_bytes.
+    size_t in_flight_bytes = 0;
     uint64_t batches_dropped = 0;  // fan-out batches not queued: outbox over max_outbox_bytes
     bool reports_regions = false;  // sends TileRegion messages (registered so)
     // Records of other workers (and imported ones) sent to it, and withheld by the filter, over
@@ -412,8 +416,8 @@ class JobManager {
   // Queues a fan-out batch of `records` (sent by another worker) for `other`, or drops it when
   // its outbox is over max_outbox_bytes; counts it. Returns the records delivered or dropped.
   size_t Deliver(Job& job, uint32_t other, const std::vector<IrradianceRecord>& records);
-  // Fan-out bytes `w`'s outbox may still take: within max_outbox_bytes, and within
-  // max_total_outbox_bytes over all workers. mu_ held.
+  // Fan-out bytes `w`'s outbox may still take: its outbox and in-flight bytes within
+  // max_outbox_bytes, and everyone's within max_total_outbox_bytes. mu_ held.
   size_t OutboxRoom(const Worker& w) const;
   // A tile or record write the store refused NOT_FOUND (JobStore: it holds no such job): when the
   // job still runs here, the store lost it (FLUSHALL, eviction), so the job is written again and
@@ -447,7 +451,7 @@ class JobManager {
   mutable std::mutex mu_;
   mutable std::condition_variable changed_cv_;  // any change (WaitForChange, Poll)
   uint64_t version_ = 0;
-  size_t total_outbox_bytes_ = 0;  // sum of the workers' outbox_bytes
+  size_t total_outbox_bytes_ = 0;  // sum of the workers' outbox_bytes and in_flight_bytes
   uint64_t next_sequence_ = 1;
   uint32_t next_worker_ = 1;
   std::map<std::string, std::unique_ptr<Job>> jobs_;

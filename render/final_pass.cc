@@ -204,7 +204,7 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
           RenderCounters& c = counters.local();
           PixelReuse reuse;
           for (int y = tile.y0; y < tile.y1 && !settings.Cancelled(); ++y)
-            for (int x = tile.x0; x < tile.x1; ++x)
+            for (int x = tile.x0; x < tile.x1 && !settings.Cancelled(); ++x)
               render_pixel(size_t(y - src.y0) * sw + size_t(x - src.x0), from, to, true, c, &reuse);
           if (progress) progress->Tick();
         });

@@ -5,6 +5,7 @@
 // own values (its tile grid, the per-tile time limit) are checked here.
 #pragma once
 
+#include <cstddef>
 #include <string>
 
 #include "absl/status/statusor.h"
@@ -20,6 +21,9 @@ constexpr int kDefaultTileSize = 32;
 // Inside a job tile the renderer's own sub-tiles (RenderSettings::tile_size) spread the tile over
 // the worker's threads.
 constexpr int kJobSubTileSize = 16;
+// Jobs a worker's session holds at once (each a loaded scene and cache until its JobClosed): the
+// worker ignores a spec past it, and the coordinator leases it no tile of another job meanwhile.
+constexpr size_t kMaxWorkerJobs = 64;
 
 // The scene loader's options for the job: its -D defines.
 LoadOptions JobLoadOptions(const v1::RenderSettings& settings);

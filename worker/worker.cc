@@ -11,6 +11,7 @@
 #include <tuple>
 
 #include "service/coordinator_list.h"
+#include "service/job_settings.h"
 #include "service/record_codec.h"
 #include "worker/tile_region.h"
 
@@ -22,9 +23,8 @@ constexpr auto kRegionReadyWait = std::chrono::seconds(5);
 // How long a stopped worker waits for the coordinator to end the session after its last message.
 constexpr auto kGoodbyeWait = std::chrono::seconds(5);
 // What one session holds for the coordinator at most (it is not trusted either): jobs loaded or
-// failed (each a scene, a cache and a temp dir until its JobClosed), and leases not yet started
-// (an honest coordinator sends one at a time).
-constexpr size_t kMaxSessionJobs = 64;
+// failed (kMaxWorkerJobs, service/job_settings.h: each a scene, a cache and a temp dir until its
+// JobClosed), and leases not yet started (an honest coordinator sends one at a time).
 constexpr size_t kMaxQueuedLeases = 256;
 
 // State shared by a session's reader, publisher and render threads.
@@ -159,9 +159,9 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
             spdlog::warn("job {}: a second job spec ignored", m.job_spec().job_id().substr(0, 64));
             continue;
           }
-          if (s.jobs.size() + s.failed_jobs.size() >= kMaxSessionJobs) {
+          if (s.jobs.size() + s.failed_jobs.size() >= kMaxWorkerJobs) {
             spdlog::warn("job {}: spec ignored, {} jobs are open already",
-                         m.job_spec().job_id().substr(0, 64), kMaxSessionJobs);
+                         m.job_spec().job_id().substr(0, 64), kMaxWorkerJobs);
             continue;
           }
         }

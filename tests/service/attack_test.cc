@@ -32,8 +32,10 @@
 #include "irfarm/v1/jobs.grpc.pb.h"
 #include "irfarm/v1/worker.grpc.pb.h"
 #include "render/image.h"
+#include "render/scene_loader.h"
 #include "service/record_codec.h"
 #include "service/scene_bundle.h"
+#include "service/scene_hash.h"
 #include "worker/worker.h"
 
 namespace irfarm {
@@ -537,6 +539,26 @@ TEST_F(AttackTest, ASnapshotOfOtherRecordSettingsIsRefused) {
   req.set_cache_snapshot(SerializeSnapshot(snap));
   st = Submit(kAlice, req);
   EXPECT_TRUE(st.ok()) << st.error_message();
+}
+
+// A job submitted as a bundle is hashed while its files are on disk: its scene hash is the one a
+// local render of the same scene computes (it read the envmap's file after the bundle's temp dir
+// was gone, so it hashed no bytes, and a snapshot of the job was refused by `irfarm render
+// --cache-in` of the same scene).
+TEST_F(AttackTest, ABundleJobsSceneHashReadsItsImages) {
+  StartServer();
+  const std::string path = std::string(IRFARM_TEST_DATA) + "/scenes/materials/scene.xml";
+  v1::SubmitJobRequest req = Request();
+  *req.mutable_scene()->mutable_bundle() = *MakeBundle(path);
+  std::string id;
+  ASSERT_TRUE(Submit(kAlice, req, &id).ok());
+  v1::Job job;
+  ASSERT_TRUE(Get(kAlice, id, &job).ok());
+  LoadOptions options;
+  options.defines = {{"resx", "64"}, {"resy", "64"}};
+  const absl::StatusOr<SceneDesc> desc = LoadSceneFile(path, options);
+  ASSERT_TRUE(desc.ok()) << desc.status();
+  EXPECT_EQ(job.scene_hash(), CacheHash(SceneHash(*desc), true, true));
 }
 
 // Why 2: results for leases the worker does not hold (sequential guesses), NaN pixels and forged

@@ -26,6 +26,7 @@
 #include "coordinator/job_manager.h"
 #include "coordinator/lease_token.h"
 #include "coordinator/tile_scheduler.h"
+#include "service/job_settings.h"
 #include "service/scene_bundle.h"
 
 namespace irfarm {
@@ -377,6 +378,56 @@ TEST(SchedulingTest, AWorkerWithAnOverdueLeaseDoesNotHoldBackATile) {
   }
   EXPECT_EQ(done, (std::set<int>{held->tile_index(), failing->tile_index()}));
   EXPECT_EQ(m->GetJob(job->id())->state(), v1::JOB_STATE_SUCCEEDED);
+}
+
+// A worker holds at most kMaxWorkerJobs open jobs (it ignores the spec of one more and would fail
+// its leases, each a counted failure): with 64 open on it, a new job of higher priority is not
+// leased to it, a tile of a job it holds is; once one of its jobs closes, the new job is.
+TEST(SchedulingTest, AWorkerIsLeasedNoTileOfAJobPastItsOpenJobs) {
+  v1::SubmitJobRequest request;
+  *request.mutable_scene()->mutable_bundle() =
+      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+  (*request.mutable_settings()->mutable_defines())["resx"] = "16";
+  (*request.mutable_settings()->mutable_defines())["resy"] = "8";
+  request.mutable_settings()->set_tile_size(8);  // 2 tiles
+  InMemoryJobStore store;
+  JobManagerOptions options;
+  options.limits.max_live_jobs_per_client = 100;
+  std::unique_ptr<JobManager> m = std::move(*JobManager::Create(options, &store));
+  const uint32_t w = m->RegisterWorker("w");
+  auto lease = [&]() -> std::optional<v1::TileLease> {
+    for (const v1::CoordinatorMessage& msg : m->Poll(w, milliseconds(0)))
+      if (msg.has_lease()) return msg.lease();
+    return std::nullopt;
+  };
+  auto complete = [&](const v1::TileLease& l) {
+    v1::TileResult r;
+    r.set_job_id(l.job_id());
+    r.set_tile_index(l.tile_index());
+    r.set_lease_token(l.lease_token());
+    for (int i = 0; i < 8 * 8 * 3; ++i) r.add_pixels(0.5f);
+    return m->CompleteTile(w, r);
+  };
+  // Each job in turn: higher priority than the last, one of its two tiles done, so it stays open.
+  for (int i = 0; i < int(kMaxWorkerJobs); ++i) {
+    request.set_priority(i);
+    const absl::StatusOr<v1::Job> job = m->Submit(request);
+    ASSERT_TRUE(job.ok()) << job.status();
+    const std::optional<v1::TileLease> l = lease();
+    ASSERT_TRUE(l);
+    ASSERT_EQ(l->job_id(), job->id());
+    ASSERT_TRUE(complete(*l).ok());
+  }
+  request.set_priority(int(kMaxWorkerJobs));
+  const absl::StatusOr<v1::Job> extra = m->Submit(request);
+  ASSERT_TRUE(extra.ok());
+  const std::optional<v1::TileLease> held = lease();
+  ASSERT_TRUE(held);
+  EXPECT_NE(held->job_id(), extra->id()) << "a 65th open job on one worker";
+  ASSERT_TRUE(complete(*held).ok());  // that job closes (both tiles done)
+  const std::optional<v1::TileLease> next = lease();
+  ASSERT_TRUE(next);
+  EXPECT_EQ(next->job_id(), extra->id());
 }
 
 }  // namespace
