@@ -321,18 +321,41 @@ TEST(SchedulingPropertyTest, JobStatesOnlyMoveForwardAndEveryTileCountsOnce) {
   EXPECT_GT(cancelled, 0);
 }
 
+// cornell-box at 16 x 8 in two 8 x 8 tiles.
+v1::SubmitJobRequest TwoTileRequest() {
+  v1::SubmitJobRequest request;
+  *request.mutable_scene()->mutable_bundle() =
+      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
+  (*request.mutable_settings()->mutable_defines())["resx"] = "16";
+  (*request.mutable_settings()->mutable_defines())["resy"] = "8";
+  request.mutable_settings()->set_tile_size(8);
+  return request;
+}
+
+// The lease a Poll of `w` brings now, if any.
+std::optional<v1::TileLease> LeaseFor(JobManager* m, uint32_t w) {
+  for (const v1::CoordinatorMessage& msg : m->Poll(w, milliseconds(0)))
+    if (msg.has_lease()) return msg.lease();
+  return std::nullopt;
+}
+
+// `w` sends the result of its 8 x 8 lease `l`.
+absl::Status Complete8x8(JobManager* m, uint32_t w, const v1::TileLease& l) {
+  v1::TileResult r;
+  r.set_job_id(l.job_id());
+  r.set_tile_index(l.tile_index());
+  r.set_lease_token(l.lease_token());
+  for (int i = 0; i < 8 * 8 * 3; ++i) r.add_pixels(0.5f);
+  return m->CompleteTile(w, r);
+}
+
 // A tile that failed on one worker waits for the others (TryAssign gives it to a worker it
 // failed on only when no other could take it), but not for one whose lease is overdue: that
 // worker never reported (a hung render, or a worker that keeps its stream alive and does not
 // report), gets no lease before it does, and so never takes the tile. The job stayed RUNNING for
 // ever before, with an honest worker idle.
 TEST(SchedulingTest, AWorkerWithAnOverdueLeaseDoesNotHoldBackATile) {
-  v1::SubmitJobRequest request;
-  *request.mutable_scene()->mutable_bundle() =
-      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
-  (*request.mutable_settings()->mutable_defines())["resx"] = "16";
-  (*request.mutable_settings()->mutable_defines())["resy"] = "8";
-  request.mutable_settings()->set_tile_size(8);  // 2 tiles
+  v1::SubmitJobRequest request = TwoTileRequest();
   InMemoryJobStore store;
   JobManagerOptions options;
   options.lease_time = milliseconds(300);
@@ -340,19 +363,8 @@ TEST(SchedulingTest, AWorkerWithAnOverdueLeaseDoesNotHoldBackATile) {
   const absl::StatusOr<v1::Job> job = m->Submit(request);
   ASSERT_TRUE(job.ok()) << job.status();
   const uint32_t holder = m->RegisterWorker("holder"), honest = m->RegisterWorker("honest");
-  auto lease = [&](uint32_t w) -> std::optional<v1::TileLease> {
-    for (const v1::CoordinatorMessage& msg : m->Poll(w, milliseconds(0)))
-      if (msg.has_lease()) return msg.lease();
-    return std::nullopt;
-  };
-  auto complete = [&](uint32_t w, const v1::TileLease& l) {
-    v1::TileResult r;
-    r.set_job_id(l.job_id());
-    r.set_tile_index(l.tile_index());
-    r.set_lease_token(l.lease_token());
-    for (int i = 0; i < 8 * 8 * 3; ++i) r.add_pixels(0.5f);
-    return m->CompleteTile(w, r);
-  };
+  auto lease = [&](uint32_t w) { return LeaseFor(m.get(), w); };
+  auto complete = [&](uint32_t w, const v1::TileLease& l) { return Complete8x8(m.get(), w, l); };
   const std::optional<v1::TileLease> held = lease(holder);
   const std::optional<v1::TileLease> failing = lease(honest);
   ASSERT_TRUE(held && failing);
@@ -384,30 +396,14 @@ TEST(SchedulingTest, AWorkerWithAnOverdueLeaseDoesNotHoldBackATile) {
 // its leases, each a counted failure): with 64 open on it, a new job of higher priority is not
 // leased to it, a tile of a job it holds is; once one of its jobs closes, the new job is.
 TEST(SchedulingTest, AWorkerIsLeasedNoTileOfAJobPastItsOpenJobs) {
-  v1::SubmitJobRequest request;
-  *request.mutable_scene()->mutable_bundle() =
-      *MakeBundle(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
-  (*request.mutable_settings()->mutable_defines())["resx"] = "16";
-  (*request.mutable_settings()->mutable_defines())["resy"] = "8";
-  request.mutable_settings()->set_tile_size(8);  // 2 tiles
+  v1::SubmitJobRequest request = TwoTileRequest();
   InMemoryJobStore store;
   JobManagerOptions options;
   options.limits.max_live_jobs_per_client = 100;
   std::unique_ptr<JobManager> m = std::move(*JobManager::Create(options, &store));
   const uint32_t w = m->RegisterWorker("w");
-  auto lease = [&]() -> std::optional<v1::TileLease> {
-    for (const v1::CoordinatorMessage& msg : m->Poll(w, milliseconds(0)))
-      if (msg.has_lease()) return msg.lease();
-    return std::nullopt;
-  };
-  auto complete = [&](const v1::TileLease& l) {
-    v1::TileResult r;
-    r.set_job_id(l.job_id());
-    r.set_tile_index(l.tile_index());
-    r.set_lease_token(l.lease_token());
-    for (int i = 0; i < 8 * 8 * 3; ++i) r.add_pixels(0.5f);
-    return m->CompleteTile(w, r);
-  };
+  auto lease = [&] { return LeaseFor(m.get(), w); };
+  auto complete = [&](const v1::TileLease& l) { return Complete8x8(m.get(), w, l); };
   // Each job in turn: higher priority than the last, one of its two tiles done, so it stays open.
   for (int i = 0; i < int(kMaxWorkerJobs); ++i) {
     request.set_priority(i);
