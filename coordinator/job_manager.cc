@@ -581,12 +581,12 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   if (!id.ok()) return Unavailable(id.status());
   struct Unreserve {
     JobManager* m;
-    const std::string& id;
+    std::vector<std::string> ids;
     ~Unreserve() {
       std::lock_guard<std::mutex> lock(m->mu_);
-      m->reserved_ids_.erase(id);
+      for (const std::string& i : ids) m->reserved_ids_.erase(i);
     }
-  } unreserve{this, *id};
+  } unreserve{this, {*id}};
   auto job = std::make_unique<Job>();
   v1::StoredJob& s = job->stored;
   v1::Job* j = s.mutable_job();
@@ -615,6 +615,18 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
   StoreCamera(desc->camera, s.mutable_camera());
   job->camera = CameraOf(s);
   absl::Status st = store_->PutJob(s);
+  // A store whose job counter went back (evicted, or reset) can hand out the id of a job deleted
+  // within the day, which its tombstone refuses (RedisJobStore): the next id is taken.
+  for (int retry = 0; absl::IsNotFound(st) && retry < 16; ++retry) {
+    absl::StatusOr<std::string> next = ReserveJobId();
+    if (!next.ok()) {
+      st = next.status();
+      break;
+    }
+    unreserve.ids.push_back(*next);
+    j->set_id(*next);
+    st = store_->PutJob(s);
+  }
   if (!st.ok()) {
     // A write that timed out may still land (Redis hung, not down): the client is told the
     // submit failed, so the job is deleted once the store answers, or it would resume after a
