@@ -803,6 +803,11 @@ void JobManager::TakeOutboxBytes(Worker& w, size_t bytes) {
   total_outbox_bytes_ -= std::min(total_outbox_bytes_, bytes);
 }
 
+void JobManager::ReleaseInFlight(Worker& w) {
+  total_outbox_bytes_ -= std::min(total_outbox_bytes_, w.in_flight_bytes);
+  w.in_flight_bytes = 0;
+}
+
 size_t JobManager::Deliver(Job& job, uint32_t other, const std::vector<IrradianceRecord>& records) {
   auto owit = workers_.find(other);
   if (owit == workers_.end() || records.empty()) return 0;
@@ -1287,7 +1292,7 @@ void JobManager::WorkerGone(uint32_t worker, const std::string& reason) {
     health_.erase(h);
   WakeWorker(wit->second);  // its Poll returns now
   TakeOutboxBytes(wit->second, wit->second.outbox_bytes);
-  total_outbox_bytes_ -= std::min(total_outbox_bytes_, wit->second.in_flight_bytes);
+  ReleaseInFlight(wit->second);
   workers_.erase(wit);
   Changed();
 }
@@ -1929,10 +1934,7 @@ std::vector<v1::CoordinatorMessage> JobManager::Poll(uint32_t worker,
   std::vector<v1::CoordinatorMessage> out;
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   // The session's writer polls only once it has written what the last Poll gave it.
-  if (auto it = workers_.find(worker); it != workers_.end()) {
-    total_outbox_bytes_ -= std::min(total_outbox_bytes_, it->second.in_flight_bytes);
-    it->second.in_flight_bytes = 0;
-  }
+  if (auto it = workers_.find(worker); it != workers_.end()) ReleaseInFlight(it->second);
   for (;;) {
     auto it = workers_.find(worker);
     if (it == workers_.end()) return out;

@@ -426,6 +426,8 @@ class JobManager {
                               const std::function<absl::Status()>& retry);
   // `bytes` of `w`'s queued fan-out left its outbox (sent, dropped, or the worker gone). mu_ held.
   void TakeOutboxBytes(Worker& w, size_t bytes);
+  // What the last Poll handed `w`'s writer is written (or the worker is gone). mu_ held.
+  void ReleaseInFlight(Worker& w);
   // Records withheld from `worker_id` in `job` since its tally was settled (Job::Tally).
   static uint64_t Unsettled(const Job& job, const Job::Tally& t) {
     return job.offered_total - t.total_mark - t.own - t.handled;

@@ -32,6 +32,18 @@ v1::PixelRect Rect(int x0, int y0, int x1, int y1) {
 
 using Stream = grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>;
 
+// A lease of tile `tile` of `job` over `rect`, its token 16 x `token`.
+v1::CoordinatorMessage Lease(const std::string& job, int tile, const v1::PixelRect& rect,
+                             char token) {
+  v1::CoordinatorMessage out;
+  v1::TileLease* l = out.mutable_lease();
+  l->set_job_id(job);
+  l->set_tile_index(tile);
+  l->set_lease_token(std::string(16, token));
+  *l->mutable_rect() = rect;
+  return out;
+}
+
 // A stand-in coordinator's first steps: reads the worker's Register, registers it as worker 1
 // and sends job "job-1", cornell-box at 32 x 32 rendered by path at `spp` in tiles of
 // `tile_size` (0: the default, 32). False when the worker did not register.
@@ -90,16 +102,8 @@ class BadLeaseCoordinator final : public v1::WorkerService::Service {
       grpc::ServerReaderWriter<v1::CoordinatorMessage, v1::WorkerMessage>* stream) override {
     if (!RegisterAndSendJob(stream, 4, 16)) return grpc::Status::CANCELLED;
     v1::WorkerMessage in;
-    v1::CoordinatorMessage out;
-    for (size_t i = 0; i < leases_.size(); ++i) {
-      out.Clear();
-      v1::TileLease* l = out.mutable_lease();
-      l->set_job_id("job-1");
-      l->set_tile_index(int32_t(i));
-      l->set_lease_token(std::string(16, char('a' + i)));
-      *l->mutable_rect() = leases_[i];
-      stream->Write(out);
-    }
+    for (size_t i = 0; i < leases_.size(); ++i)
+      stream->Write(Lease("job-1", int(i), leases_[i], char('a' + i)));
     size_t answered = 0;
     while (answered < leases_.size() && stream->Read(&in)) {
       std::lock_guard<std::mutex> lock(mu_);
@@ -158,13 +162,7 @@ class ClosingCoordinator final : public v1::WorkerService::Service {
     v1::WorkerMessage in;
     v1::CoordinatorMessage out;
     const auto lease = [&](int tile) {
-      out.Clear();
-      v1::TileLease* l = out.mutable_lease();
-      l->set_job_id("job-1");
-      l->set_tile_index(tile);
-      l->set_lease_token(std::string(16, char('a' + tile)));
-      *l->mutable_rect() = Rect(0, 0, 32, 32);
-      stream->Write(out);
+      stream->Write(Lease("job-1", tile, Rect(0, 0, 32, 32), char('a' + tile)));
     };
     lease(0);
     while (stream->Read(&in) && !in.has_tile_region()) {
@@ -222,12 +220,8 @@ class DeadlineCoordinator final : public v1::WorkerService::Service {
  public:
   grpc::Status Session(grpc::ServerContext*, Stream* stream) override {
     if (!RegisterAndSendJob(stream, 65536)) return grpc::Status::CANCELLED;
-    v1::CoordinatorMessage out;
+    v1::CoordinatorMessage out = Lease("job-1", 0, Rect(0, 0, 32, 32), 'a');
     v1::TileLease* l = out.mutable_lease();
-    l->set_job_id("job-1");
-    l->set_tile_index(0);
-    l->set_lease_token(std::string(16, 'a'));
-    *l->mutable_rect() = Rect(0, 0, 32, 32);
     l->set_lease_ms(1000);
     // A wall-clock deadline an hour back (a worker's clock far ahead of the coordinator's): the
     // worker goes by lease_ms on its own clock, not by it.
@@ -294,15 +288,7 @@ class ManySpecsCoordinator final : public v1::WorkerService::Service {
       f->set_content("<scene version=\"3.0.0\"><shape type=\"nope\"/></scene>");
       stream->Write(out);
     }
-    for (int i : {0, 69}) {
-      out.Clear();
-      v1::TileLease* l = out.mutable_lease();
-      l->set_job_id("j-" + std::to_string(i));
-      l->set_tile_index(i);
-      l->set_lease_token(std::string(16, 'a'));
-      *l->mutable_rect() = Rect(0, 0, 8, 8);
-      stream->Write(out);
-    }
+    for (int i : {0, 69}) stream->Write(Lease("j-" + std::to_string(i), i, Rect(0, 0, 8, 8), 'a'));
     while (reasons_.size() < 2 && stream->Read(&in)) {
       std::lock_guard<std::mutex> lock(mu_);
       if (in.has_tile_failed()) reasons_[in.tile_failed().tile_index()] = in.tile_failed().reason();
