@@ -293,6 +293,10 @@ int main(int argc, char** argv) {
                    "an environment map's sun sampled as direct light at every diffuse or glossy "
                    "vertex, not left to the records (irrcache) or to the environment's own samples "
                    "(path); the default where the map has a compact sun");
+  render->add_flag("--firefly-filter,!--no-firefly-filter", rq.firefly_filter,
+                   "spread a pixel's one sample that outweighs all its others and every "
+                   "neighbouring pixel over the 5 x 5 pixels around it, keeping the image's energy "
+                   "(the default)");
   render->add_flag("--env-guide,!--no-env-guide", ra.env_guide,
                    "environment samples drawn partly towards where the environment was seen from "
                    "nearby (windows; the default where the scene has an environment light)");
@@ -365,6 +369,8 @@ int main(int argc, char** argv) {
   submit->add_option("--seed", sa.seed, "random seed");
   submit->add_flag("--no-share", sa.no_share, "do not share records between workers");
   submit->add_flag("--no-overture", sa.no_overture, "irrcache: skip the per-tile prepass");
+  submit->add_flag("--no-firefly-filter", sa.no_firefly_filter,
+                   "leave fireflies in their pixels (default: spread over the 5 x 5 around them)");
   submit->add_flag("--no-caustics", sa.no_caustics,
                    "irrcache: leave caustics to the records (default: a photon map per job)");
   submit

@@ -217,6 +217,7 @@ int RunSubmit(const SubmitArgs& args) {
     s->set_seed(args.seed);
     s->set_no_overture(args.no_overture);
     s->set_no_caustics(args.no_caustics);
+    s->set_no_firefly_filter(args.no_firefly_filter);
     s->set_denoise(args.denoise);
     s->set_target_error(args.target_error);
     s->set_tile_time_limit(args.tile_time_limit);

@@ -35,6 +35,7 @@ struct SubmitArgs {
   float accuracy = 0;
   uint64_t seed = 0;
   bool no_share = false, shared_path = false, no_overture = false, no_caustics = false;
+  bool no_firefly_filter = false;
   bool denoise = false;                          // the coordinator denoises the assembled image
   double target_error = 0, tile_time_limit = 0;  // adaptive sampling towards an error, per tile
   std::vector<std::string> defines;

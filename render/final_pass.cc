@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 
+#include "render/firefly_filter.h"
 #include "render/path_tracer.h"
 #include "render/pixel_sampler.h"
 #include "render/progress.h"
@@ -371,6 +372,14 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     st.spp_max = std::max(st.spp_max, n);
   }
   st.pixels_stopped_early = early;
+  if (settings.firefly_filter) {
+    std::vector<Vec3> peak(npix);
+    for (size_t p = 0; p < npix; ++p) peak[p] = film.Peak(p);
+    // The AOVs whose sum is the image (emission is part of direct) move with it.
+    std::vector<Image*> layers;
+    if (settings.aovs) layers = {&out->aovs.direct, &out->aovs.indirect, &out->aovs.emission};
+    st.fireflies_spread = SpreadFireflies(out->image, peak, layers);
+  }
   st.spp_mean = spp_sum / double(std::max<size_t>(1, npix));
   if (settings.sample_map) {
     out->sample_map = Image(rw, rh);

@@ -107,6 +107,7 @@ absl::StatusOr<RenderSettings> SettingsFor(const SceneDesc& desc, const RenderRe
   if (r.lookup_factor > 0) ic.lookup_factor = r.lookup_factor;
   s.overture = r.overture;
   s.caustics = r.caustics;
+  s.firefly_filter = r.firefly_filter;
   ic.direct_sun = r.direct_sun;
   if (!r.adaptive.empty()) s.adaptive = r.adaptive == "on";
   if (r.min_spp > 0) s.min_spp = r.min_spp;

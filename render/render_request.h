@@ -36,6 +36,7 @@ struct RenderRequest {
   float min_spacing_px = 0, max_spacing_px = 0;
   float lookup_factor = 0;  // [1, 4]
   bool overture = true, caustics = true, direct_sun = true;
+  bool firefly_filter = true;  // SpreadFireflies when the image is resolved
   // Adaptive sampling.
   std::string adaptive;  // "on", "off"
   int min_spp = 0, max_spp = 0;

@@ -130,6 +130,7 @@ std::string RenderStats::ToJson() const {
                    {"spp_max", spp_max},
                    {"pixels_stopped_early", pixels_stopped_early},
                    {"adaptive_rounds", adaptive_rounds},
+                   {"fireflies_spread", fireflies_spread},
                    {"nonfinite_samples", c.nonfinite_samples}};
   // The whole image's estimate only where every part of it was estimated: an irrcache render
   // outside --target-error does not cross-validate its records (cache_relmse -1), and its camera

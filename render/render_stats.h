@@ -57,6 +57,7 @@ struct RenderStats {
   double spp_mean = 0;
   long pixels_stopped_early = 0;
   int adaptive_rounds = 0;
+  long fireflies_spread = 0;  // pixels whose brightest sample was spread (SpreadFireflies)
   double estimated_sampling_relmse = 0;  // from the pixels' two half-images
   // Adaptive with a budget: counted work of the budget (RenderSettings::budget_carry included)
   // the final pass did not spend.

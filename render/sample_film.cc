@@ -9,7 +9,9 @@ SampleFilm::SampleFilm(size_t pixels, int slots)
       stride_(1 + 3 * size_t(slots)),
       data_(pixels * 2 * stride_),
       weight_(pixels * 2, 0.0f),
-      count_(pixels, 0) {}
+      count_(pixels, 0),
+      peak_(pixels),
+      peak_luminance_(pixels, 0.0f) {}
 
 void SampleFilm::Add(size_t p, int index, const Vec3& L, const DirectTerms* terms, float weight) {
   Vec3* h = Half(p, index & 1);
@@ -23,6 +25,11 @@ void SampleFilm::Add(size_t p, int index, const Vec3& L, const DirectTerms* term
     }
   weight_[2 * p + size_t(index & 1)] += weight;
   ++count_[p];
+  const float lum = Luminance(L) * weight;
+  if (lum > peak_luminance_[p]) {
+    peak_luminance_[p] = lum;
+    peak_[p] = L * weight;
+  }
 }
 
 // Sum of the radiance and of A_j * S_j / U_j over the halves given (b may be null), over the

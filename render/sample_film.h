@@ -32,6 +32,12 @@ class SampleFilm {
     const float w = weight_[2 * p] + weight_[2 * p + 1];
     return w > 0 ? (Half(p, 0)[0] + Half(p, 1)[0]) / w : Vec3();
   }
+  // The contribution of pixel p's brightest sample (by luminance) to Value(p): its weighted
+  // radiance over the pixel's weight sum (SpreadFireflies).
+  Vec3 Peak(size_t p) const {
+    const float w = weight_[2 * p] + weight_[2 * p + 1];
+    return w > 0 ? peak_[p] / w : Vec3();
+  }
   // Estimated squared error of Value(p), relative as relMSE weighs it:
   // mean over channels of ((h0 - h1)^2 / 4) / (max(h0 h1, 0) + 0.01). 0 unless both halves
   // have samples.
@@ -48,6 +54,8 @@ class SampleFilm {
   std::vector<Vec3> data_;
   std::vector<float> weight_;  // per pixel and half
   std::vector<int> count_;
+  std::vector<Vec3> peak_;  // per pixel: the brightest sample's weighted radiance
+  std::vector<float> peak_luminance_;
 };
 
 }  // namespace irfarm

@@ -33,6 +33,7 @@ absl::StatusOr<RenderRequest> JobRenderRequest(const v1::RenderSettings& setting
   r.threads = threads;
   r.overture = !settings.no_overture();
   r.caustics = !settings.no_caustics();
+  r.firefly_filter = !settings.no_firefly_filter();
   r.target_error = settings.target_error();
   r.time_limit = settings.tile_time_limit();
   // The tiles carry the denoiser's guides; the coordinator denoises the assembled image, so the

@@ -78,6 +78,7 @@ std::pair<double, double> MeanAndVariance(
     const std::function<void(RenderSettings&)>& adjust = nullptr) {
   RenderSettings s = *SettingsForScene(b.desc, integrator);
   s.spp = spp;
+  s.firefly_filter = false;  // MeanOfTwo takes the pixels as independent
   if (adjust) adjust(s);
   s.seed = 1;
   const Image a = Render(*b.scene, s).image;

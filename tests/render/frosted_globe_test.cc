@@ -25,7 +25,8 @@ TEST(FrostedGlobeTest, PathAndIrrcacheMatchMitsubaWithinItsNoise) {
 TEST(FrostedGlobeTest, TheGlobesLightReachesTheRoom) {
   const Image ref = FullReference(kScene);
   const auto mean_error = [&](const LoadedScene& s, Vec3* mean, Vec3* se) {
-    const RenderOutput a = RenderWith(s, "path", 256, 1), b = RenderWith(s, "path", 256, 2);
+    const RenderOutput a = RenderWith(s, "path", 256, 1, 0, false),
+                       b = RenderWith(s, "path", 256, 2, 0, false);
     const ImageError m = CompareImages(a.image, ref);
     *se = MeanStandardError(a.image, b.image, m.mean_ref);
     *mean = m.mean_test;

@@ -68,8 +68,8 @@ const GoldenCase& Case(const std::string& name) {
     c = std::make_unique<GoldenCase>();
     c->scene = LoadQuarter(name);
     c->ref = QuarterReference(name);
-    c->a = RenderWith(c->scene, "path", kPathSpp, 1);
-    c->b = RenderWith(c->scene, "path", kPathSpp, 2);
+    c->a = RenderWith(c->scene, "path", kPathSpp, 1, 0, false);
+    c->b = RenderWith(c->scene, "path", kPathSpp, 2, 0, false);
     c->noise = CompareImages(c->a.image, c->b.image).relmse / 2;
   }
   return *c;
@@ -233,7 +233,8 @@ INSTANTIATE_TEST_SUITE_P(Scenes, GoldenImageTest,
 TEST(GoldenImageTest, PrincipledThinRegionsMatchMitsuba) {
   const LoadedScene s = LoadQuarter("principledthin");
   const Image ref = QuarterReference("principledthin");
-  const RenderOutput a = RenderWith(s, "path", 1024, 21), b = RenderWith(s, "path", 1024, 22);
+  const RenderOutput a = RenderWith(s, "path", 1024, 21, 0, false),
+                     b = RenderWith(s, "path", 1024, 22, 0, false);
   ASSERT_EQ(a.image.width, ref.width);
   ASSERT_EQ(a.image.height, ref.height);
   constexpr int kBlock = 8;
@@ -383,7 +384,8 @@ TEST(GoldenImageTest, VeachAjarRendersClean) {
   const Image ref = QuarterReference("veach-ajar");
   Vec3 path_se;
   for (const char* integrator : {"path", "irrcache"}) {
-    const RenderOutput a = RenderWith(s, integrator, 16, 4), b = RenderWith(s, integrator, 16, 5);
+    const RenderOutput a = RenderWith(s, integrator, 16, 4, 0, false),
+                       b = RenderWith(s, integrator, 16, 5, 0, false);
     EXPECT_EQ(a.stats.nonfinite_pixels, 0) << integrator;
     const ImageError e = CompareImages(a.image, ref);
     const Vec3 own_se = MeanStandardError(a.image, b.image, e.mean_ref);

@@ -22,6 +22,7 @@ RenderOutput RenderPath(const LoadedScene& s, bool all_lights, uint64_t seed) {
   settings.spp = 64;
   settings.seed = seed;
   settings.irrcache.path.all_lights = all_lights;
+  settings.firefly_filter = false;  // MeanStandardError takes the pixels as independent
   return Render(*s.scene, settings);
 }
 

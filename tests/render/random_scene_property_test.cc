@@ -248,10 +248,10 @@ TEST(RandomScenePropertyTest, NoNanNoInfinityNoNegativeAndIrrcacheMeanMatchesPat
       ADD_FAILURE() << what;
       continue;
     }
-    const RenderOutput path_a = RenderWith(s, "path", kSpp, 1);
-    const RenderOutput path_b = RenderWith(s, "path", kSpp, 2);
-    const RenderOutput irr_a = RenderWith(s, "irrcache", kSpp, 3);
-    const RenderOutput irr_b = RenderWith(s, "irrcache", kSpp, 4);
+    const RenderOutput path_a = RenderWith(s, "path", kSpp, 1, 0, false);
+    const RenderOutput path_b = RenderWith(s, "path", kSpp, 2, 0, false);
+    const RenderOutput irr_a = RenderWith(s, "irrcache", kSpp, 3, 0, false);
+    const RenderOutput irr_b = RenderWith(s, "irrcache", kSpp, 4, 0, false);
     for (const RenderOutput* out : {&path_a, &path_b, &irr_a, &irr_b}) ExpectClean(*out, what);
     ImageMean path = MeanOfTwo(path_a.image, path_b.image);
     const ImageMean irr = MeanOfTwo(irr_a.image, irr_b.image);
@@ -259,8 +259,8 @@ TEST(RandomScenePropertyTest, NoNanNoInfinityNoNegativeAndIrrcacheMeanMatchesPat
         std::end(kHeavyTailedScenes))
       continue;
     if (path.mean == 0 && irr.mean > 0) {
-      path = MeanOfTwo(RenderWith(s, "path", kRareLightSpp, 5).image,
-                       RenderWith(s, "path", kRareLightSpp, 6).image);
+      path = MeanOfTwo(RenderWith(s, "path", kRareLightSpp, 5, 0, false).image,
+                       RenderWith(s, "path", kRareLightSpp, 6, 0, false).image);
       ++rare;
     }
     lit += path.mean > 0;

@@ -33,6 +33,10 @@ TEST(RenderPropertiesTest, RectanglesAssembleIntoTheWholeImage) {
   RenderSettings settings = *SettingsForScene(s.desc, "path");
   settings.spp = 4;
   settings.seed = 5;
+  // The firefly filter works within the rect it is given (a worker's tile): a firefly by the
+  // rect's edge spreads over the part of its 5 x 5 inside it, so that pixel and its neighbours
+  // may differ from the whole image's. Without it the rect's pixels are the whole image's.
+  settings.firefly_filter = false;
   const RenderOutput whole = Render(*s.scene, settings);
   const PixelRect rect{10, 20, 37, 41};
   const RenderOutput part = RenderRect(*s.scene, settings, nullptr, rect);
@@ -242,7 +246,8 @@ TEST(RenderPropertiesTest, NullBsdfLampsAreSeenAndPassedThrough) {
        {Case{"rectangle", 0.55714, 6e-5, 1.0}, Case{"sphere", 0.61144, 1.4e-4, 1.4715}}) {
     const LoadedScene s = scene(c.shape);
     ASSERT_TRUE(s.scene) << c.shape;
-    const RenderOutput a = RenderWith(s, "path", 1024, 1), b = RenderWith(s, "path", 1024, 2);
+    const RenderOutput a = RenderWith(s, "path", 1024, 1, 0, false),
+                       b = RenderWith(s, "path", 1024, 2, 0, false);
     const auto [mean, se] = MeanOfTwo(a.image, b.image);
     double centre = 0;
     for (int y = 7; y <= 8; ++y)
@@ -323,7 +328,8 @@ TEST(RenderPropertiesTest, TheSkyLightsTheLastBounceUnderMaxDepth) {
                                                       "sky.xml", {}));
     ASSERT_TRUE(s.scene);
     for (const char* integrator : {"path", "irrcache"}) {
-      const RenderOutput a = RenderWith(s, integrator, 16, 1), b = RenderWith(s, integrator, 16, 2);
+      const RenderOutput a = RenderWith(s, integrator, 16, 1, 0, false),
+                         b = RenderWith(s, integrator, 16, 2, 0, false);
       const auto [mean, se] = MeanOfTwo(a.image, b.image);
       std::printf("MEASURED max_depth %s %s: mean %.6f (SE %.6f), exact 0.5\n", depth, integrator,
                   mean, se);

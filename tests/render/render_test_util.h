@@ -185,9 +185,13 @@ inline ImageMean MeanOfTwo(const Image& a, const Image& b) {
   return {sum / (2 * n), std::sqrt(var_sum / 2) / n};
 }
 
+// `firefly_filter` off where a test estimates a standard error from per-pixel differences between
+// renders: those assume independent pixels, and a spread firefly shares its error among 25 (the
+// image's mean is the same with or without it).
 inline RenderOutput RenderWith(const LoadedScene& s, const std::string& integrator, int spp,
-                               uint64_t seed, int threads = 0) {
+                               uint64_t seed, int threads = 0, bool firefly_filter = true) {
   RenderRequest request;
+  request.firefly_filter = firefly_filter;
   request.integrator = integrator;
   request.spp = spp;
   request.seed = seed;

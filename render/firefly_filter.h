@@ -1,0 +1,30 @@
+// Energy-preserving firefly spreading, the film's last step. A firefly is a pixel whose one
+// brightest sample carries more of it than all its other samples together and more than the
+// whole value of every neighbouring pixel: a rare path of high weight (light through a chain of
+// glass and mirrors, a lamp seen in a sharp reflection from a diffuse bounce) that one pixel
+// caught and its neighbours, sampling the same paths as often, did not. That sample's share is
+// taken out of the pixel and spread evenly over the (2r+1)^2 pixels around it (itself included,
+// clipped to the image): the image keeps its energy, so the estimate stays unbiased over the
+// neighbourhood, while the squared error the one sample made falls by the number of pixels it
+// is shared among. A small bright feature seen by many samples (a lamp's pixel, a highlight) is
+// bright in its other samples or in a neighbour and is left alone.
+#pragma once
+
+#include <vector>
+
+#include "render/image.h"
+
+namespace irfarm {
+
+// The radius of the neighbourhood a firefly's share is spread over (5 x 5 pixels).
+inline constexpr int kFireflyRadius = 2;
+
+// Spreads the fireflies of `image`: peak[p] is the contribution of pixel p's brightest sample
+// to its value (the sample's weighted radiance over the pixel's weight sum; same size as the
+// image). `layers` (images of the same size whose sum is the image, e.g. the direct and
+// indirect AOVs) lose and gain the same fraction of each firefly pixel's value per channel, so
+// they still add up to the image. Returns how many pixels were spread.
+int SpreadFireflies(Image& image, const std::vector<Vec3>& peak,
+                    const std::vector<Image*>& layers = {}, int radius = kFireflyRadius);
+
+}  // namespace irfarm
