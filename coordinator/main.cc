@@ -41,6 +41,7 @@
 #include "service/http_server.h"
 #include "service/loopback.h"
 #include "service/metrics.h"
+#include "service/temp_dir.h"
 
 namespace {
 
@@ -159,6 +160,10 @@ int main(int argc, char** argv) {
   app.add_option("--max-finished-jobs", options.max_finished_jobs,
                  "finished jobs kept at most, oldest removed first; 0 = no limit (1000)");
   CLI11_PARSE(app, argc, argv);
+  // Uploaded scenes and assembled results of an earlier coordinator that died without cleaning up.
+  if (const int n = irfarm::RemoveStaleTempDirs("irfarm-submit-") +
+                    irfarm::RemoveStaleTempDirs("irfarm-result-"))
+    spdlog::info("removed {} temporary folder(s) of coordinators that are gone", n);
   if (job_ttl_seconds < 0 || options.max_finished_jobs < 0) {
     spdlog::error("--job-ttl and --max-finished-jobs must be >= 0");
     return 1;

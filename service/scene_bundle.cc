@@ -151,17 +151,4 @@ absl::StatusOr<std::string> WriteBundle(const v1::SceneBundle& bundle, const std
   return (fs::path(dir) / main).string();
 }
 
-absl::StatusOr<std::string> MakeTempDir(const std::string& prefix) {
-  std::string templ = (fs::temp_directory_path() / (prefix + "XXXXXX")).string();
-  std::vector<char> buf(templ.begin(), templ.end());
-  buf.push_back('\0');
-  if (mkdtemp(buf.data()) == nullptr) return absl::InternalError("mkdtemp failed for " + templ);
-  return std::string(buf.data());
-}
-
-void RemoveTree(const std::string& dir) {
-  std::error_code ec;
-  fs::remove_all(dir, ec);
-}
-
 }  // namespace irfarm

@@ -9,6 +9,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "irfarm/v1/common.pb.h"
+#include "service/temp_dir.h"
 
 namespace irfarm {
 
@@ -31,10 +32,5 @@ absl::StatusOr<v1::SceneBundle> MakeBundle(const std::string& scene_path);
 // the client put it (a path that is a file and a folder at once, a name too long).
 inline constexpr int kMaxBundleFiles = 16384;
 absl::StatusOr<std::string> WriteBundle(const v1::SceneBundle& bundle, const std::string& dir);
-
-// A fresh private temporary directory (mkdtemp) whose name starts with `prefix`.
-absl::StatusOr<std::string> MakeTempDir(const std::string& prefix);
-// Removes `dir` and everything under it; errors are ignored (best-effort clean-up).
-void RemoveTree(const std::string& dir);
 
 }  // namespace irfarm

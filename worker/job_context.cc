@@ -28,7 +28,7 @@ absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec
   c->tile_size_ = JobTileSize(spec.settings());
   std::string scene_path = spec.scene().path();
   if (spec.scene().has_bundle()) {
-    absl::StatusOr<std::string> dir = MakeTempDir("irfarm-worker-" + spec.job_id() + "-");
+    absl::StatusOr<std::string> dir = MakeTempDir("irfarm-worker-", spec.job_id());
     if (!dir.ok()) return dir.status();
     c->dir_ = *dir;
     absl::StatusOr<std::string> main = WriteBundle(spec.scene().bundle(), c->dir_);

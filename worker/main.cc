@@ -10,6 +10,7 @@
 
 #include "service/http_server.h"
 #include "service/metrics.h"
+#include "service/temp_dir.h"
 #include "worker/worker.h"
 
 int main(int argc, char** argv) {
@@ -44,6 +45,10 @@ int main(int argc, char** argv) {
     gethostname(host, sizeof host - 1);
     options.name = std::string(host) + ":" + std::to_string(getpid());
   }
+
+  // Scene bundles of workers on this machine that died without cleaning up (SIGKILL, a crash).
+  if (const int n = irfarm::RemoveStaleTempDirs("irfarm-worker-"))
+    spdlog::info("removed {} scene folder(s) of workers that are gone", n);
 
   sigset_t signals;
   sigemptyset(&signals);

@@ -6,6 +6,10 @@ set -euo pipefail
 BIN=${BIN:?set BIN to the build directory}
 DATA=${DATA:?set DATA to tests/data}
 WORK=$(mktemp -d /tmp/irfarm-svc-test.XXXXXX)
+# The processes' own temporary folders (scene bundles, results) go under WORK too: a process the
+# test kills with SIGKILL leaves its folder, and WORK goes at the end.
+export TMPDIR=$WORK/tmp
+mkdir -p "$TMPDIR"
 PIDS=()
 
 cleanup() {

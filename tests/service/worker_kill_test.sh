@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Failure tests with real processes on 127.0.0.1, Cornell box at 128x128 (64 tiles of 16 px):
 #  1. a worker killed with SIGKILL mid-job, holding a lease: the job still completes with every
-#     tile (the killed worker's included) and its image,
+#     tile (the killed worker's included; a worker started after the kill removes the scene folder
+#     the killed one left) and its image,
 #     box-filtered to 64x64, has a relMSE against the 64x64 reference (reference-x4.exr) within
 #     Mitsuba's own at the job's 128x128 and 64 spp, box-filtered the same way (the largest of 8
 #     seeds, 1.27e-3, tests/data/scenes/cornell-box/mitsuba-x4-noise.json: a bound that does not
@@ -52,6 +53,13 @@ done
 kill -9 "$VICTIM"
 check "k2 held a lease when killed" "$HELD == 1"
 echo "killed worker k2 at $(job_field "$ADDR" "$JOB" "j['tilesDone']")/64 tiles"
+# The killed worker's copy of the scene stays behind (nothing ran its clean-up); a worker started
+# on the same machine afterwards removes it (its pid is gone), and helps finish the job.
+k2_folders() { ls -d "$TMPDIR/irfarm-worker-$VICTIM-"* 2>/dev/null | wc -l; }
+check "the killed worker's scene folder is left" "$(k2_folders) == 1"
+start_worker "$ADDR" k3
+for _ in $(seq 100); do [[ $(k2_folders) == 0 ]] && break; sleep 0.05; done
+check "a worker started later removed it" "$(k2_folders) == 0"
 job_completes "after the worker kill" killed
 # The coordinator took a lease back from the disconnected worker (its tile was rendered again).
 LOST=$(curl -sf "http://$CM/metrics" | awk '/^irfarm_lease_expiries_total\{reason="disconnected"\}/ {print $2}')
