@@ -16,10 +16,12 @@
 #include <optional>
 #include <sstream>
 
+#include "absl/strings/str_replace.h"
 #include "cache/snapshot.h"
 #include "coordinator/cache_seed.h"
 #include "coordinator/fanout_region.h"
 #include "coordinator/record_map.h"
+#include "render/firefly_filter.h"
 #include "render/image.h"
 #include "service/job_settings.h"
 #include "service/record_codec.h"
@@ -100,6 +102,14 @@ std::string Printable(const std::string& s, size_t max = 200) {
   return out;
 }
 
+// Floats a finished tile keeps per pixel: its RGB, then the denoiser's guides (albedo and normal)
+// for a denoised job, then the firefly filter's peaks (RGB) unless the job turned it off.
+int64_t GuideFloats(const v1::RenderSettings& s) { return s.denoise() ? 6 : 0; }
+int64_t PeakFloats(const v1::RenderSettings& s) { return s.no_firefly_filter() ? 0 : 3; }
+int64_t TileFloatsPerPixel(const v1::RenderSettings& s) {
+  return 3 + GuideFloats(s) + PeakFloats(s);
+}
+
 // Why a job read back from the store cannot be resumed as it is ("" when it can): the limits a
 // submit is held to, on what sizes the job's tiles and cache (a store anyone else can write to,
 // or a damaged one, must not make a coordinator allocate tens of GB or overflow at start-up).
@@ -118,9 +128,9 @@ std::string JobSizeProblem(int64_t w, int64_t h, const v1::RenderSettings& setti
   if (tiles > lim.max_tiles)
     return std::to_string(tiles) + " tiles of " + std::to_string(tile) +
            " px is over the limit of " + std::to_string(lim.max_tiles) + " tiles per job";
-  // 3 floats a pixel, 6 more for the denoiser's guides.
+  // 3 floats a pixel, 6 more for the denoiser's guides, 3 for the firefly filter's peaks.
   const int64_t result_bytes =
-      std::min(tile, w) * std::min(tile, h) * (settings.denoise() ? 9 : 3) * int64_t(sizeof(float));
+      std::min(tile, w) * std::min(tile, h) * TileFloatsPerPixel(settings) * int64_t(sizeof(float));
   if (result_bytes > int64_t(lim.max_tile_result_bytes))
     return "a tile of " + std::to_string(std::min(tile, w)) + "x" +
            std::to_string(std::min(tile, h)) + " px" + (settings.denoise() ? " with denoise" : "") +
@@ -347,8 +357,13 @@ absl::Status JobManager::Resume() {
     for (auto& [tile, pixels] : *tiles) {
       if (tile < 0 || tile >= job->tiles->num_tiles()) continue;
       const PixelRect& r = job->tiles->rect(tile);
-      const size_t floats = size_t(r.width()) * r.height() * (j.settings().denoise() ? 9 : 3);
-      if (pixels.size() != floats * sizeof(float) ||
+      // With the peaks, or (stored by a coordinator before them) without: then that tile's
+      // fireflies stay where they are.
+      const size_t n = size_t(r.width()) * r.height();
+      const size_t floats = n * size_t(TileFloatsPerPixel(j.settings()));
+      const size_t floats_before_peaks = n * size_t(3 + GuideFloats(j.settings()));
+      if ((pixels.size() != floats * sizeof(float) &&
+           pixels.size() != floats_before_peaks * sizeof(float)) ||
           !SaneTile(pixels, size_t(r.width()) * r.height() * 3)) {
         spdlog::error("job {}: stored tile {} is not sane, rendered again", j.id(), tile);
         continue;
@@ -517,6 +532,11 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::SubmitJobRequest& request,
     absl::StatusOr<std::string> main = WriteBundle(bundle, *dir);
     if (main.ok()) desc = LoadJobScene(*main, request.settings());
     if (desc.ok()) plain_hash = SceneHash(*desc);
+    // The loader names files by their path here: the client sees them by the bundle's own
+    // ("scene.xml:12: ..."), not this coordinator's temporary folder.
+    if (!desc.ok())
+      desc = absl::Status(desc.status().code(),
+                          absl::StrReplaceAll(desc.status().message(), {{*dir + "/", ""}}));
     RemoveTree(*dir);
     if (!main.ok()) return main.status();
     if (name.empty()) name = bundle.main_file().empty() ? "scene.xml" : bundle.main_file();
@@ -1096,6 +1116,7 @@ absl::StatusOr<JobManager::FinishedTiles> JobManager::TilesOf(const std::string&
   t.width = job.stored.job().width();
   t.height = job.stored.job().height();
   t.denoise = job.stored.job().settings().denoise();
+  t.firefly_filter = !job.stored.job().settings().no_firefly_filter();
   t.tiles.reserve(job.pixels.size());
   for (const auto& [tile, bytes] : job.pixels) t.tiles.emplace_back(job.tiles->rect(tile), bytes);
   return t;
@@ -1172,6 +1193,8 @@ absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
   absl::StatusOr<FinishedTiles> t = TilesOf(id, caller, true);  // under mu_; the rest without
   if (!t.ok()) return t.status();
   Image image(t->width, t->height);
+  // The brightest samples' shares, for the firefly filter (zero where a tile carries none).
+  std::vector<Vec3> peak(t->firefly_filter ? image.pixels.size() : 0);
   AovImages guides;  // albedo and normal only, for denoised jobs
   const bool denoise = t->denoise;
   if (denoise) {
@@ -1183,12 +1206,20 @@ absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
       std::vector<float> px(bytes->size() / sizeof(float));
       std::memcpy(px.data(), bytes->data(), px.size() * sizeof(float));
       const size_t n = size_t(r.width()) * r.height();
-      const bool has_guides = px.size() == 9 * n;  // checked when the tile came in
+      // Sizes were checked when the tile came in (or was read back): guides for a denoised job,
+      // then the peaks where the tile has them.
+      const size_t guide_floats = denoise ? 6 * n : 0;
+      const bool has_guides = denoise && px.size() >= 9 * n;
+      const bool has_peaks = t->firefly_filter && px.size() == 6 * n + guide_floats;
       for (int y = r.y0; y < r.y1; ++y)
         for (int x = r.x0; x < r.x1; ++x) {
           const size_t k = size_t(y - r.y0) * r.width() + (x - r.x0), i = 3 * k;
           image.at(x, y) = Vec3(px[i], px[i + 1], px[i + 2]);
-          if (denoise && has_guides) {
+          if (has_peaks) {
+            const size_t q = 3 * n + guide_floats + 3 * k;
+            peak[size_t(y) * size_t(t->width) + size_t(x)] = Vec3(px[q], px[q + 1], px[q + 2]);
+          }
+          if (has_guides) {
             const size_t g = 3 * n + 6 * k;
             guides.albedo.at(x, y) = Vec3(px[g], px[g + 1], px[g + 2]);
             guides.normal.at(x, y) = Vec3(px[g + 3], px[g + 4], px[g + 5]);
@@ -1196,6 +1227,9 @@ absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
         }
     }
   }
+  // The firefly filter over the whole image, as one process applies it to its own (the tiles
+  // left their pixels as rendered).
+  if (t->firefly_filter) SpreadFireflies(image, peak);
   std::vector<ExrLayer> layers;
   Image noisy;
   if (denoise) {
@@ -1609,6 +1643,15 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
   for (int i = 0; bad.empty() && i < result.guides_size(); ++i)
     if (!std::isfinite(result.guides(i)))
       bad = "tile " + std::to_string(tile) + " guide value " + std::to_string(i) + " is not finite";
+  // Peaks: none (a worker from before the filter: that tile's fireflies stay), or one RGB a pixel
+  // where the job has the filter.
+  const int64_t peak_floats = pixels * PeakFloats(job.stored.job().settings());
+  if (bad.empty() && result.peaks_size() != 0 && result.peaks_size() != peak_floats)
+    bad = "tile " + std::to_string(tile) + " has " + std::to_string(result.peaks_size()) +
+          " peak floats, expected " + std::to_string(peak_floats) + " or none";
+  for (int i = 0; bad.empty() && i < result.peaks_size(); ++i)
+    if (!std::isfinite(result.peaks(i)))
+      bad = "tile " + std::to_string(tile) + " peak value " + std::to_string(i) + " is not finite";
   const v1::TileStats& ts = result.stats();
   if (bad.empty()) {
     // Sane stats: no counter above 1e6 per pixel and sample (an irradiance lookup or record per
@@ -1637,6 +1680,8 @@ absl::Status JobManager::CompleteTile(uint32_t worker, const v1::TileResult& res
                     size_t(result.pixels_size()) * sizeof(float));
   bytes.append(reinterpret_cast<const char*>(result.guides().data()),
                size_t(result.guides_size()) * sizeof(float));
+  bytes.append(reinterpret_cast<const char*>(result.peaks().data()),
+               size_t(result.peaks_size()) * sizeof(float));
   // Stored without the lock; counted under it only if the lease is still current (it may have
   // expired, or the job ended, while the store was slow: the stored pixels are then overwritten
   // when the tile is done again, or never read).

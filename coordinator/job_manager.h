@@ -346,6 +346,7 @@ class JobManager {
   struct FinishedTiles {
     int width = 0, height = 0;
     bool denoise = false;
+    bool firefly_filter = false;  // the tiles carry peaks (those stored with them)
     std::vector<std::pair<PixelRect, std::shared_ptr<const std::string>>> tiles;
   };
   absl::StatusOr<FinishedTiles> TilesOf(const std::string& id, const Caller& caller,

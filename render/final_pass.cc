@@ -372,9 +372,13 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     st.spp_max = std::max(st.spp_max, n);
   }
   st.pixels_stopped_early = early;
-  if (settings.firefly_filter) {
+  if (settings.keep_peaks) {
+    out->peak = Image(rw, rh);
+    for (size_t p = 0; p < npix; ++p)
+      out->peak.pixels[p] = FireflyPeak(film.Peak(p), film.count(p));
+  } else if (settings.firefly_filter) {
     std::vector<Vec3> peak(npix);
-    for (size_t p = 0; p < npix; ++p) peak[p] = film.Peak(p);
+    for (size_t p = 0; p < npix; ++p) peak[p] = FireflyPeak(film.Peak(p), film.count(p));
     // The AOVs whose sum is the image (emission is part of direct) move with it.
     std::vector<Image*> layers;
     if (settings.aovs) layers = {&out->aovs.direct, &out->aovs.indirect, &out->aovs.emission};

@@ -18,12 +18,21 @@ namespace irfarm {
 
 // The radius of the neighbourhood a firefly's share is spread over (5 x 5 pixels).
 inline constexpr int kFireflyRadius = 2;
+// The fewest samples a pixel must have for its brightest one to be judged: with one sample the
+// peak is the whole pixel (every local maximum would pass), with two it is the larger of two.
+// Callers give pixels with fewer a zero peak (FireflyPeak).
+inline constexpr int kFireflyMinSamples = 8;
+inline Vec3 FireflyPeak(const Vec3& peak, int samples) {
+  return samples >= kFireflyMinSamples ? peak : Vec3();
+}
 
 // Spreads the fireflies of `image`: peak[p] is the contribution of pixel p's brightest sample
 // to its value (the sample's weighted radiance over the pixel's weight sum; same size as the
-// image). `layers` (images of the same size whose sum is the image, e.g. the direct and
-// indirect AOVs) lose and gain the same fraction of each firefly pixel's value per channel, so
-// they still add up to the image. Returns how many pixels were spread.
+// image; FireflyPeak zeroes it for pixels of too few samples). `layers` (images of the same size
+// whose sum is the image, e.g. the direct and indirect AOVs; one of another size is skipped)
+// lose and gain the same fraction of each firefly pixel's value per channel, so they still add
+// up to the image (the firefly's own split between them is not known: the pixel's is taken).
+// Returns how many pixels were spread.
 int SpreadFireflies(Image& image, const std::vector<Vec3>& peak,
                     const std::vector<Image*>& layers = {}, int radius = kFireflyRadius);
 

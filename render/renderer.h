@@ -84,6 +84,11 @@ struct RenderSettings {
   // 0.54-0.62 of the unfiltered image's and no other shared scene had a pixel it changed
   // (docs/guide/direct-light-and-sampling.md, "Fireflies").
   bool firefly_filter = true;
+  // Instead of spreading the fireflies, leave the image as rendered and return each pixel's
+  // peak (FireflyPeak) in RenderOutput::peak, for whoever assembles the whole image: a farm
+  // job's tiles (the coordinator spreads them over the assembled image; a tile alone cannot
+  // see its neighbours' pixels).
+  bool keep_peaks = false;
   // The image will be denoised (`irfarm render --denoise`; the service's workers leave it off,
   // see docs/guide/denoising.md, "Path for a denoised image"). With choose_integrator as well (the
   // user named no integrator), an irrcache render at default settings runs a path pilot beside its
@@ -115,6 +120,7 @@ struct RenderOutput {
   Image record_map;  // when requested: the image darkened, record positions in red
   Image sample_map;  // when requested: samples per pixel, 0 (black) to spp (white), log scale
   AovImages aovs;    // when requested (settings.aovs), else empty
+  Image peak;        // settings.keep_peaks: each pixel's FireflyPeak, else empty
   RenderStats stats;
 };
 

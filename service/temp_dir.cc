@@ -47,9 +47,10 @@ int RemoveStaleTempDirs(const std::string& prefix) {
     while (i < name.size() && i - prefix.size() < 10 && name[i] >= '0' && name[i] <= '9')
       pid = pid * 10 + (name[i++] - '0');
     if (i == prefix.size() || i >= name.size() || name[i] != '-') continue;
-    if (pid <= 0 || pid == getpid() || pid > 0x7fffffff) continue;
-    // Alive (or another user's, EPERM): left alone. Only "no such process" is gone.
-    if (kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;
+    // This process's own pid counts as gone: called at start, before it made any, a folder
+    // with its pid is a dead process's whose pid it was given again (a container's pid 1).
+    if (pid <= 0 || pid > 0x7fffffff) continue;
+    if (pid != getpid() && (kill(pid_t(pid), 0) == 0 || errno != ESRCH)) continue;
     struct stat st;
     if (lstat(it->path().c_str(), &st) != 0 || !S_ISDIR(st.st_mode) || st.st_uid != geteuid())
       continue;

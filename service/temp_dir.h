@@ -21,8 +21,11 @@ absl::StatusOr<std::string> MakeTempDir(const std::string& prefix, const std::st
 void RemoveTree(const std::string& dir);
 
 // Removes the directories MakeTempDir(prefix, ...) made in processes that are gone: names
-// PREFIX<pid>-... whose pid is not a running process, that are directories (not symlinks) owned
-// by this user. Returns how many were removed.
+// PREFIX<pid>-... whose pid is not a running process (kill(pid, 0) answers ESRCH; another user's
+// live process answers EPERM and is left alone) or is this process's own, that are directories
+// (not symlinks) owned by this user. Call it at start, before this process makes any (its own
+// pid's are then a dead process's, e.g. an earlier pid 1 of a container). Returns how many it
+// removed.
 int RemoveStaleTempDirs(const std::string& prefix);
 
 }  // namespace irfarm

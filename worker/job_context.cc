@@ -42,6 +42,9 @@ absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec
   if (!prepared.ok()) return prepared.status();
   c->settings_ = prepared->settings;
   c->settings_.tile_size = kJobSubTileSize;
+  // The coordinator spreads the fireflies over the assembled image (TileResult.peaks).
+  c->settings_.keep_peaks = c->settings_.firefly_filter;
+  c->settings_.firefly_filter = false;
   c->scene_ = std::move(prepared->scene);
   CausticMapStats caustic_stats;
   c->caustics_ = BuildCausticMap(*c->scene_, c->settings_, &caustic_stats);

@@ -412,6 +412,11 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
         for (const Vec3* v : {&out.aovs.albedo.pixels[i], &out.aovs.normal.pixels[i]})
           for (int k = 0; k < 3; ++k) tr->add_guides((*v)[k]);
     }
+    if (!out.peak.pixels.empty()) {  // the job's fireflies are spread by the coordinator
+      tr->mutable_peaks()->Reserve(int(out.peak.pixels.size() * 3));
+      for (const Vec3& p : out.peak.pixels)
+        for (int k = 0; k < 3; ++k) tr->add_peaks(p[k]);
+    }
     const RenderCounters& c = out.stats.counters;
     v1::TileStats* ts = tr->mutable_stats();
     ts->set_records_computed(c.records_computed);

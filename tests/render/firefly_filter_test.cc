@@ -117,6 +117,34 @@ TEST(FireflyFilterTest, LayersThatSumToTheImageStillDoAfterwards) {
   EXPECT_NEAR(indirect.at(1, 1).x, 0.2f + 6.0f / 6.3f * 6.0f / 25, 1e-5f);
 }
 
+TEST(FireflyFilterTest, PixelsOfFewSamplesAreNotJudged) {
+  // One sample: its peak is the whole pixel, so every local maximum would pass.
+  EXPECT_EQ(FireflyPeak(Vec3(2, 2, 2), 1).x, 0.0f);
+  EXPECT_EQ(FireflyPeak(Vec3(2, 2, 2), kFireflyMinSamples - 1).x, 0.0f);
+  EXPECT_EQ(FireflyPeak(Vec3(2, 2, 2), kFireflyMinSamples).x, 2.0f);
+  Image im = Flat(5, 5, 0.1f);
+  std::vector<Vec3> peak(im.pixels.size());
+  im.at(2, 2) = Vec3(3, 3, 3);
+  peak[2 * 5 + 2] = FireflyPeak(Vec3(3, 3, 3), 1);
+  EXPECT_EQ(SpreadFireflies(im, peak), 0);
+}
+
+TEST(FireflyFilterTest, NeighbouringFirefliesAreJudgedOnTheImageAsRendered) {
+  // Two fireflies two pixels apart: each is brighter than its own neighbours as rendered, and
+  // both are spread (the first's share reaching the second does not change the second's test).
+  Image im = Flat(9, 9, 0.1f);
+  std::vector<Vec3> peak(im.pixels.size());
+  im.at(3, 4) = Vec3(2.1f, 2.1f, 2.1f);
+  peak[4 * 9 + 3] = Vec3(2, 2, 2);
+  im.at(5, 4) = Vec3(1.1f, 1.1f, 1.1f);
+  peak[4 * 9 + 5] = Vec3(1, 1, 1);
+  const double before = Sum(im);
+  EXPECT_EQ(SpreadFireflies(im, peak), 2);
+  EXPECT_NEAR(Sum(im), before, 1e-5 * before);
+  EXPECT_NEAR(im.at(4, 4).x, 0.1f + 2.0f / 25 + 1.0f / 25, 1e-6);  // between them: both shares
+  EXPECT_NEAR(im.at(5, 4).x, 0.1f + 2.0f / 25 + 1.0f / 25, 1e-6);
+}
+
 TEST(FireflyFilterTest, TheFilmKeepsEachPixelsBrightestSampleShare) {
   SampleFilm film(2, 0);
   film.Add(0, 0, Vec3(1, 1, 1), nullptr);

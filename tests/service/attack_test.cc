@@ -561,6 +561,45 @@ TEST_F(AttackTest, ABundleJobsSceneHashReadsItsImages) {
   EXPECT_EQ(job.scene_hash(), CacheHash(SceneHash(*desc), true, true));
 }
 
+// The firefly filter's peaks (TileResult.peaks) are checked like the pixels: one RGB a pixel or
+// none (a worker from before the filter), finite; a tile with either is accepted.
+TEST_F(AttackTest, PeaksOfTheWrongSizeOrNotFiniteAreRefused) {
+  StartServer();
+  std::string a;
+  ASSERT_TRUE(Submit(kAlice, Request(), &a).ok());
+  FakeWorker f(channel_, kWorker, "w");
+  std::optional<v1::TileLease> lease = f.NextLease();
+  ASSERT_TRUE(lease.has_value());
+  const int floats = LeaseFloats(*lease);
+  v1::WorkerMessage m = Result(a, lease->tile_index(), lease->lease_token(), floats, 0.5f);
+  for (int i = 0; i < floats + 3; ++i) m.mutable_tile_result()->add_peaks(0.1f);
+  ASSERT_TRUE(f.Send(m));
+  EXPECT_NE(f.NextRejection().find("peak floats"), std::string::npos);
+  lease = f.NextLease();
+  ASSERT_TRUE(lease.has_value());
+  m = Result(a, lease->tile_index(), lease->lease_token(), floats, 0.5f);
+  for (int i = 0; i < floats; ++i) m.mutable_tile_result()->add_peaks(i == 7 ? INFINITY : 0.1f);
+  ASSERT_TRUE(f.Send(m));
+  EXPECT_NE(f.NextRejection().find("peak value 7 is not finite"), std::string::npos);
+  // One RGB a pixel, then none: both count.
+  for (const bool peaks : {true, false}) {
+    lease = f.NextLease();
+    ASSERT_TRUE(lease.has_value());
+    m = Result(a, lease->tile_index(), lease->lease_token(), floats, 0.5f);
+    if (peaks)
+      for (int i = 0; i < floats; ++i) m.mutable_tile_result()->add_peaks(0.1f);
+    ASSERT_TRUE(f.Send(m));
+  }
+  v1::Job job;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  do {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    ASSERT_TRUE(Get(kAdmin, a, &job).ok());
+  } while (job.tiles_done() < 2 && std::chrono::steady_clock::now() < until);
+  EXPECT_EQ(job.tiles_done(), 2);
+  f.Cancel();
+}
+
 // Why 2: results for leases the worker does not hold (sequential guesses), NaN pixels and forged
 // stats under its own lease; the session ends after kMaxViolations.
 TEST_F(AttackTest, HijackedLeasesNanPixelsAndForgedStatsAreRefused) {

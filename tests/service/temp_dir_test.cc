@@ -1,5 +1,6 @@
 // Temporary folders of service processes (service/temp_dir.h): named by the process that made
-// them, and removed at a later start only where that process is gone, only folders, only ours.
+// them, and removed at a later start only where that process is gone (or had this process's
+// pid), only folders, only ours.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -70,10 +71,13 @@ TEST_F(TempDirTest, OnlyFoldersOfProcessesThatAreGoneAreRemoved) {
   // A dead worker's bundle, with a file in it.
   fs::create_directories(root_ / ("irfarm-worker-" + d + "-job-1-abcdef") / "meshes");
   std::ofstream(root_ / ("irfarm-worker-" + d + "-job-1-abcdef") / "scene.xml") << "<scene/>";
-  // This process's own, and pid 1's (alive, maybe another user's): kept.
-  const absl::StatusOr<std::string> own = MakeTempDir("irfarm-worker-", "job-2");
-  ASSERT_TRUE(own.ok());
+  // A live process's (this test's parent) and pid 1's (alive, maybe another user's): kept.
+  const std::string parent = std::to_string(getppid());
+  fs::create_directories(root_ / ("irfarm-worker-" + parent + "-job-2-abcdef"));
   fs::create_directories(root_ / "irfarm-worker-1-job-3-abcdef");
+  // This process's own: called at start, a folder with its pid is a dead process's.
+  const absl::StatusOr<std::string> own = MakeTempDir("irfarm-worker-", "job-5");
+  ASSERT_TRUE(own.ok());
   // Under the dead pid but not a folder we made: a symlink (to a folder that must survive) and
   // a plain file.
   fs::create_directories(root_ / "precious");
@@ -85,9 +89,10 @@ TEST_F(TempDirTest, OnlyFoldersOfProcessesThatAreGoneAreRemoved) {
   fs::create_directories(root_ / ("irfarm-submit-" + d + "-abcdef"));
   fs::create_directories(root_ / ("irfarm-worker-" + d));
 
-  EXPECT_EQ(RemoveStaleTempDirs("irfarm-worker-"), 1);
+  EXPECT_EQ(RemoveStaleTempDirs("irfarm-worker-"), 2);
   EXPECT_FALSE(fs::exists(root_ / ("irfarm-worker-" + d + "-job-1-abcdef")));
-  EXPECT_TRUE(fs::exists(*own));
+  EXPECT_FALSE(fs::exists(*own));
+  EXPECT_TRUE(fs::exists(root_ / ("irfarm-worker-" + parent + "-job-2-abcdef")));
   EXPECT_TRUE(fs::exists(root_ / "irfarm-worker-1-job-3-abcdef"));
   EXPECT_TRUE(fs::is_symlink(root_ / ("irfarm-worker-" + d + "-link-abc")));
   EXPECT_TRUE(fs::exists(root_ / "precious" / "keep"));
@@ -97,6 +102,7 @@ TEST_F(TempDirTest, OnlyFoldersOfProcessesThatAreGoneAreRemoved) {
   EXPECT_TRUE(fs::exists(root_ / ("irfarm-worker-" + d)));
   // The coordinator's prefix finds its own.
   EXPECT_EQ(RemoveStaleTempDirs("irfarm-submit-"), 1);
+  EXPECT_FALSE(fs::exists(root_ / ("irfarm-submit-" + d + "-abcdef")));
   EXPECT_EQ(RemoveStaleTempDirs("irfarm-worker-"), 0);
 }
 

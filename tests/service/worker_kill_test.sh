@@ -51,6 +51,7 @@ for _ in $(seq 300); do
   sleep 0.02
 done
 kill -9 "$VICTIM"
+wait "$VICTIM" 2>/dev/null || true  # reaped: a zombie still answers kill(pid, 0)
 check "k2 held a lease when killed" "$HELD == 1"
 echo "killed worker k2 at $(job_field "$ADDR" "$JOB" "j['tilesDone']")/64 tiles"
 # The killed worker's copy of the scene stays behind (nothing ran its clean-up); a worker started
