@@ -134,17 +134,28 @@ std::string JobSizeProblem(int64_t w, int64_t h, const v1::RenderSettings& setti
   if (result_bytes > int64_t(lim.max_tile_result_bytes))
     return "a tile of " + std::to_string(std::min(tile, w)) + "x" +
            std::to_string(std::min(tile, h)) + " px" + (settings.denoise() ? " with denoise" : "") +
-           " is a " + std::to_string(result_bytes) + "-byte result, over the coordinator's " +
+           (PeakFloats(settings) > 0 ? " and the firefly filter's peaks" : "") + " is a " +
+           std::to_string(result_bytes) + "-byte result, over the coordinator's " +
            std::to_string(lim.max_tile_result_bytes) +
-           "-byte message limit: use a smaller tile_size";
+           "-byte message limit: use a smaller tile_size" +
+           (PeakFloats(settings) > 0 ? " (or no_firefly_filter)" : "");
   return "";
 }
 
-std::string StoredJobProblem(const v1::StoredJob& s, const JobLimits& lim) {
-  const v1::Job& j = s.job();
+// (May turn the firefly filter off: a job stored before its peaks were carried, whose tiles fit
+// the message limit only without them, resumes without the filter.)
+std::string StoredJobProblem(v1::StoredJob& s, const JobLimits& lim) {
+  v1::Job& j = *s.mutable_job();
   const int64_t tile = j.settings().tile_size();
   if (tile < 0 || tile > 4096 || (tile > 0 && tile < 4))
     return "tile size " + std::to_string(tile) + " is outside [4, 4096]";
+  if (!j.settings().no_firefly_filter() &&
+      !JobSizeProblem(j.width(), j.height(), j.settings(), lim).empty()) {
+    v1::RenderSettings without = j.settings();
+    without.set_no_firefly_filter(true);
+    if (JobSizeProblem(j.width(), j.height(), without, lim).empty())
+      j.mutable_settings()->set_no_firefly_filter(true);
+  }
   if (std::string why = JobSizeProblem(j.width(), j.height(), j.settings(), lim); !why.empty())
     return why;
   if (s.cache_bounds_size() != 0 && s.cache_bounds_size() != 6)
@@ -1193,8 +1204,9 @@ absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
   absl::StatusOr<FinishedTiles> t = TilesOf(id, caller, true);  // under mu_; the rest without
   if (!t.ok()) return t.status();
   Image image(t->width, t->height);
-  // The brightest samples' shares, for the firefly filter (zero where a tile carries none).
-  std::vector<Vec3> peak(t->firefly_filter ? image.pixels.size() : 0);
+  // The brightest samples' shares, for the firefly filter (zero where a tile carries none;
+  // allocated only when one does).
+  std::vector<Vec3> peak;
   AovImages guides;  // albedo and normal only, for denoised jobs
   const bool denoise = t->denoise;
   if (denoise) {
@@ -1216,6 +1228,7 @@ absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
           const size_t k = size_t(y - r.y0) * r.width() + (x - r.x0), i = 3 * k;
           image.at(x, y) = Vec3(px[i], px[i + 1], px[i + 2]);
           if (has_peaks) {
+            if (peak.empty()) peak.resize(image.pixels.size());
             const size_t q = 3 * n + guide_floats + 3 * k;
             peak[size_t(y) * size_t(t->width) + size_t(x)] = Vec3(px[q], px[q + 1], px[q + 2]);
           }
@@ -1229,7 +1242,7 @@ absl::StatusOr<std::string> JobManager::ResultExr(const std::string& id,
   }
   // The firefly filter over the whole image, as one process applies it to its own (the tiles
   // left their pixels as rendered).
-  if (t->firefly_filter) SpreadFireflies(image, peak);
+  if (!peak.empty()) SpreadFireflies(image, peak);
   std::vector<ExrLayer> layers;
   Image noisy;
   if (denoise) {

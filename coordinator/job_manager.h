@@ -243,8 +243,11 @@ class JobManager {
     std::unique_ptr<TileScheduler> tiles;
     std::unique_ptr<GlobalCache> cache;
     // Finished tiles: float RGB bytes, followed for denoised jobs by the guides (albedo RGB and
-    // normal XYZ per pixel, as in TileResult.guides). Shared and never changed once stored, so
-    // that a result or a preview takes them under mu_ and assembles the image without it.
+    // normal XYZ per pixel, as in TileResult.guides), then for jobs with the firefly filter by
+    // the peaks (RGB per pixel, TileResult.peaks) where the worker sent them. The preview shows
+    // the pixels unfiltered; the result spreads the fireflies. Shared and never changed once
+    // stored, so that a result or a preview takes them under mu_ and assembles the image without
+    // it.
     std::map<int, std::shared_ptr<const std::string>> pixels;
     std::map<uint32_t, v1::WorkerJobStats> worker_stats;
     std::set<uint32_t> workers;  // have the spec (and get the job's records)

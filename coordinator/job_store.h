@@ -28,7 +28,8 @@ class JobStore {
   // Every stored job, in no particular order.
   virtual absl::StatusOr<std::vector<v1::StoredJob>> LoadJobs() = 0;
 
-  // A finished tile's pixels (width*height*3 floats, as bytes). Idempotent per tile. Tiles and
+  // A finished tile's bytes (its float RGB pixels, then the guides and the firefly peaks where the
+  // job has them: JobManager::Job::pixels). Idempotent per tile. Tiles and
   // records of a job the store does not hold (never put, or deleted) are refused NOT_FOUND.
   virtual absl::Status PutTile(const std::string& job_id, int tile, const std::string& pixels) = 0;
   virtual absl::StatusOr<std::map<int, std::string>> LoadTiles(const std::string& job_id) = 0;

@@ -5,9 +5,10 @@
 //   PREFIX job_counter          INCR counter behind NextJobNumber
 //   PREFIX jobs                 SET of job ids
 //   PREFIX job:ID               STRING: serialized irfarm.v1.StoredJob (state, scene, settings)
-//   PREFIX job:ID:tiles         HASH tile index -> the tile's float RGB pixels (bytes)
-//   PREFIX job:ID:records       LIST of serialized irfarm.v1.RecordBatch, one per merged batch
-//   PREFIX deleted:ID           STRING, for a day after the job was deleted: PutJob refuses it
+//   PREFIX job:ID:tiles         HASH tile index -> the tile's bytes (float RGB pixels, guides,
+//   peaks) PREFIX job:ID:records       LIST of serialized irfarm.v1.RecordBatch, one per merged
+//   batch PREFIX deleted:ID           STRING, for a day after the job was deleted: PutJob refuses
+//   it
 // What is atomic: every write is one Lua script (EVAL), which Redis runs whole with nothing in
 // between: PutJob writes the job and adds it to the set together; each PutTile is one HSET and
 // each AppendRecords one RPUSH, so a tile is stored whole or not at all and a batch of records

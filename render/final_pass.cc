@@ -375,10 +375,10 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
   if (settings.keep_peaks) {
     out->peak = Image(rw, rh);
     for (size_t p = 0; p < npix; ++p)
-      out->peak.pixels[p] = FireflyPeak(film.Peak(p), film.count(p));
+      out->peak.pixels[p] = FireflyPeak(film.Peak(p), taken[src_index(p)]);
   } else if (settings.firefly_filter) {
     std::vector<Vec3> peak(npix);
-    for (size_t p = 0; p < npix; ++p) peak[p] = FireflyPeak(film.Peak(p), film.count(p));
+    for (size_t p = 0; p < npix; ++p) peak[p] = FireflyPeak(film.Peak(p), taken[src_index(p)]);
     // The AOVs whose sum is the image (emission is part of direct) move with it.
     std::vector<Image*> layers;
     if (settings.aovs) layers = {&out->aovs.direct, &out->aovs.indirect, &out->aovs.emission};

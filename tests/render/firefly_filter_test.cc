@@ -129,6 +129,24 @@ TEST(FireflyFilterTest, PixelsOfFewSamplesAreNotJudged) {
   EXPECT_EQ(SpreadFireflies(im, peak), 0);
 }
 
+// The floor counts a pixel's own samples, not the splatted samples of its neighbours it also
+// holds: with the default gaussian filter a pixel at 4 spp holds dozens, and one of its own
+// carries about as much as all the others (noisy local maxima passed). filter-edges: lamps seen
+// directly against a dim wall, path at 4 spp.
+TEST(FireflyFilterTest, TheFloorCountsThePixelsOwnSamples) {
+  LoadOptions options;
+  options.defines["filter"] = "gaussian";  // Mitsuba's default
+  const LoadedScene s = BuildLoaded(LoadSceneFile(TestScenePath("filter-edges"), options));
+  ASSERT_EQ(s.desc.camera.filter.type, FilterType::kGaussian);
+  RenderRequest request;
+  request.integrator = "path";
+  request.spp = 4;
+  request.seed = 1;
+  const absl::StatusOr<RenderSettings> settings = SettingsFor(s.desc, request);
+  ASSERT_TRUE(settings.ok()) << settings.status();
+  EXPECT_EQ(Render(*s.scene, *settings).stats.fireflies_spread, 0);
+}
+
 TEST(FireflyFilterTest, NeighbouringFirefliesAreJudgedOnTheImageAsRendered) {
   // Two fireflies two pixels apart: each is brighter than its own neighbours as rendered, and
   // both are spread (the first's share reaching the second does not change the second's test).

@@ -1334,9 +1334,9 @@ TEST_F(AttackTest, ResourceLimits) {
   (*req.mutable_settings()->mutable_defines())["resx"] = "2048";
   (*req.mutable_settings()->mutable_defines())["resy"] = "2048";
   expect(req, grpc::StatusCode::INVALID_ARGUMENT, "262144 tiles");
-  // One tile whose result (4096^2 x 3 floats, 201 MB) no message to the coordinator can carry:
-  // accepted before, each worker's result ended its session (RESOURCE_EXHAUSTED) and after three
-  // the job failed with "disconnected".
+  // One tile whose result (4096^2 x 6 floats with the firefly filter's peaks, 403 MB) no message to
+  // the coordinator can carry: accepted before, each worker's result ended its session
+  // (RESOURCE_EXHAUSTED) and after three the job failed with "disconnected".
   req = Request(4096);
   (*req.mutable_settings()->mutable_defines())["resx"] = "4096";
   (*req.mutable_settings()->mutable_defines())["resy"] = "4096";
@@ -1345,7 +1345,8 @@ TEST_F(AttackTest, ResourceLimits) {
   (*req.mutable_settings()->mutable_defines())["resx"] = "4096";
   (*req.mutable_settings()->mutable_defines())["resy"] = "4096";
   req.mutable_settings()->set_denoise(true);
-  expect(req, grpc::StatusCode::INVALID_ARGUMENT, "1600^2 tiles with guides: 92 MB results");
+  expect(req, grpc::StatusCode::INVALID_ARGUMENT,
+         "1600^2 tiles with guides and peaks: 123 MB results");
   req = Request(64);
   req.mutable_settings()->set_spp(1 << 20);
   (*req.mutable_settings()->mutable_defines())["resx"] = "8192";

@@ -284,6 +284,15 @@ TEST(RedisStartupTest, DamagedKeysAreSkippedAndTheRestResumes) {
   RawRedis(redis, {"HSET", "irfarm:job:" + clean_id + ":tiles", "0",
                    std::string(reinterpret_cast<const char*>(pixels.data()),
                                pixels.size() * sizeof(float))});
+  // A job stored before tiles carried the firefly filter's peaks, whose one 2000^2 tile fits the
+  // 64 MiB result limit without them (48 MB) and not with them (96 MB): resumed with the filter
+  // off (its workers then send no peaks), not dropped.
+  const std::string big_tile_id = "job-84";
+  stored_job(big_tile_id, [](v1::StoredJob* s) {
+    s->mutable_job()->set_width(2000);
+    s->mutable_job()->set_height(2000);
+    s->mutable_job()->mutable_settings()->set_tile_size(2000);
+  });
   const auto t0 = std::chrono::steady_clock::now();
   absl::StatusOr<std::unique_ptr<JobManager>> again =
       JobManager::Create(JobManagerOptions(), store.get());
@@ -294,11 +303,14 @@ TEST(RedisStartupTest, DamagedKeysAreSkippedAndTheRestResumes) {
   std::vector<v1::Job> jobs = (*again)->ListJobs();
   std::sort(jobs.begin(), jobs.end(),
             [](const v1::Job& a, const v1::Job& b) { return a.id() < b.id(); });
-  ASSERT_EQ(jobs.size(), 2u);
+  ASSERT_EQ(jobs.size(), 3u);
   EXPECT_EQ(jobs[0].id(), good);
   EXPECT_EQ(jobs[0].records_merged(), 2u);
+  EXPECT_FALSE(jobs[0].settings().no_firefly_filter());
   EXPECT_EQ(jobs[1].id(), clean_id);
   EXPECT_EQ(jobs[1].tiles_done(), 0);
+  EXPECT_EQ(jobs[2].id(), big_tile_id);
+  EXPECT_TRUE(jobs[2].settings().no_firefly_filter());
 }
 
 // Delete says why it failed: with Redis gone, the cancelled job's final state is still queued for
