@@ -142,20 +142,24 @@ std::string JobSizeProblem(int64_t w, int64_t h, const v1::RenderSettings& setti
   return "";
 }
 
-// (May turn the firefly filter off: a job stored before its peaks were carried, whose tiles fit
-// the message limit only without them, resumes without the filter.)
-std::string StoredJobProblem(v1::StoredJob& s, const JobLimits& lim) {
+// A job stored before tiles carried the firefly filter's peaks, whose tiles fit the message
+// limit only without them, resumes with the filter off (its workers then send none).
+void FitStoredJobWithoutPeaks(v1::StoredJob& s, const JobLimits& lim) {
   v1::Job& j = *s.mutable_job();
+  if (j.settings().no_firefly_filter() ||
+      JobSizeProblem(j.width(), j.height(), j.settings(), lim).empty())
+    return;
+  v1::RenderSettings without = j.settings();
+  without.set_no_firefly_filter(true);
+  if (JobSizeProblem(j.width(), j.height(), without, lim).empty())
+    j.mutable_settings()->set_no_firefly_filter(true);
+}
+
+std::string StoredJobProblem(const v1::StoredJob& s, const JobLimits& lim) {
+  const v1::Job& j = s.job();
   const int64_t tile = j.settings().tile_size();
   if (tile < 0 || tile > 4096 || (tile > 0 && tile < 4))
     return "tile size " + std::to_string(tile) + " is outside [4, 4096]";
-  if (!j.settings().no_firefly_filter() &&
-      !JobSizeProblem(j.width(), j.height(), j.settings(), lim).empty()) {
-    v1::RenderSettings without = j.settings();
-    without.set_no_firefly_filter(true);
-    if (JobSizeProblem(j.width(), j.height(), without, lim).empty())
-      j.mutable_settings()->set_no_firefly_filter(true);
-  }
   if (std::string why = JobSizeProblem(j.width(), j.height(), j.settings(), lim); !why.empty())
     return why;
   if (s.cache_bounds_size() != 0 && s.cache_bounds_size() != 6)
@@ -341,6 +345,7 @@ absl::Status JobManager::Resume() {
   for (size_t i = 0; i < stored->size(); ++i) {
     if (expired[i]) continue;
     v1::StoredJob& s = (*stored)[i];
+    FitStoredJobWithoutPeaks(s, options_.limits);
     if (const std::string why = StoredJobProblem(s, options_.limits); !why.empty()) {
       // Left in the store for an operator to look at; its id is never reused (the counter).
       spdlog::error("job {}: not resumed, its stored job is not sane: {}",
@@ -375,7 +380,7 @@ absl::Status JobManager::Resume() {
       const size_t floats_before_peaks = n * size_t(3 + GuideFloats(j.settings()));
       if ((pixels.size() != floats * sizeof(float) &&
            pixels.size() != floats_before_peaks * sizeof(float)) ||
-          !SaneTile(pixels, size_t(r.width()) * r.height() * 3)) {
+          !SaneTile(pixels, n * 3)) {
         spdlog::error("job {}: stored tile {} is not sane, rendered again", j.id(), tile);
         continue;
       }

@@ -372,17 +372,18 @@ void FinalPass(const Scene& scene, const RenderSettings& settings,
     st.spp_max = std::max(st.spp_max, n);
   }
   st.pixels_stopped_early = early;
-  if (settings.keep_peaks) {
-    out->peak = Image(rw, rh);
-    for (size_t p = 0; p < npix; ++p)
-      out->peak.pixels[p] = FireflyPeak(film.Peak(p), taken[src_index(p)]);
-  } else if (settings.firefly_filter) {
+  if (settings.keep_peaks || settings.firefly_filter) {
     std::vector<Vec3> peak(npix);
     for (size_t p = 0; p < npix; ++p) peak[p] = FireflyPeak(film.Peak(p), taken[src_index(p)]);
-    // The AOVs whose sum is the image (emission is part of direct) move with it.
-    std::vector<Image*> layers;
-    if (settings.aovs) layers = {&out->aovs.direct, &out->aovs.indirect, &out->aovs.emission};
-    st.fireflies_spread = SpreadFireflies(out->image, peak, layers);
+    if (settings.keep_peaks) {  // whoever assembles the image spreads them
+      out->peak = Image(rw, rh);
+      out->peak.pixels = std::move(peak);
+    } else {
+      // The AOVs whose sum is the image (emission is part of direct) move with it.
+      std::vector<Image*> layers;
+      if (settings.aovs) layers = {&out->aovs.direct, &out->aovs.indirect, &out->aovs.emission};
+      st.fireflies_spread = SpreadFireflies(out->image, peak, layers);
+    }
   }
   st.spp_mean = spp_sum / double(std::max<size_t>(1, npix));
   if (settings.sample_map) {
