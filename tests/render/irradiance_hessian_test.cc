@@ -147,6 +147,56 @@ TEST(IrradianceHessianTest, LocalEdgeTermsMatchTheWorldOnes) {
   EXPECT_EQ(none.hess[0], 0);
 }
 
+// The edges in vector lanes (AddEdgesLocal, as the estimator sums them) add up to what they add one
+// at a time, degenerate edges (a vertex at x, both on one line through x, overflowing values) and
+// zero weights among them, in batches longer and shorter than one vector.
+TEST(IrradianceHessianTest, EdgesInLanesSumAsOneAtATime) {
+  Rng rng(5, 17);
+  for (const int n : {1, 7, 64, 65, 300}) {
+    std::vector<LocalVertex> v0, v1;
+    std::vector<double> w;
+    int degenerate = 0;
+    for (int k = 0; k < n; ++k) {
+      double r0[3], r1[3];
+      for (int c = 0; c < 3; ++c) {
+        r0[c] = 4 * rng.Next() - 2;
+        r1[c] = r0[c] + (k % 2 ? 0.01 : 1.0) * (2 * rng.Next() - 1);
+      }
+      if (k % 11 == 3) r0[0] = r0[1] = r0[2] = 0;  // a vertex at x
+      if (k % 13 == 5) {                           // both on one line through x
+        for (int c = 0; c < 3; ++c) r1[c] = 2 * r0[c];
+      }
+      if (k % 17 == 6) {  // a vertex so near x that 1 / |r|^2 overflows: the terms are not finite
+        r0[0] = 1e-155;
+        r0[1] = 2e-155;
+        r0[2] = 1e-155;
+      }
+      v0.push_back(LocalVertex::At(r0[0], r0[1], r0[2]));
+      v1.push_back(LocalVertex::At(r1[0], r1[1], r1[2]));
+      w.push_back(k % 7 == 2 ? 0.0 : 2 * rng.Next() - 1);
+      TangentDerivatives one;
+      degenerate += w.back() != 0 && !ProjectedSolidAngleEdgeLocal(v0.back(), v1.back(), 1, &one);
+    }
+    TangentDerivatives lanes, single;
+    AddEdgesLocal(n, v0.data(), v1.data(), w.data(), &lanes);
+    for (int k = 0; k < n; ++k)
+      if (w[size_t(k)] != 0)
+        ProjectedSolidAngleEdgeLocal(v0[size_t(k)], v1[size_t(k)], w[size_t(k)], &single);
+    if (n >= 64) {
+      EXPECT_GT(degenerate, 0) << n;
+    }
+    // The lanes may fuse a multiply and an add that one edge at a time does in two steps.
+    const double g = std::abs(single.grad[0]) + std::abs(single.grad[1]);
+    const double h = std::abs(single.hess[0]) + std::abs(single.hess[1]) + std::abs(single.hess[2]);
+    ASSERT_TRUE(std::isfinite(g) && std::isfinite(h)) << n;
+    EXPECT_NEAR(lanes.grad[0], single.grad[0], 1e-12 * g) << n;
+    EXPECT_NEAR(lanes.grad[1], single.grad[1], 1e-12 * g) << n;
+    EXPECT_NEAR(lanes.hess[0], single.hess[0], 1e-12 * h) << n;
+    EXPECT_NEAR(lanes.hess[1], single.hess[1], 1e-12 * h) << n;
+    EXPECT_NEAR(lanes.hess[2], single.hess[2], 1e-12 * h) << n;
+  }
+}
+
 // A point under an infinite ceiling z = 1 of radiance `base`, with a lamp rectangle of radiance
 // `lamp` on it: E(x) = pi base + (lamp - base) * Phi_rect(x), exact by Lambert's formula.
 struct CeilingScene {
