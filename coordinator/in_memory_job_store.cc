@@ -10,7 +10,7 @@ absl::StatusOr<uint64_t> InMemoryJobStore::NextJobNumber() {
 
 absl::Status InMemoryJobStore::PutJob(const v1::StoredJob& job) {
   std::lock_guard<std::mutex> lock(mu_);
-  jobs_[job.job().id()] = job;
+  ReplaceKeepingScene(jobs_[job.job().id()], job);  // a state change keeps the scene
   return absl::OkStatus();
 }
 

@@ -155,6 +155,10 @@ void FitStoredJobWithoutPeaks(v1::StoredJob& s, const JobLimits& lim) {
     j.mutable_settings()->set_no_firefly_filter(true);
 }
 
+bool FinalState(v1::JobState s) {
+  return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
+}
+
 std::string StoredJobProblem(const v1::StoredJob& s, const JobLimits& lim) {
   const v1::Job& j = s.job();
   const int64_t tile = j.settings().tile_size();
@@ -169,6 +173,7 @@ std::string StoredJobProblem(const v1::StoredJob& s, const JobLimits& lim) {
         (k < 3 && !(s.cache_bounds(k) <= s.cache_bounds(k + 3))))
       return "cache bounds are not a finite box";
   if (!(s.max_accuracy() >= 0 && s.max_accuracy() <= 1)) return "max_accuracy is outside [0, 1]";
+  if (!s.has_scene() && !FinalState(j.state())) return "its scene is missing";
   if (!(s.record_max_radius() >= 0 && std::isfinite(s.record_max_radius())) ||
       !(s.record_max_irradiance() >= 0 && std::isfinite(s.record_max_irradiance())))
     return "record bounds are not finite and non-negative";
@@ -185,10 +190,6 @@ bool SaneTile(const std::string& bytes, size_t pixel_floats) {
     if (!std::isfinite(v) || (i < pixel_floats && v < 0)) return false;
   }
   return true;
-}
-
-bool FinalState(v1::JobState s) {
-  return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
 }
 
 absl::Status Unavailable(const absl::Status& st) {
@@ -770,7 +771,9 @@ void JobManager::FinishJob(Job& job, v1::JobState state, const std::string& erro
     for (v1::BundleFile& f : *job.stored.mutable_scene()->mutable_bundle()->mutable_files())
       std::string().swap(*f.mutable_content());
   if (state != v1::JOB_STATE_SUCCEEDED) decltype(job.pixels)().swap(job.pixels);
-  writer_->PutJob(job.stored);  // if this never lands the job resumes after a restart
+  // With the emptied bundle, which replaces the upload in the store. If this never lands the job
+  // resumes after a restart.
+  writer_->PutJob(job.stored);
   for (uint32_t w : job.workers) {
     auto it = workers_.find(w);
     if (it == workers_.end()) continue;
@@ -1199,7 +1202,7 @@ absl::StatusOr<v1::Job> JobManager::SetPriority(const std::string& id, int prior
                                       std::to_string(JobLimits::kMaxPriority) + "], got " +
                                       std::to_string(priority));
   job.stored.mutable_job()->set_priority(priority);
-  writer_->PutJob(job.stored);  // off the lock, retried until the store has it
+  writer_->PutJob(StateOnly(job.stored));  // off the lock, retried until the store has it
   Changed();
   return View(job);
 }
@@ -1847,7 +1850,7 @@ void JobManager::SeedCache(Job& job) {
         std::vector<IrradianceRecord>(
             merged.begin() + ptrdiff_t(i),
             merged.begin() + ptrdiff_t(std::min(merged.size(), i + options_.sync_batch_records))));
-  writer_->PutJob(job.stored);
+  writer_->PutJob(StateOnly(job.stored));
 }
 
 void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
@@ -1963,7 +1966,7 @@ void JobManager::TryAssign(uint32_t worker_id, Worker& worker,
   }
   if (job.stored.job().state() == v1::JOB_STATE_QUEUED) {
     job.stored.mutable_job()->set_state(v1::JOB_STATE_RUNNING);
-    writer_->PutJob(job.stored);
+    writer_->PutJob(StateOnly(job.stored));
   }
   v1::CoordinatorMessage m;
   v1::TileLease* l = m.mutable_lease();

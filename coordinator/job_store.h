@@ -23,9 +23,14 @@ class JobStore {
 
   // A new job number, unique for the life of the store (1, 2, ...).
   virtual absl::StatusOr<uint64_t> NextJobNumber() = 0;
-  // Creates or replaces the job stored under job.job().id().
+  // Creates or replaces the job stored under job.job().id(). Its scene is written only when
+  // `job` has one (the submit; a finished job's emptied bundle): a state change passes the job
+  // without its scene (JobManager's StateOnly) and the scene stored before stays, so the upload
+  // (up to --max-upload-mib) is not copied and written again each time a job starts or changes
+  // priority.
   virtual absl::Status PutJob(const v1::StoredJob& job) = 0;
-  // Every stored job, in no particular order.
+  // Every stored job with its scene, in no particular order (a job whose scene is lost comes
+  // without one).
   virtual absl::StatusOr<std::vector<v1::StoredJob>> LoadJobs() = 0;
 
   // A finished tile's bytes (its float RGB pixels, then the guides and the firefly peaks where the
@@ -45,5 +50,30 @@ class JobStore {
   // before the delete may land after it.
   virtual absl::Status DeleteJob(const std::string& job_id) = 0;
 };
+
+// `stored` = `job`, but keeping the scene `stored` has when `job` has none (a state change, as
+// JobStore::PutJob stores it).
+inline void ReplaceKeepingScene(v1::StoredJob& stored, const v1::StoredJob& job) {
+  if (job.has_scene() || !stored.has_scene()) {
+    stored = job;
+    return;
+  }
+  v1::SceneSource scene;
+  scene.Swap(stored.mutable_scene());
+  stored = job;
+  stored.mutable_scene()->Swap(&scene);
+}
+
+// A copy of `stored` without its scene, for a state change's PutJob. The scene is swapped out and
+// back (so the upload is not copied: this runs under JobManager's lock); `stored` is unchanged.
+inline v1::StoredJob StateOnly(v1::StoredJob& stored) {
+  if (!stored.has_scene()) return stored;
+  v1::SceneSource scene;
+  scene.Swap(stored.mutable_scene());
+  v1::StoredJob state = stored;
+  state.clear_scene();
+  stored.mutable_scene()->Swap(&scene);
+  return state;
+}
 
 }  // namespace irfarm

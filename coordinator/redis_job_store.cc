@@ -34,11 +34,19 @@ constexpr char kFenceCheck[] =
 constexpr char kIncr[] = "return redis.call('INCR', KEYS[2])";
 // The job and its set membership appear together; a deleted job's id is refused (its tombstone,
 // KEYS[4]), so a state write that lands late (sent before a delete, on a connection that timed
-// out while Redis hung) cannot bring the job back.
+// out while Redis hung) cannot bring the job back. The scene (KEYS[5]) is written when one is
+// given (ARGV[4]): a state change leaves the upload stored with the submit where it is.
 constexpr char kPutJob[] =
     "if redis.call('EXISTS', KEYS[4]) == 1 then "
     "return redis.error_reply('GONE job ' .. ARGV[3] .. ' was deleted') end "
-    "redis.call('SET', KEYS[2], ARGV[2]) redis.call('SADD', KEYS[3], ARGV[3]) return 1";
+    "redis.call('SET', KEYS[2], ARGV[2]) "
+    "if ARGV[4] then redis.call('SET', KEYS[5], ARGV[4]) end "
+    "redis.call('SADD', KEYS[3], ARGV[3]) return 1";
+// A job stored with its scene inside (before the scene had a key of its own) moved to the two
+// keys, if the job key still holds what was read (ARGV[2]; a write since then has won).
+constexpr char kMoveScene[] =
+    "if redis.call('GET', KEYS[2]) ~= ARGV[2] then return 0 end "
+    "redis.call('SET', KEYS[3], ARGV[4]) redis.call('SET', KEYS[2], ARGV[3]) return 1";
 // Tiles and records are written only for a job in the set (ARGV[4] / ARGV[3]): one that arrives
 // after the job was deleted (a worker's result stored while a client deleted the cancelled job)
 // would otherwise leave keys nothing ever reads or deletes.
@@ -54,7 +62,7 @@ constexpr char kAppend[] =
 // tombstone for a day (job ids are never reused: the counter).
 constexpr char kDeleteJob[] =
     "redis.call('SREM', KEYS[2], ARGV[2]) redis.call('SET', KEYS[6], '1', 'EX', 86400) "
-    "return redis.call('DEL', KEYS[3], KEYS[4], KEYS[5])";
+    "return redis.call('DEL', KEYS[3], KEYS[4], KEYS[5], KEYS[7])";
 
 }  // namespace
 
@@ -204,36 +212,80 @@ absl::StatusOr<uint64_t> RedisJobStore::NextJobNumber() {
 
 absl::Status RedisJobStore::PutJob(const v1::StoredJob& job) {
   const std::string& id = job.job().id();
-  return Write(kPutJob, {prefix_ + "job:" + id, prefix_ + "jobs", prefix_ + "deleted:" + id},
-               {job.SerializeAsString(), id})
+  const std::string key = prefix_ + "job:" + id;
+  std::vector<std::string> keys = {key, prefix_ + "jobs", prefix_ + "deleted:" + id,
+                                   key + ":scene"};
+  if (!job.has_scene()) return Write(kPutJob, keys, {job.SerializeAsString(), id}).status();
+  // The submit (or a finished job's emptied bundle): the state without the scene, and the scene.
+  v1::StoredJob state = job;
+  state.clear_scene();
+  return Write(kPutJob, keys, {state.SerializeAsString(), id, job.scene().SerializeAsString()})
       .status();
 }
 
 absl::StatusOr<std::vector<v1::StoredJob>> RedisJobStore::LoadJobs() {
-  IRFARM_REDIS_LOCK(lock);
-  const std::string jobs = prefix_ + "jobs";
   std::vector<std::string> ids;
-  {
-    IRFARM_REDIS_CALL(r, options_.load_timeout, "SMEMBERS %b", jobs.data(), jobs.size());
-    for (size_t i = 0; i < r->elements; ++i)
-      ids.emplace_back(r->element[i]->str, r->element[i]->len);
-  }
   std::vector<v1::StoredJob> out;
-  for (const std::string& id : ids) {
-    const std::string key = prefix_ + "job:" + id;
-    Reply r(static_cast<redisReply*>(redisCommand(ctx_, "GET %b", key.data(), key.size())));
-    if (!r) {
-      Drop();
-      return absl::UnavailableError("redis: connection lost");
+  std::vector<std::pair<size_t, std::string>> to_move;  // old-format jobs: index, bytes read
+  {
+    IRFARM_REDIS_LOCK(lock);
+    const std::string jobs = prefix_ + "jobs";
+    {
+      IRFARM_REDIS_CALL(r, options_.load_timeout, "SMEMBERS %b", jobs.data(), jobs.size());
+      for (size_t i = 0; i < r->elements; ++i)
+        ids.emplace_back(r->element[i]->str, r->element[i]->len);
     }
-    v1::StoredJob job;
-    if (r->type != REDIS_REPLY_STRING || !job.ParseFromArray(r->str, int(r->len)) ||
-        job.job().id() != id) {
-      // A damaged key is reported and skipped: the other jobs still resume.
-      spdlog::error("redis: {} is missing or unreadable: job {} skipped", key, id);
-      continue;
+    for (const std::string& id : ids) {
+      const std::string key = prefix_ + "job:" + id;
+      Reply r(static_cast<redisReply*>(redisCommand(ctx_, "GET %b", key.data(), key.size())));
+      if (!r) {
+        Drop();
+        return absl::UnavailableError("redis: connection lost");
+      }
+      v1::StoredJob job;
+      if (r->type != REDIS_REPLY_STRING || !job.ParseFromArray(r->str, int(r->len)) ||
+          job.job().id() != id) {
+        // A damaged key is reported and skipped: the other jobs still resume.
+        spdlog::error("redis: {} is missing or unreadable: job {} skipped", key, id);
+        continue;
+      }
+      if (job.has_scene()) {
+        to_move.emplace_back(out.size(), std::string(r->str, r->len));
+        out.push_back(std::move(job));
+        continue;
+      }
+      const std::string scene_key = key + ":scene";
+      Reply sr(static_cast<redisReply*>(
+          redisCommand(ctx_, "GET %b", scene_key.data(), scene_key.size())));
+      if (!sr) {
+        Drop();
+        return absl::UnavailableError("redis: connection lost");
+      }
+      // A missing or damaged scene leaves the job without one (JobManager does not resume an
+      // unfinished job that has none; a finished one needs it no more).
+      if (sr->type != REDIS_REPLY_STRING ||
+          !job.mutable_scene()->ParseFromArray(sr->str, int(sr->len))) {
+        job.clear_scene();
+        if (sr->type != REDIS_REPLY_NIL)
+          spdlog::error("redis: {} is unreadable: job {} has no scene", scene_key, id);
+      }
+      out.push_back(std::move(job));
     }
-    out.push_back(std::move(job));
+  }
+  // Jobs stored with the scene inside: moved to the two keys now, or the next state change
+  // (which writes no scene) would lose it. Without the move the job is not resumed.
+  for (auto& [index, bytes] : to_move) {
+    v1::StoredJob& job = out[index];
+    v1::StoredJob state = job;
+    state.clear_scene();
+    const std::string key = prefix_ + "job:" + job.job().id();
+    absl::StatusOr<long long> moved =
+        Write(kMoveScene, {key, key + ":scene"},
+              {bytes, state.SerializeAsString(), job.scene().SerializeAsString()});
+    if (!moved.ok()) return moved.status();
+    if (*moved != 1)
+      return absl::UnavailableError("redis: job " + job.job().id() +
+                                    " changed while its scene was being moved; load again");
   }
   return out;
 }
@@ -292,7 +344,7 @@ absl::Status RedisJobStore::DeleteJob(const std::string& job_id) {
   const std::string key = prefix_ + "job:" + job_id;
   return Write(kDeleteJob,
                {prefix_ + "jobs", key, key + ":tiles", key + ":records",
-                prefix_ + "deleted:" + job_id},
+                prefix_ + "deleted:" + job_id, key + ":scene"},
                {job_id})
       .status();
 }

@@ -4,16 +4,20 @@
 // Keys (PREFIX defaults to "irfarm:"):
 //   PREFIX job_counter          INCR counter behind NextJobNumber
 //   PREFIX jobs                 SET of job ids
-//   PREFIX job:ID               STRING: serialized irfarm.v1.StoredJob (state, scene, settings)
+//   PREFIX job:ID               STRING: serialized irfarm.v1.StoredJob, its scene left out
+//                               (state, settings); jobs stored before the scene had a key of its
+//                               own have it here, and are moved at LoadJobs
+//   PREFIX job:ID:scene         STRING: serialized irfarm.v1.SceneSource (the upload), written
+//                               only by a PutJob that carries a scene
 //   PREFIX job:ID:tiles         HASH tile index -> the tile's bytes (float RGB pixels, guides,
-//   peaks) PREFIX job:ID:records       LIST of serialized irfarm.v1.RecordBatch, one per merged
-//   batch PREFIX deleted:ID           STRING, for a day after the job was deleted: PutJob refuses
-//   it
+//                               peaks)
+//   PREFIX job:ID:records       LIST of serialized irfarm.v1.RecordBatch, one per merged batch
+//   PREFIX deleted:ID           STRING, for a day after the job was deleted: PutJob refuses it
 // What is atomic: every write is one Lua script (EVAL), which Redis runs whole with nothing in
-// between: PutJob writes the job and adds it to the set together; each PutTile is one HSET and
-// each AppendRecords one RPUSH, so a tile is stored whole or not at all and a batch of records
-// likewise; a tile or batch of a job not in the set, and a PutJob of a deleted job, write nothing
-// and fail NOT_FOUND (a write that lands after the delete cannot recreate its keys). The
+// between: PutJob writes the job (and its scene) and adds it to the set together; each PutTile is
+// one HSET and each AppendRecords one RPUSH, so a tile is stored whole or not at all and a batch of
+// records likewise; a tile or batch of a job not in the set, and a PutJob of a deleted job, write
+// nothing and fail NOT_FOUND (a write that lands after the delete cannot recreate its keys). The
 // coordinator marks a tile done only after its HSET succeeded, and fans records out only after
 // their RPUSH succeeded, so whatever clients and workers were told is in Redis. Writes are not
 // fsync'ed by us: durability across a Redis crash is Redis's own persistence setting (appendonly);

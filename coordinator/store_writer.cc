@@ -24,7 +24,8 @@ void StoreWriter::PutJob(const v1::StoredJob& job) {
   for (auto it = queue_.rbegin(); it != queue_.rend(); ++it) {
     if (it->job_id != id) continue;
     if (it->job) {
-      *it->job = job;
+      // A state change replacing a write that carries the scene keeps that scene.
+      ReplaceKeepingScene(*it->job, job);
       return;
     }
     break;

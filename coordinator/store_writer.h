@@ -5,10 +5,10 @@
 // retried every `retry` until it succeeds (one refused NOT_FOUND is dropped: the job was
 // deleted, JobStore::DeleteJob), so once the store answers again it ends up with the
 // latest state of every job. A PutJob replaces a PutJob of the same job still queued behind
-// nothing else of that job, so a store that is down for long holds one state per job here, not
-// one per change. What is lost if the coordinator dies before a queued write lands is only a job
-// state: the job resumes after a restart and is finished again (its tiles are written
-// synchronously, before they count). Thread-safe.
+// nothing else of that job (keeping that one's scene when it has none: JobStore::PutJob), so a
+// store that is down for long holds one state per job here, not one per change. What is lost if the
+// coordinator dies before a queued write lands is only a job state: the job resumes after a restart
+// and is finished again (its tiles are written synchronously, before they count). Thread-safe.
 #pragma once
 
 #include <chrono>

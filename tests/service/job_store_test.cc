@@ -72,6 +72,37 @@ TEST_P(JobStoreTest, JobsRoundTripAndReplace) {
   EXPECT_EQ(jobs[0].scene().path(), "/x/scene.xml");
 }
 
+// A state change (the job without its scene, StateOnly) keeps the scene stored with the submit;
+// a finished job's emptied bundle replaces it.
+TEST_P(JobStoreTest, AStateChangeKeepsTheStoredScene) {
+  v1::StoredJob job;
+  job.mutable_job()->set_id("job-1");
+  job.mutable_job()->set_state(v1::JOB_STATE_QUEUED);
+  v1::BundleFile* f = job.mutable_scene()->mutable_bundle()->add_files();
+  f->set_path("scene.xml");
+  f->set_content(std::string(1 << 20, 'x'));
+  ASSERT_TRUE(store_->PutJob(job).ok());
+  v1::StoredJob state = StateOnly(job);
+  EXPECT_FALSE(state.has_scene());
+  ASSERT_EQ(job.scene().bundle().files_size(), 1);  // the job keeps its scene
+  EXPECT_EQ(job.scene().bundle().files(0).content().size(), size_t(1) << 20);
+  state.mutable_job()->set_state(v1::JOB_STATE_RUNNING);
+  ASSERT_TRUE(store_->PutJob(state).ok());
+  std::vector<v1::StoredJob> jobs = *store_->LoadJobs();
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].job().state(), v1::JOB_STATE_RUNNING);
+  ASSERT_EQ(jobs[0].scene().bundle().files_size(), 1);
+  EXPECT_EQ(jobs[0].scene().bundle().files(0).content(), std::string(1 << 20, 'x'));
+  job.mutable_job()->set_state(v1::JOB_STATE_SUCCEEDED);
+  job.mutable_scene()->mutable_bundle()->mutable_files(0)->clear_content();
+  ASSERT_TRUE(store_->PutJob(job).ok());
+  jobs = *store_->LoadJobs();
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].job().state(), v1::JOB_STATE_SUCCEEDED);
+  ASSERT_EQ(jobs[0].scene().bundle().files_size(), 1);
+  EXPECT_TRUE(jobs[0].scene().bundle().files(0).content().empty());
+}
+
 TEST_P(JobStoreTest, TilesAndRecordsRoundTrip) {
   v1::StoredJob job;
   job.mutable_job()->set_id("job-1");
@@ -161,6 +192,43 @@ TEST(StoreWriterTest, AWriteForADeletedJobIsDroppedNotRetried) {
   EXPECT_EQ(store.LoadRecords("job-2")->size(), 2u);
 }
 
+// While Redis hangs the writer holds its queue; a state change queued behind the submit-like
+// write of the same job replaces it (one state per job) but keeps that write's scene, which lands
+// once Redis answers.
+TEST(StoreWriterTest, AStateChangeReplacingAQueuedWriteKeepsItsScene) {
+  RedisServer redis;
+  RedisOptions options;
+  options.timeout = std::chrono::milliseconds(200);
+  absl::StatusOr<std::unique_ptr<RedisJobStore>> store;
+  for (int i = 0; i < 100 && !(store.ok() && *store); ++i) {
+    store = RedisJobStore::Connect(redis.address(), options);
+    if (!store.ok()) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  ASSERT_TRUE(store.ok()) << store.status();
+  StoreWriter writer(store->get(), std::chrono::milliseconds(20));
+  ASSERT_TRUE(redis.Hang());
+  v1::StoredJob other;
+  other.mutable_job()->set_id("job-1");
+  writer.PutJob(other);  // taken by the writer, stuck until Redis answers
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  v1::StoredJob job;
+  job.mutable_job()->set_id("job-2");
+  job.mutable_job()->set_state(v1::JOB_STATE_QUEUED);
+  job.mutable_scene()->set_path("/scenes/a/scene.xml");
+  writer.PutJob(job);
+  v1::StoredJob running = StateOnly(job);
+  running.mutable_job()->set_state(v1::JOB_STATE_RUNNING);
+  writer.PutJob(running);
+  EXPECT_EQ(writer.pending(), 2u);  // job-1's write, and one of job-2
+  redis.Resume();
+  ASSERT_TRUE(writer.Flush(std::chrono::seconds(10)));
+  std::vector<v1::StoredJob> jobs = *(*store)->LoadJobs();
+  ASSERT_EQ(jobs.size(), 2u);
+  const v1::StoredJob& j2 = jobs[0].job().id() == "job-2" ? jobs[0] : jobs[1];
+  EXPECT_EQ(j2.job().state(), v1::JOB_STATE_RUNNING);
+  EXPECT_EQ(j2.scene().path(), "/scenes/a/scene.xml");
+}
+
 TEST(RedisJobStoreTest, RedisDownIsUnavailable) {
   absl::StatusOr<std::unique_ptr<RedisJobStore>> s =
       RedisJobStore::Connect("127.0.0.1:" + std::to_string(FreePort()));
@@ -211,20 +279,133 @@ TEST(RedisRecordsTest, RecordsAreMergedOnlyOnceStored) {
 namespace irfarm {
 namespace {
 
-// Runs one raw command on a fresh connection to `address` (the damage a test does by hand).
-void RawRedis(const RedisServer& redis, const std::vector<std::string>& argv) {
+// Runs one raw command on a fresh connection to `address` (the damage a test does by hand, or a
+// look at what is stored); returns the reply's string or integer as text ("" for nil).
+std::string RawRedis(const RedisServer& redis, const std::vector<std::string>& argv) {
   redisContext* c = redisConnect("127.0.0.1", std::stoi(redis.address().substr(10)));
-  ASSERT_TRUE(c != nullptr && c->err == 0);
+  EXPECT_TRUE(c != nullptr && c->err == 0);
+  if (c == nullptr || c->err != 0) return "";
   std::vector<const char*> args;
   std::vector<size_t> lens;
   for (const std::string& a : argv) {
     args.push_back(a.data());
     lens.push_back(a.size());
   }
-  void* r = redisCommandArgv(c, int(args.size()), args.data(), lens.data());
-  ASSERT_NE(r, nullptr);
-  freeReplyObject(r);
+  redisReply* r =
+      static_cast<redisReply*>(redisCommandArgv(c, int(args.size()), args.data(), lens.data()));
+  EXPECT_NE(r, nullptr);
+  std::string out;
+  if (r != nullptr && (r->type == REDIS_REPLY_STRING || r->type == REDIS_REPLY_STATUS))
+    out.assign(r->str, r->len);
+  if (r != nullptr && r->type == REDIS_REPLY_INTEGER) out = std::to_string(r->integer);
+  if (r != nullptr) freeReplyObject(r);
   redisFree(c);
+  return out;
+}
+
+// Stores `job` as a coordinator before the scene had a key of its own did (the scene, if any,
+// inside the job's key), listed in the job set.
+void StoreRawJob(const RedisServer& redis, const v1::StoredJob& job) {
+  RawRedis(redis, {"SET", "irfarm:job:" + job.job().id(), job.SerializeAsString()});
+  RawRedis(redis, {"SADD", "irfarm:jobs", job.job().id()});
+}
+
+// Bytes Redis has read from its clients so far (INFO stats: total_net_input_bytes).
+long long RedisInputBytes(const RedisServer& redis) {
+  const std::string info = RawRedis(redis, {"INFO", "stats"});
+  const std::string key = "total_net_input_bytes:";
+  const size_t at = info.find(key);
+  EXPECT_NE(at, std::string::npos);
+  return at == std::string::npos ? -1 : std::stoll(info.substr(at + key.size()));
+}
+
+// A job whose upload is large (a 4 MiB file beside cornell-box): starting it and changing its
+// priority write its state, not the upload again (before, each state change sent Redis the whole
+// bundle and copied it under the coordinator's lock); a coordinator started later on the same
+// Redis resumes it with the upload as submitted.
+TEST(RedisSceneTest, StateChangesDoNotWriteTheUploadAgain) {
+  RedisServer redis;
+  std::unique_ptr<RedisJobStore> store = redis.Connect();
+  ASSERT_TRUE(store) << "redis-server did not start";
+  v1::SubmitJobRequest req = CornellRequest();
+  std::string big(size_t(4) << 20, '\0');
+  for (size_t i = 0; i < big.size(); ++i) big[i] = char((i * 2654435761u) >> 24);
+  v1::BundleFile* extra = req.mutable_scene()->mutable_bundle()->add_files();
+  extra->set_path("textures/big.bin");
+  extra->set_content(big);
+  std::string id;
+  {
+    std::unique_ptr<JobManager> manager =
+        std::move(*JobManager::Create(JobManagerOptions(), store.get()));
+    absl::StatusOr<v1::Job> job = manager->Submit(req);
+    ASSERT_TRUE(job.ok()) << job.status();
+    id = job->id();
+    const long long before = RedisInputBytes(redis);
+    const uint32_t worker = manager->RegisterWorker("w");
+    bool leased = false;
+    for (const v1::CoordinatorMessage& m : manager->Poll(worker, std::chrono::seconds(1)))
+      leased = leased || m.has_lease();
+    ASSERT_TRUE(leased);
+    ASSERT_TRUE(manager->SetPriority(id, 7).ok());
+    ASSERT_TRUE(manager->FlushStore(std::chrono::seconds(5)));
+    EXPECT_EQ(manager->GetJob(id)->state(), v1::JOB_STATE_RUNNING);
+    const long long sent = RedisInputBytes(redis) - before;
+    std::printf("MEASURED start + priority change sent Redis %lld bytes (upload %zu)\n", sent,
+                big.size());
+    EXPECT_GT(sent, 0);
+    EXPECT_LT(sent, 256 << 10);  // two state writes, not two 4 MiB uploads
+    EXPECT_LT(std::stoll(RawRedis(redis, {"STRLEN", "irfarm:job:" + id})), 64 << 10);
+    EXPECT_GT(std::stoll(RawRedis(redis, {"STRLEN", "irfarm:job:" + id + ":scene"})),
+              (4 << 20) - 1);
+  }
+  absl::StatusOr<std::unique_ptr<JobManager>> again =
+      JobManager::Create(JobManagerOptions(), store.get());
+  ASSERT_TRUE(again.ok()) << again.status();
+  absl::StatusOr<v1::Job> job = (*again)->GetJob(id);
+  ASSERT_TRUE(job.ok()) << job.status();
+  EXPECT_EQ(job->state(), v1::JOB_STATE_QUEUED);  // resumed: queued until a worker takes a tile
+  EXPECT_EQ(job->priority(), 7);
+  std::vector<v1::StoredJob> stored = *store->LoadJobs();
+  ASSERT_EQ(stored.size(), 1u);
+  const v1::SceneBundle& bundle = stored[0].scene().bundle();
+  ASSERT_EQ(bundle.files_size(), req.scene().bundle().files_size());
+  for (int k = 0; k < bundle.files_size(); ++k) {
+    EXPECT_EQ(bundle.files(k).path(), req.scene().bundle().files(k).path());
+    EXPECT_EQ(bundle.files(k).content(), req.scene().bundle().files(k).content());
+  }
+}
+
+// A job stored before the scene had a key of its own (the scene inside the job's key) loads with
+// its scene, is moved to the two keys, and keeps its scene through a later state change.
+TEST(RedisSceneTest, AJobStoredWithItsSceneInsideIsMoved) {
+  RedisServer redis;
+  std::unique_ptr<RedisJobStore> store = redis.Connect();
+  ASSERT_TRUE(store) << "redis-server did not start";
+  v1::StoredJob old;
+  old.mutable_job()->set_id("job-5");
+  old.mutable_job()->set_state(v1::JOB_STATE_QUEUED);
+  old.mutable_scene()->set_path("/scenes/room/scene.xml");
+  StoreRawJob(redis, old);
+  std::vector<v1::StoredJob> jobs = *store->LoadJobs();
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].scene().path(), "/scenes/room/scene.xml");
+  v1::StoredJob in_key;
+  ASSERT_TRUE(in_key.ParseFromString(RawRedis(redis, {"GET", "irfarm:job:job-5"})));
+  EXPECT_FALSE(in_key.has_scene());
+  EXPECT_EQ(in_key.job().id(), "job-5");
+  v1::SceneSource scene;
+  ASSERT_TRUE(scene.ParseFromString(RawRedis(redis, {"GET", "irfarm:job:job-5:scene"})));
+  EXPECT_EQ(scene.path(), "/scenes/room/scene.xml");
+  v1::StoredJob running = StateOnly(jobs[0]);
+  running.mutable_job()->set_state(v1::JOB_STATE_RUNNING);
+  ASSERT_TRUE(store->PutJob(running).ok());
+  jobs = *store->LoadJobs();
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].job().state(), v1::JOB_STATE_RUNNING);
+  EXPECT_EQ(jobs[0].scene().path(), "/scenes/room/scene.xml");
+  // Deleting the job removes the scene's key too.
+  ASSERT_TRUE(store->DeleteJob("job-5").ok());
+  EXPECT_EQ(RawRedis(redis, {"EXISTS", "irfarm:job:job-5:scene"}), "0");
 }
 
 // A store-consistency check at start-up (issue 10, part 4): damaged keys (a job that does not
@@ -263,9 +444,9 @@ TEST(RedisStartupTest, DamagedKeysAreSkippedAndTheRestResumes) {
     s.mutable_job()->set_state(v1::JOB_STATE_QUEUED);
     s.mutable_job()->set_width(32);
     s.mutable_job()->set_height(32);
+    s.mutable_scene()->set_path(std::string(IRFARM_TEST_DATA) + "/scenes/cornell-box/scene.xml");
     f(&s);
-    RawRedis(redis, {"SET", "irfarm:job:" + id, s.SerializeAsString()});
-    RawRedis(redis, {"SADD", "irfarm:jobs", id});
+    StoreRawJob(redis, s);
   };
   stored_job("job-80", [](v1::StoredJob* s) {
     s->mutable_job()->set_width(1 << 20);
@@ -293,6 +474,8 @@ TEST(RedisStartupTest, DamagedKeysAreSkippedAndTheRestResumes) {
     s->mutable_job()->set_height(2000);
     s->mutable_job()->mutable_settings()->set_tile_size(2000);
   });
+  // An unfinished job whose scene is lost (its key gone): not resumed (nothing to render).
+  stored_job("job-85", [](v1::StoredJob* s) { s->clear_scene(); });
   const auto t0 = std::chrono::steady_clock::now();
   absl::StatusOr<std::unique_ptr<JobManager>> again =
       JobManager::Create(JobManagerOptions(), store.get());
@@ -374,8 +557,7 @@ TEST(RedisStartupTest, ASucceededJobMissingTilesFailsWithTheCount) {
   s.mutable_job()->set_width(32);
   s.mutable_job()->set_height(32);
   s.mutable_job()->mutable_settings()->set_tile_size(16);  // 4 tiles
-  RawRedis(redis, {"SET", "irfarm:job:job-5", s.SerializeAsString()});
-  RawRedis(redis, {"SADD", "irfarm:jobs", "job-5"});
+  StoreRawJob(redis, s);
   const std::vector<float> pixels(16 * 16 * 3, 0.5f);
   for (const char* tile : {"0", "1", "2"})  // of 4: tile 3 is lost
     RawRedis(redis, {"HSET", "irfarm:job:job-5:tiles", tile,
