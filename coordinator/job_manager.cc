@@ -243,7 +243,17 @@ JobManager::JobManager(const JobManagerOptions& options, JobStore* store, Metric
   collector_ = registry_->AddCollector([this](MetricsWriter& w) { CollectMetrics(w); });
 }
 
-JobManager::~JobManager() { registry_->RemoveCollector(collector_); }
+JobManager::~JobManager() {
+  writer_.reset();  // first: its last writes may ask for a job's scene (SceneOf)
+  registry_->RemoveCollector(collector_);
+}
+
+std::optional<v1::SceneSource> JobManager::SceneOf(const std::string& id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = jobs_.find(id);
+  if (it == jobs_.end() || !it->second->stored.has_scene()) return std::nullopt;
+  return it->second->stored.scene();  // a copy under the lock: only after the store lost it
+}
 
 void JobManager::CollectMetrics(MetricsWriter& w) const {
   std::lock_guard<std::mutex> lock(mu_);
@@ -303,7 +313,10 @@ absl::StatusOr<std::unique_ptr<JobManager>> JobManager::Create(const JobManagerO
                                                                JobStore* store,
                                                                MetricsRegistry* registry) {
   std::unique_ptr<JobManager> m(new JobManager(options, store, registry));
-  m->writer_ = std::make_unique<StoreWriter>(store);
+  JobManager* raw = m.get();
+  m->writer_ =
+      std::make_unique<StoreWriter>(store, std::chrono::milliseconds(500),
+                                    [raw](const std::string& id) { return raw->SceneOf(id); });
   absl::Status st = m->Resume();
   if (!st.ok()) return st;
   return m;

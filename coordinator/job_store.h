@@ -12,6 +12,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/cord.h"
 #include "cache/irradiance_record.h"
 #include "irfarm/v1/store.pb.h"
 
@@ -27,7 +28,8 @@ class JobStore {
   // `job` has one (the submit; a finished job's emptied bundle): a state change passes the job
   // without its scene (JobManager's StateOnly) and the scene stored before stays, so the upload
   // (up to --max-upload-mib) is not copied and written again each time a job starts or changes
-  // priority.
+  // priority. A state change for a job whose scene the store does not hold writes nothing and
+  // fails IsSceneMissing.
   virtual absl::Status PutJob(const v1::StoredJob& job) = 0;
   // Every stored job with its scene, in no particular order (a job whose scene is lost comes
   // without one).
@@ -50,6 +52,20 @@ class JobStore {
   // before the delete may land after it.
   virtual absl::Status DeleteJob(const std::string& job_id) = 0;
 };
+
+// What a state-only PutJob (a job without its scene) returns when the store holds no scene for the
+// job: it lost it (Redis flushed, or the scene's key evicted) or never had it. FAILED_PRECONDITION
+// marked with a payload; the caller writes the job again with its scene (StoreWriter does, with
+// the scene JobManager still holds).
+inline constexpr char kSceneMissingPayload[] = "irfarm.dev/job-store/scene-missing";
+inline absl::Status SceneMissingError(const std::string& message) {
+  absl::Status st = absl::FailedPreconditionError(message);
+  st.SetPayload(kSceneMissingPayload, absl::Cord("1"));
+  return st;
+}
+inline bool IsSceneMissing(const absl::Status& st) {
+  return st.GetPayload(kSceneMissingPayload).has_value();
+}
 
 // `stored` = `job`, but keeping the scene `stored` has when `job` has none (a state change, as
 // JobStore::PutJob stores it).

@@ -36,9 +36,14 @@ constexpr char kIncr[] = "return redis.call('INCR', KEYS[2])";
 // KEYS[4]), so a state write that lands late (sent before a delete, on a connection that timed
 // out while Redis hung) cannot bring the job back. The scene (KEYS[5]) is written when one is
 // given (ARGV[4]): a state change leaves the upload stored with the submit where it is.
+// A state change for a job not in the set or without its scene's key (Redis flushed or the key
+// evicted) writes nothing: the job would come back without a scene (JobStore::PutJob).
 constexpr char kPutJob[] =
     "if redis.call('EXISTS', KEYS[4]) == 1 then "
     "return redis.error_reply('GONE job ' .. ARGV[3] .. ' was deleted') end "
+    "if not ARGV[4] and (redis.call('SISMEMBER', KEYS[3], ARGV[3]) == 0 or "
+    "redis.call('EXISTS', KEYS[5]) == 0) then "
+    "return redis.error_reply('NOSCENE job ' .. ARGV[3] .. ' has no stored scene') end "
     "redis.call('SET', KEYS[2], ARGV[2]) "
     "if ARGV[4] then redis.call('SET', KEYS[5], ARGV[4]) end "
     "redis.call('SADD', KEYS[3], ARGV[3]) return 1";
@@ -164,7 +169,8 @@ absl::Status RedisJobStore::EnsureConnected() {
 
 absl::StatusOr<long long> RedisJobStore::Write(const char* body,
                                                const std::vector<std::string>& keys,
-                                               const std::vector<std::string>& args) {
+                                               const std::vector<std::string>& args,
+                                               std::chrono::milliseconds timeout) {
   const std::string script = std::string(kFenceCheck) + body;
   const std::string num_keys = std::to_string(keys.size() + 1);
   std::vector<const char*> argv = {"EVAL", script.data(), num_keys.data(),
@@ -183,7 +189,7 @@ absl::StatusOr<long long> RedisJobStore::Write(const char* body,
   IRFARM_REDIS_LOCK(lock);
   absl::Status conn = EnsureConnected();
   if (!conn.ok()) return conn;
-  SetCommandTimeout(options_.timeout);
+  SetCommandTimeout(timeout.count() > 0 ? timeout : options_.timeout);
   Reply r(static_cast<redisReply*>(
       redisCommandArgv(ctx_, int(argv.size()), argv.data(), lengths.data())));
   if (!r) {
@@ -197,6 +203,7 @@ absl::StatusOr<long long> RedisJobStore::Write(const char* body,
     // a key of the wrong type is damage, not an outage
     if (why.find("WRONGTYPE") != std::string::npos) return absl::DataLossError("redis: " + why);
     if (why.rfind("GONE", 0) == 0) return absl::NotFoundError("redis: " + why.substr(5));
+    if (why.rfind("NOSCENE", 0) == 0) return SceneMissingError("redis: " + why.substr(8));
     return absl::UnavailableError("redis: " + why);
   }
   if (r->type != REDIS_REPLY_INTEGER)
@@ -279,9 +286,10 @@ absl::StatusOr<std::vector<v1::StoredJob>> RedisJobStore::LoadJobs() {
     v1::StoredJob state = job;
     state.clear_scene();
     const std::string key = prefix_ + "job:" + job.job().id();
-    absl::StatusOr<long long> moved =
-        Write(kMoveScene, {key, key + ":scene"},
-              {bytes, state.SerializeAsString(), job.scene().SerializeAsString()});
+    // With the start-up deadline: the upload goes to Redis twice (to compare, and to store).
+    absl::StatusOr<long long> moved = Write(
+        kMoveScene, {key, key + ":scene"},
+        {bytes, state.SerializeAsString(), job.scene().SerializeAsString()}, options_.load_timeout);
     if (!moved.ok()) return moved.status();
     if (*moved != 1)
       return absl::UnavailableError("redis: job " + job.job().id() +

@@ -97,9 +97,10 @@ class RedisJobStore : public JobStore {
   // Takes mu_ and runs a write script: `body` (Lua) sees the job keys from KEYS[2] and its
   // arguments from ARGV[2] on, after the fence check on KEYS[1] / ARGV[1]. Returns the script's
   // integer result. UNAVAILABLE when Redis fails, FAILED_PRECONDITION when fenced, DATA_LOSS for
-  // a key of the wrong type.
+  // a key of the wrong type. `timeout` 0: options_.timeout.
   absl::StatusOr<long long> Write(const char* body, const std::vector<std::string>& keys,
-                                  const std::vector<std::string>& args);
+                                  const std::vector<std::string>& args,
+                                  std::chrono::milliseconds timeout = {});
 
   const std::string host_;
   const int port_;

@@ -5,8 +5,8 @@
 
 namespace irfarm {
 
-StoreWriter::StoreWriter(JobStore* store, std::chrono::milliseconds retry)
-    : store_(store), retry_(retry), thread_([this] { Run(); }) {}
+StoreWriter::StoreWriter(JobStore* store, std::chrono::milliseconds retry, SceneOf scene_of)
+    : store_(store), retry_(retry), scene_of_(std::move(scene_of)), thread_([this] { Run(); }) {}
 
 StoreWriter::~StoreWriter() {
   {
@@ -64,7 +64,19 @@ uint64_t StoreWriter::failures() const {
 
 absl::Status StoreWriter::Write(const Op& op) {
   if (op.remove) return store_->DeleteJob(op.job_id);
-  if (op.job) return store_->PutJob(*op.job);
+  if (op.job) {
+    const absl::Status st = store_->PutJob(*op.job);
+    if (!IsSceneMissing(st) || op.job->has_scene() || !scene_of_) return st;
+    // The store lost the job's scene (Redis flushed, or the key evicted): the state goes with the
+    // scene the coordinator holds, or the job would come back without one after a restart.
+    std::optional<v1::SceneSource> scene = scene_of_(op.job_id);
+    if (!scene) return absl::NotFoundError("job " + op.job_id + " is gone: " + st.ToString());
+    spdlog::warn("job {}: the store had lost its scene (flushed or evicted); written again",
+                 op.job_id);
+    v1::StoredJob full = *op.job;
+    *full.mutable_scene() = std::move(*scene);
+    return store_->PutJob(full);
+  }
   return store_->AppendRecords(op.job_id, op.records);
 }
 
@@ -98,11 +110,18 @@ void StoreWriter::Run() {
     if (failures_ == 1 || failures_ % 20 == 0)
       spdlog::warn("job store write for {} failed ({} failures so far), retrying: {}", op.job_id,
                    failures_, st.ToString());
-    // Back in front, unless a newer state of the same job was queued meanwhile (it replaces it).
-    bool newer = false;
+    // Back in front, unless a newer state of the same job was queued meanwhile (it replaces it,
+    // and takes this one's scene if it has none).
+    Op* newer = nullptr;
     if (op.job)
-      for (const Op& o : queue_) newer = newer || (o.job_id == op.job_id && o.job);
-    if (!newer) queue_.push_front(std::move(op));
+      for (Op& o : queue_)
+        if (newer == nullptr && o.job_id == op.job_id && o.job) newer = &o;
+    if (newer == nullptr) {
+      queue_.push_front(std::move(op));
+    } else {
+      ReplaceKeepingScene(*op.job, *newer->job);
+      newer->job = std::move(op.job);
+    }
     cv_.wait_for(lock, retry_, [&] { return stop_; });
   }
 }

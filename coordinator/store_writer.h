@@ -15,6 +15,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -27,8 +28,13 @@ namespace irfarm {
 
 class StoreWriter {
  public:
+  // The scene of a job the coordinator holds (nullopt: none, or the job is gone), for a state
+  // change the store refuses because it lost the job's scene (IsSceneMissing): the writer then
+  // writes the state with this scene. Called on the writer's thread, without the writer's lock.
+  using SceneOf = std::function<std::optional<v1::SceneSource>(const std::string& job_id)>;
   explicit StoreWriter(JobStore* store,
-                       std::chrono::milliseconds retry = std::chrono::milliseconds(500));
+                       std::chrono::milliseconds retry = std::chrono::milliseconds(500),
+                       SceneOf scene_of = nullptr);
   // Writes what is queued until the first failure, then stops.
   ~StoreWriter();
   StoreWriter(const StoreWriter&) = delete;
@@ -59,6 +65,7 @@ class StoreWriter {
 
   JobStore* const store_;
   const std::chrono::milliseconds retry_;
+  const SceneOf scene_of_;
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::deque<Op> queue_;

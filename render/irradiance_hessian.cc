@@ -122,8 +122,9 @@ __attribute__((always_inline)) inline bool EdgeTermsLocal(double x0, double y0, 
   const double h01 =
       nxe0 * G1 + nxe1 * G0 + s_rr * x0 * y0 + s_ee * ex * ey + s_re * (x0 * ey + y0 * ex);
   // Finite: |h| <= the largest double (false for infinities and NaN).
-  const bool keep = ok & (std::abs(h00) <= kMaxFinite) & (std::abs(h11) <= kMaxFinite) &
-                    (std::abs(h01) <= kMaxFinite);
+  const bool f00 = std::abs(h00) <= kMaxFinite, f11 = std::abs(h11) <= kMaxFinite,
+             f01 = std::abs(h01) <= kMaxFinite;
+  const bool keep = ok & f00 & f11 & f01;
   *gx = keep ? weight * g0 : 0.0;
   *gy = keep ? weight * g1 : 0.0;
   *hxx = keep ? weight * h00 : 0.0;
@@ -144,9 +145,15 @@ struct EdgeBatch {
   alignas(64) double out[5][kSize];  // weighted gx, gy, hxx, hyy, hxy
 };
 
-// The batch's terms, in vector lanes where the machine has them (AVX-512, AVX2, else SSE2: one
-// clone each, picked when the program loads).
-__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default"))) void BatchEdgeTerms(
+// The batch's terms, in vector lanes where the machine has them: with GCC, one clone of the loop
+// for AVX-512, one for AVX2 and one for the baseline (SSE2, scalar), picked when the program loads.
+// Not under ThreadSanitizer (GCC instruments the clones' resolver, which the dynamic loader runs
+// before TSan is set up: the program crashed at load) nor with other compilers (clang 14 resolves
+// the x86-64-v3/v4 clones wrongly).
+#if defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
+__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#endif
+void BatchEdgeTerms(
     EdgeBatch& b) {
   for (int k = 0; k < b.n; ++k)
     EdgeTermsLocal(b.x0[k], b.y0[k], b.z0[k], b.q0[k], b.iq0[k], b.x1[k], b.y1[k], b.z1[k], b.q1[k],

@@ -206,6 +206,7 @@ TEST(CoordinatorLeaseTest, FencedStoreWritesOnlyWhileItsOwnerHoldsTheLease) {
   r.radius = 0.25f;
   v1::StoredJob job;
   job.mutable_job()->set_id("job-1");
+  job.mutable_scene()->set_path("/scenes/a/scene.xml");
 
   // No lease yet: refused.
   EXPECT_TRUE(absl::IsFailedPrecondition(store->PutTile("job-1", 0, "abc")));

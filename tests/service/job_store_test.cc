@@ -106,6 +106,7 @@ TEST_P(JobStoreTest, AStateChangeKeepsTheStoredScene) {
 TEST_P(JobStoreTest, TilesAndRecordsRoundTrip) {
   v1::StoredJob job;
   job.mutable_job()->set_id("job-1");
+  job.mutable_scene()->set_path("/scenes/a/scene.xml");
   ASSERT_TRUE(store_->PutJob(job).ok());
   ASSERT_TRUE(store_->PutTile("job-1", 3, std::string("\0\1\2", 3)).ok());
   ASSERT_TRUE(store_->PutTile("job-1", 5, "abc").ok());
@@ -143,6 +144,7 @@ TEST_P(JobStoreTest, WritesForAJobNotStoredAreRefused) {
   EXPECT_TRUE(absl::IsNotFound(store_->AppendRecords("job-9", {r})));
   v1::StoredJob job;
   job.mutable_job()->set_id("job-9");
+  job.mutable_scene()->set_path("/scenes/a/scene.xml");
   ASSERT_TRUE(store_->PutJob(job).ok());
   ASSERT_TRUE(store_->PutTile("job-9", 0, "abc").ok());
   ASSERT_TRUE(store_->AppendRecords("job-9", {r}).ok());
@@ -185,6 +187,7 @@ TEST(StoreWriterTest, AWriteForADeletedJobIsDroppedNotRetried) {
   r.radius = 0.25f;
   v1::StoredJob job;
   job.mutable_job()->set_id("job-2");
+  job.mutable_scene()->set_path("/scenes/a/scene.xml");
   writer.AppendRecords("job-1", {r});  // never stored
   writer.PutJob(job);
   writer.AppendRecords("job-2", {r, r});
@@ -209,6 +212,7 @@ TEST(StoreWriterTest, AStateChangeReplacingAQueuedWriteKeepsItsScene) {
   ASSERT_TRUE(redis.Hang());
   v1::StoredJob other;
   other.mutable_job()->set_id("job-1");
+  other.mutable_scene()->set_path("/scenes/a/scene.xml");
   writer.PutJob(other);  // taken by the writer, stuck until Redis answers
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
   v1::StoredJob job;
@@ -319,14 +323,41 @@ long long RedisInputBytes(const RedisServer& redis) {
   return at == std::string::npos ? -1 : std::stoll(info.substr(at + key.size()));
 }
 
+// A real redis-server and a store on it, for the tests of where a job's scene is kept.
+class RedisSceneTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    store_ = redis_.Connect();
+    ASSERT_TRUE(store_) << "redis-server did not start";
+  }
+  // A stored job with a scene given by path.
+  static v1::StoredJob Job(const std::string& id, v1::JobState state, const std::string& path) {
+    v1::StoredJob job;
+    job.mutable_job()->set_id(id);
+    job.mutable_job()->set_state(state);
+    job.mutable_scene()->set_path(path);
+    return job;
+  }
+  // A coordinator on the store, and a worker of it taking a tile (the job starts).
+  std::unique_ptr<JobManager> Manager() {
+    return std::move(*JobManager::Create(JobManagerOptions(), store_.get()));
+  }
+  static bool LeaseOne(JobManager& manager) {
+    const uint32_t worker = manager.RegisterWorker("w");
+    bool leased = false;
+    for (const v1::CoordinatorMessage& m : manager.Poll(worker, std::chrono::seconds(1)))
+      leased = leased || m.has_lease();
+    return leased;
+  }
+  RedisServer redis_;
+  std::unique_ptr<RedisJobStore> store_;
+};
+
 // A job whose upload is large (a 4 MiB file beside cornell-box): starting it and changing its
 // priority write its state, not the upload again (before, each state change sent Redis the whole
 // bundle and copied it under the coordinator's lock); a coordinator started later on the same
 // Redis resumes it with the upload as submitted.
-TEST(RedisSceneTest, StateChangesDoNotWriteTheUploadAgain) {
-  RedisServer redis;
-  std::unique_ptr<RedisJobStore> store = redis.Connect();
-  ASSERT_TRUE(store) << "redis-server did not start";
+TEST_F(RedisSceneTest, StateChangesDoNotWriteTheUploadAgain) {
   v1::SubmitJobRequest req = CornellRequest();
   std::string big(size_t(4) << 20, '\0');
   for (size_t i = 0; i < big.size(); ++i) big[i] = char((i * 2654435761u) >> 24);
@@ -335,37 +366,32 @@ TEST(RedisSceneTest, StateChangesDoNotWriteTheUploadAgain) {
   extra->set_content(big);
   std::string id;
   {
-    std::unique_ptr<JobManager> manager =
-        std::move(*JobManager::Create(JobManagerOptions(), store.get()));
+    std::unique_ptr<JobManager> manager = Manager();
     absl::StatusOr<v1::Job> job = manager->Submit(req);
     ASSERT_TRUE(job.ok()) << job.status();
     id = job->id();
-    const long long before = RedisInputBytes(redis);
-    const uint32_t worker = manager->RegisterWorker("w");
-    bool leased = false;
-    for (const v1::CoordinatorMessage& m : manager->Poll(worker, std::chrono::seconds(1)))
-      leased = leased || m.has_lease();
-    ASSERT_TRUE(leased);
+    const long long before = RedisInputBytes(redis_);
+    ASSERT_TRUE(LeaseOne(*manager));
     ASSERT_TRUE(manager->SetPriority(id, 7).ok());
     ASSERT_TRUE(manager->FlushStore(std::chrono::seconds(5)));
     EXPECT_EQ(manager->GetJob(id)->state(), v1::JOB_STATE_RUNNING);
-    const long long sent = RedisInputBytes(redis) - before;
+    const long long sent = RedisInputBytes(redis_) - before;
     std::printf("MEASURED start + priority change sent Redis %lld bytes (upload %zu)\n", sent,
                 big.size());
     EXPECT_GT(sent, 0);
     EXPECT_LT(sent, 256 << 10);  // two state writes, not two 4 MiB uploads
-    EXPECT_LT(std::stoll(RawRedis(redis, {"STRLEN", "irfarm:job:" + id})), 64 << 10);
-    EXPECT_GT(std::stoll(RawRedis(redis, {"STRLEN", "irfarm:job:" + id + ":scene"})),
+    EXPECT_LT(std::stoll(RawRedis(redis_, {"STRLEN", "irfarm:job:" + id})), 64 << 10);
+    EXPECT_GT(std::stoll(RawRedis(redis_, {"STRLEN", "irfarm:job:" + id + ":scene"})),
               (4 << 20) - 1);
   }
   absl::StatusOr<std::unique_ptr<JobManager>> again =
-      JobManager::Create(JobManagerOptions(), store.get());
+      JobManager::Create(JobManagerOptions(), store_.get());
   ASSERT_TRUE(again.ok()) << again.status();
   absl::StatusOr<v1::Job> job = (*again)->GetJob(id);
   ASSERT_TRUE(job.ok()) << job.status();
   EXPECT_EQ(job->state(), v1::JOB_STATE_QUEUED);  // resumed: queued until a worker takes a tile
   EXPECT_EQ(job->priority(), 7);
-  std::vector<v1::StoredJob> stored = *store->LoadJobs();
+  std::vector<v1::StoredJob> stored = *store_->LoadJobs();
   ASSERT_EQ(stored.size(), 1u);
   const v1::SceneBundle& bundle = stored[0].scene().bundle();
   ASSERT_EQ(bundle.files_size(), req.scene().bundle().files_size());
@@ -375,37 +401,65 @@ TEST(RedisSceneTest, StateChangesDoNotWriteTheUploadAgain) {
   }
 }
 
+// Redis loses its data (FLUSHALL) while a job is queued: the state change of its start, which
+// carries no scene, is refused by the store (it would bring the job back without one, and a
+// coordinator started later would drop it), and the writer writes the state again with the scene
+// the coordinator holds. A later coordinator resumes the job with its whole upload.
+TEST_F(RedisSceneTest, AStateChangeAfterRedisLostItsDataWritesTheSceneAgain) {
+  // The store alone: nothing is written, and the caller is told why.
+  v1::StoredJob bare = Job("job-9", v1::JOB_STATE_QUEUED, "/scenes/a/scene.xml");
+  ASSERT_TRUE(store_->PutJob(bare).ok());
+  RawRedis(redis_, {"FLUSHALL"});
+  const absl::Status refused = store_->PutJob(StateOnly(bare));
+  EXPECT_TRUE(IsSceneMissing(refused)) << refused;
+  EXPECT_TRUE(store_->LoadJobs()->empty());
+  // Through the coordinator.
+  const v1::SubmitJobRequest req = CornellRequest();
+  std::string id;
+  {
+    std::unique_ptr<JobManager> manager = Manager();
+    absl::StatusOr<v1::Job> job = manager->Submit(req);
+    ASSERT_TRUE(job.ok()) << job.status();
+    id = job->id();
+    RawRedis(redis_, {"FLUSHALL"});
+    ASSERT_TRUE(LeaseOne(*manager));
+    ASSERT_TRUE(manager->FlushStore(std::chrono::seconds(5)));
+    EXPECT_EQ(RawRedis(redis_, {"EXISTS", "irfarm:job:" + id + ":scene"}), "1");
+  }
+  absl::StatusOr<std::unique_ptr<JobManager>> again =
+      JobManager::Create(JobManagerOptions(), store_.get());
+  ASSERT_TRUE(again.ok()) << again.status();
+  ASSERT_TRUE((*again)->GetJob(id).ok()) << "the job was not resumed";
+  std::vector<v1::StoredJob> stored = *store_->LoadJobs();
+  ASSERT_EQ(stored.size(), 1u);
+  EXPECT_EQ(stored[0].scene().SerializeAsString(), req.scene().SerializeAsString());
+}
+
 // A job stored before the scene had a key of its own (the scene inside the job's key) loads with
 // its scene, is moved to the two keys, and keeps its scene through a later state change.
-TEST(RedisSceneTest, AJobStoredWithItsSceneInsideIsMoved) {
-  RedisServer redis;
-  std::unique_ptr<RedisJobStore> store = redis.Connect();
-  ASSERT_TRUE(store) << "redis-server did not start";
-  v1::StoredJob old;
-  old.mutable_job()->set_id("job-5");
-  old.mutable_job()->set_state(v1::JOB_STATE_QUEUED);
-  old.mutable_scene()->set_path("/scenes/room/scene.xml");
-  StoreRawJob(redis, old);
-  std::vector<v1::StoredJob> jobs = *store->LoadJobs();
+TEST_F(RedisSceneTest, AJobStoredWithItsSceneInsideIsMoved) {
+  const v1::StoredJob old = Job("job-5", v1::JOB_STATE_QUEUED, "/scenes/room/scene.xml");
+  StoreRawJob(redis_, old);
+  std::vector<v1::StoredJob> jobs = *store_->LoadJobs();
   ASSERT_EQ(jobs.size(), 1u);
   EXPECT_EQ(jobs[0].scene().path(), "/scenes/room/scene.xml");
   v1::StoredJob in_key;
-  ASSERT_TRUE(in_key.ParseFromString(RawRedis(redis, {"GET", "irfarm:job:job-5"})));
+  ASSERT_TRUE(in_key.ParseFromString(RawRedis(redis_, {"GET", "irfarm:job:job-5"})));
   EXPECT_FALSE(in_key.has_scene());
   EXPECT_EQ(in_key.job().id(), "job-5");
   v1::SceneSource scene;
-  ASSERT_TRUE(scene.ParseFromString(RawRedis(redis, {"GET", "irfarm:job:job-5:scene"})));
+  ASSERT_TRUE(scene.ParseFromString(RawRedis(redis_, {"GET", "irfarm:job:job-5:scene"})));
   EXPECT_EQ(scene.path(), "/scenes/room/scene.xml");
   v1::StoredJob running = StateOnly(jobs[0]);
   running.mutable_job()->set_state(v1::JOB_STATE_RUNNING);
-  ASSERT_TRUE(store->PutJob(running).ok());
-  jobs = *store->LoadJobs();
+  ASSERT_TRUE(store_->PutJob(running).ok());
+  jobs = *store_->LoadJobs();
   ASSERT_EQ(jobs.size(), 1u);
   EXPECT_EQ(jobs[0].job().state(), v1::JOB_STATE_RUNNING);
   EXPECT_EQ(jobs[0].scene().path(), "/scenes/room/scene.xml");
   // Deleting the job removes the scene's key too.
-  ASSERT_TRUE(store->DeleteJob("job-5").ok());
-  EXPECT_EQ(RawRedis(redis, {"EXISTS", "irfarm:job:job-5:scene"}), "0");
+  ASSERT_TRUE(store_->DeleteJob("job-5").ok());
+  EXPECT_EQ(RawRedis(redis_, {"EXISTS", "irfarm:job:job-5:scene"}), "0");
 }
 
 // A store-consistency check at start-up (issue 10, part 4): damaged keys (a job that does not

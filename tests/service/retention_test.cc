@@ -149,6 +149,7 @@ TEST_F(RetentionTest, RestartWithAThousandExpiredJobsStartsInUnderASecond) {
     v1::StoredJob s = model;
     const std::string id = "old-" + std::to_string(i);
     s.mutable_job()->set_id(id);
+    s.mutable_scene()->set_path("/scenes/a/scene.xml");
     s.mutable_job()->set_state(v1::JOB_STATE_SUCCEEDED);
     s.set_finished_unix_ms(two_days_ago);
     ASSERT_TRUE(store_->PutJob(s).ok());
