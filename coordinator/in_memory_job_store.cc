@@ -11,7 +11,8 @@ absl::StatusOr<uint64_t> InMemoryJobStore::NextJobNumber() {
 absl::Status InMemoryJobStore::PutJob(const v1::StoredJob& job) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = jobs_.find(job.job().id());
-  if (!job.has_scene() && (it == jobs_.end() || !it->second.has_scene()))
+  if (!job.has_scene() && !IsFinalState(job.job().state()) &&
+      (it == jobs_.end() || !it->second.has_scene()))
     return SceneMissingError("no stored scene for job " + job.job().id());
   ReplaceKeepingScene(jobs_[job.job().id()], job);  // a state change keeps the scene
   return absl::OkStatus();

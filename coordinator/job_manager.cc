@@ -155,10 +155,6 @@ void FitStoredJobWithoutPeaks(v1::StoredJob& s, const JobLimits& lim) {
     j.mutable_settings()->set_no_firefly_filter(true);
 }
 
-bool FinalState(v1::JobState s) {
-  return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
-}
-
 std::string StoredJobProblem(const v1::StoredJob& s, const JobLimits& lim) {
   const v1::Job& j = s.job();
   const int64_t tile = j.settings().tile_size();
@@ -173,7 +169,7 @@ std::string StoredJobProblem(const v1::StoredJob& s, const JobLimits& lim) {
         (k < 3 && !(s.cache_bounds(k) <= s.cache_bounds(k + 3))))
       return "cache bounds are not a finite box";
   if (!(s.max_accuracy() >= 0 && s.max_accuracy() <= 1)) return "max_accuracy is outside [0, 1]";
-  if (!s.has_scene() && !FinalState(j.state())) return "its scene is missing";
+  if (!s.has_scene() && !IsFinalState(j.state())) return "its scene is missing";
   if (!(s.record_max_radius() >= 0 && std::isfinite(s.record_max_radius())) ||
       !(s.record_max_irradiance() >= 0 && std::isfinite(s.record_max_irradiance())))
     return "record bounds are not finite and non-negative";
@@ -330,10 +326,10 @@ absl::Status JobManager::Resume() {
   // as finished now.
   const int64_t now_ms = UnixMs();
   for (v1::StoredJob& s : *stored)
-    if (FinalState(s.job().state()) && s.finished_unix_ms() == 0) s.set_finished_unix_ms(now_ms);
+    if (IsFinalState(s.job().state()) && s.finished_unix_ms() == 0) s.set_finished_unix_ms(now_ms);
   std::vector<size_t> finished;
   for (size_t i = 0; i < stored->size(); ++i)
-    if (FinalState((*stored)[i].job().state())) finished.push_back(i);
+    if (IsFinalState((*stored)[i].job().state())) finished.push_back(i);
   std::sort(finished.begin(), finished.end(), [&](size_t a, size_t b) {
     return (*stored)[a].finished_unix_ms() > (*stored)[b].finished_unix_ms();  // newest first
   });
@@ -374,7 +370,7 @@ absl::Status JobManager::Resume() {
     job->cache = std::make_unique<GlobalCache>(CacheSettingsOf(s), RecordBoundsOf(s));
     job->camera = CameraOf(s);
     // A failed or cancelled job's pixels are not fetched by anyone (FinishJob released them).
-    const bool wants_pixels = !FinalState(j.state()) || j.state() == v1::JOB_STATE_SUCCEEDED;
+    const bool wants_pixels = !IsFinalState(j.state()) || j.state() == v1::JOB_STATE_SUCCEEDED;
     absl::StatusOr<std::map<int, std::string>> tiles =
         wants_pixels ? store_->LoadTiles(j.id()) : std::map<int, std::string>();
     // A damaged key (DATA_LOSS) is reported and skipped: the job renders those tiles again.
@@ -416,19 +412,21 @@ absl::Status JobManager::Resume() {
       spdlog::error("job {}: {}: failed", j.id(), why);
       FinishJob(*job, v1::JOB_STATE_FAILED, why);
     }
-    if (FinalState(j.state())) {
+    if (IsFinalState(j.state())) {
       job->tiles->Clear();
       job->cache->Close();
     } else if (j.state() == v1::JOB_STATE_RUNNING) {
       job->stored.mutable_job()->set_state(v1::JOB_STATE_QUEUED);  // no lease survives
     }
+    // Under the lock: the writer's thread may look a job up already (SceneOf).
+    std::lock_guard<std::mutex> lock(mu_);
     next_sequence_ = std::max(next_sequence_, s.sequence() + 1);
     jobs_[j.id()] = std::move(job);
   }
   return absl::OkStatus();
 }
 
-bool JobManager::IsFinal(const Job& job) const { return FinalState(job.stored.job().state()); }
+bool JobManager::IsFinal(const Job& job) const { return IsFinalState(job.stored.job().state()); }
 
 v1::Job JobManager::View(const Job& job) const {
   v1::Job j = job.stored.job();

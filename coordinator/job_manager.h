@@ -423,12 +423,13 @@ class JobManager {
   // Fan-out bytes `w`'s outbox may still take: its outbox and in-flight bytes within
   // max_outbox_bytes, and everyone's within max_total_outbox_bytes. mu_ held.
   size_t OutboxRoom(const Worker& w) const;
+  // The scene of job `id` (nullopt: not held, or none), for the writer's state changes that the
+  // store refuses because it lost the scene (StoreWriter::SceneOf). Takes mu_; copies the scene
+  // under it (only after the store lost data).
+  std::optional<v1::SceneSource> SceneOf(const std::string& id) const;
   // A tile or record write the store refused NOT_FOUND (JobStore: it holds no such job): when the
   // job still runs here, the store lost it (FLUSHALL, eviction), so the job is written again and
   // `retry` run once; else NOT_FOUND. mu_ not held.
-  // The scene of job `id` (nullopt: not held, or none), for the writer's state changes that the
-  // store refuses because it lost the scene (StoreWriter::SceneOf).
-  std::optional<v1::SceneSource> SceneOf(const std::string& id) const;
   absl::Status RestoreLostJob(const std::string& job_id,
                               const std::function<absl::Status()>& retry);
   // `bytes` of `w`'s queued fan-out left its outbox (sent, dropped, or the worker gone). mu_ held.

@@ -28,8 +28,8 @@ class JobStore {
   // `job` has one (the submit; a finished job's emptied bundle): a state change passes the job
   // without its scene (JobManager's StateOnly) and the scene stored before stays, so the upload
   // (up to --max-upload-mib) is not copied and written again each time a job starts or changes
-  // priority. A state change for a job whose scene the store does not hold writes nothing and
-  // fails IsSceneMissing.
+  // priority. A state change of an unfinished job whose scene the store does not hold writes
+  // nothing and fails IsSceneMissing.
   virtual absl::Status PutJob(const v1::StoredJob& job) = 0;
   // Every stored job with its scene, in no particular order (a job whose scene is lost comes
   // without one).
@@ -53,10 +53,17 @@ class JobStore {
   virtual absl::Status DeleteJob(const std::string& job_id) = 0;
 };
 
-// What a state-only PutJob (a job without its scene) returns when the store holds no scene for the
-// job: it lost it (Redis flushed, or the scene's key evicted) or never had it. FAILED_PRECONDITION
-// marked with a payload; the caller writes the job again with its scene (StoreWriter does, with
-// the scene JobManager still holds).
+// Whether a job in state `s` is finished (succeeded, failed or cancelled): it needs its scene no
+// more.
+inline bool IsFinalState(v1::JobState s) {
+  return s == v1::JOB_STATE_SUCCEEDED || s == v1::JOB_STATE_FAILED || s == v1::JOB_STATE_CANCELLED;
+}
+
+// What a state-only PutJob (an unfinished job without its scene) returns when the store holds no
+// scene for the job: it lost it (Redis flushed, or the scene's key evicted) or never had it.
+// FAILED_PRECONDITION marked with a payload; the caller writes the job again with its scene
+// (StoreWriter does, with the scene JobManager still holds). A finished job's state is written
+// without one.
 inline constexpr char kSceneMissingPayload[] = "irfarm.dev/job-store/scene-missing";
 inline absl::Status SceneMissingError(const std::string& message) {
   absl::Status st = absl::FailedPreconditionError(message);

@@ -34,18 +34,19 @@ constexpr char kFenceCheck[] =
 constexpr char kIncr[] = "return redis.call('INCR', KEYS[2])";
 // The job and its set membership appear together; a deleted job's id is refused (its tombstone,
 // KEYS[4]), so a state write that lands late (sent before a delete, on a connection that timed
-// out while Redis hung) cannot bring the job back. The scene (KEYS[5]) is written when one is
-// given (ARGV[4]): a state change leaves the upload stored with the submit where it is.
-// A state change for a job not in the set or without its scene's key (Redis flushed or the key
-// evicted) writes nothing: the job would come back without a scene (JobStore::PutJob).
+// out while Redis hung) cannot bring the job back. A state change leaves the upload stored with
+// the submit where it is. ARGV[4] says what comes with the state: 'scene' (the scene in ARGV[5],
+// written to KEYS[5]), 'state' (an unfinished job's state change: refused, writing nothing, when
+// the job is not in the set or its scene's key is gone, Redis flushed or the key evicted: the job
+// would come back without a scene) or 'final' (a finished job's state, which needs no scene).
 constexpr char kPutJob[] =
     "if redis.call('EXISTS', KEYS[4]) == 1 then "
     "return redis.error_reply('GONE job ' .. ARGV[3] .. ' was deleted') end "
-    "if not ARGV[4] and (redis.call('SISMEMBER', KEYS[3], ARGV[3]) == 0 or "
+    "if ARGV[4] == 'state' and (redis.call('SISMEMBER', KEYS[3], ARGV[3]) == 0 or "
     "redis.call('EXISTS', KEYS[5]) == 0) then "
     "return redis.error_reply('NOSCENE job ' .. ARGV[3] .. ' has no stored scene') end "
     "redis.call('SET', KEYS[2], ARGV[2]) "
-    "if ARGV[4] then redis.call('SET', KEYS[5], ARGV[4]) end "
+    "if ARGV[4] == 'scene' then redis.call('SET', KEYS[5], ARGV[5]) end "
     "redis.call('SADD', KEYS[3], ARGV[3]) return 1";
 // A job stored with its scene inside (before the scene had a key of its own) moved to the two
 // keys, if the job key still holds what was read (ARGV[2]; a write since then has won).
@@ -222,11 +223,15 @@ absl::Status RedisJobStore::PutJob(const v1::StoredJob& job) {
   const std::string key = prefix_ + "job:" + id;
   std::vector<std::string> keys = {key, prefix_ + "jobs", prefix_ + "deleted:" + id,
                                    key + ":scene"};
-  if (!job.has_scene()) return Write(kPutJob, keys, {job.SerializeAsString(), id}).status();
+  if (!job.has_scene())
+    return Write(kPutJob, keys,
+                 {job.SerializeAsString(), id, IsFinalState(job.job().state()) ? "final" : "state"})
+        .status();
   // The submit (or a finished job's emptied bundle): the state without the scene, and the scene.
   v1::StoredJob state = job;
   state.clear_scene();
-  return Write(kPutJob, keys, {state.SerializeAsString(), id, job.scene().SerializeAsString()})
+  return Write(kPutJob, keys,
+               {state.SerializeAsString(), id, "scene", job.scene().SerializeAsString()})
       .status();
 }
 

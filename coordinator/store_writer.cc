@@ -66,7 +66,9 @@ absl::Status StoreWriter::Write(const Op& op) {
   if (op.remove) return store_->DeleteJob(op.job_id);
   if (op.job) {
     const absl::Status st = store_->PutJob(*op.job);
-    if (!IsSceneMissing(st) || op.job->has_scene() || !scene_of_) return st;
+    if (!IsSceneMissing(st)) return st;
+    if (!scene_of_)  // nothing to write the scene with: dropped, not retried for ever
+      return absl::NotFoundError("job " + op.job_id + " has no scene to write: " + st.ToString());
     // The store lost the job's scene (Redis flushed, or the key evicted): the state goes with the
     // scene the coordinator holds, or the job would come back without one after a restart.
     std::optional<v1::SceneSource> scene = scene_of_(op.job_id);

@@ -57,7 +57,7 @@ struct TangentDerivatives {
 bool ProjectedSolidAngleEdgeLocal(const LocalVertex& v0, const LocalVertex& v1, double weight,
                                   TangentDerivatives* sum);
 // The same for n edges v0[k] -> v1[k] with weight[k], as vector lanes where the machine has them
-// (AVX-512, AVX2, SSE2): the sums ProjectedSolidAngleEdgeLocal would make one edge at a time, in
+// (AVX-512, AVX2): the sums ProjectedSolidAngleEdgeLocal would make one edge at a time, in
 // the same order, to the bit. Edges of weight 0 are skipped (they add nothing).
 void AddEdgesLocal(int n, const LocalVertex* v0, const LocalVertex* v1, const double* weight,
                    TangentDerivatives* sum);

@@ -81,6 +81,10 @@ TEST_P(JobStoreTest, AStateChangeKeepsTheStoredScene) {
   v1::BundleFile* f = job.mutable_scene()->mutable_bundle()->add_files();
   f->set_path("scene.xml");
   f->set_content(std::string(1 << 20, 'x'));
+  // An unfinished job's state change before any scene was stored writes nothing.
+  const absl::Status early = store_->PutJob(StateOnly(job));
+  EXPECT_TRUE(IsSceneMissing(early)) << early;
+  EXPECT_TRUE(store_->LoadJobs()->empty());
   ASSERT_TRUE(store_->PutJob(job).ok());
   v1::StoredJob state = StateOnly(job);
   EXPECT_FALSE(state.has_scene());
@@ -433,6 +437,25 @@ TEST_F(RedisSceneTest, AStateChangeAfterRedisLostItsDataWritesTheSceneAgain) {
   std::vector<v1::StoredJob> stored = *store_->LoadJobs();
   ASSERT_EQ(stored.size(), 1u);
   EXPECT_EQ(stored[0].scene().SerializeAsString(), req.scene().SerializeAsString());
+}
+
+// A finished job's state needs no scene: a coordinator that finds a succeeded job's tiles and its
+// scene lost (both evicted) fails it at start-up, and the FAILED state is written (a state change
+// refused for want of a scene would leave it SUCCEEDED, failed again at every start).
+TEST_F(RedisSceneTest, AFinishedJobsStateIsWrittenWithoutAScene) {
+  v1::StoredJob done = Job("job-3", v1::JOB_STATE_SUCCEEDED, "");
+  done.clear_scene();
+  done.mutable_job()->set_width(32);
+  done.mutable_job()->set_height(32);
+  StoreRawJob(redis_, done);  // no tiles, no scene key
+  {
+    std::unique_ptr<JobManager> manager = Manager();
+    EXPECT_EQ(manager->GetJob("job-3")->state(), v1::JOB_STATE_FAILED);
+    ASSERT_TRUE(manager->FlushStore(std::chrono::seconds(5)));
+  }
+  v1::StoredJob in_key;
+  ASSERT_TRUE(in_key.ParseFromString(RawRedis(redis_, {"GET", "irfarm:job:job-3"})));
+  EXPECT_EQ(in_key.job().state(), v1::JOB_STATE_FAILED);
 }
 
 // A job stored before the scene had a key of its own (the scene inside the job's key) loads with
