@@ -247,7 +247,10 @@ JobManager::~JobManager() {
 std::optional<v1::SceneSource> JobManager::SceneOf(const std::string& id) const {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = jobs_.find(id);
-  if (it == jobs_.end() || !it->second->stored.has_scene()) return std::nullopt;
+  // A finished job's own final write (with its emptied scene, or none) is queued behind the
+  // refused one: its scene is not to be paired with an older state.
+  if (it == jobs_.end() || !it->second->stored.has_scene() || IsFinal(*it->second))
+    return std::nullopt;
   return it->second->stored.scene();  // a copy under the lock: only after the store lost it
 }
 
@@ -418,7 +421,7 @@ absl::Status JobManager::Resume() {
     } else if (j.state() == v1::JOB_STATE_RUNNING) {
       job->stored.mutable_job()->set_state(v1::JOB_STATE_QUEUED);  // no lease survives
     }
-    // Under the lock: the writer's thread may look a job up already (SceneOf).
+    // Under the lock: the metrics server, started before the manager, reads jobs_ (CollectMetrics).
     std::lock_guard<std::mutex> lock(mu_);
     next_sequence_ = std::max(next_sequence_, s.sequence() + 1);
     jobs_[j.id()] = std::move(job);

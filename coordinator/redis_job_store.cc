@@ -40,6 +40,8 @@ constexpr char kIncr[] = "return redis.call('INCR', KEYS[2])";
 // the job is not in the set or its scene's key is gone, Redis flushed or the key evicted: the job
 // would come back without a scene) or 'final' (a finished job's state, which needs no scene).
 constexpr char kPutJob[] =
+    "if ARGV[4] ~= 'scene' and ARGV[4] ~= 'state' and ARGV[4] ~= 'final' then "
+    "return redis.error_reply('BADMODE ' .. tostring(ARGV[4])) end "
     "if redis.call('EXISTS', KEYS[4]) == 1 then "
     "return redis.error_reply('GONE job ' .. ARGV[3] .. ' was deleted') end "
     "if ARGV[4] == 'state' and (redis.call('SISMEMBER', KEYS[3], ARGV[3]) == 0 or "

@@ -14,14 +14,15 @@
 //   PREFIX job:ID:records       LIST of serialized irfarm.v1.RecordBatch, one per merged batch
 //   PREFIX deleted:ID           STRING, for a day after the job was deleted: PutJob refuses it
 // What is atomic: every write is one Lua script (EVAL), which Redis runs whole with nothing in
-// between: PutJob writes the job (and its scene) and adds it to the set together; each PutTile is
-// one HSET and each AppendRecords one RPUSH, so a tile is stored whole or not at all and a batch of
-// records likewise; a tile or batch of a job not in the set, and a PutJob of a deleted job, write
-// nothing and fail NOT_FOUND (a write that lands after the delete cannot recreate its keys). The
-// coordinator marks a tile done only after its HSET succeeded, and fans records out only after
-// their RPUSH succeeded, so whatever clients and workers were told is in Redis. Writes are not
-// fsync'ed by us: durability across a Redis crash is Redis's own persistence setting (appendonly);
-// a coordinator crash loses nothing that was acknowledged.
+// between: PutJob writes the job (and its scene) and adds it to the set together, or, for an
+// unfinished job's state change whose scene is gone (flushed, evicted), nothing (IsSceneMissing);
+// each PutTile is one HSET and each AppendRecords one RPUSH, so a tile is stored whole or not at
+// all and a batch of records likewise; a tile or batch of a job not in the set, and a PutJob of a
+// deleted job, write nothing and fail NOT_FOUND (a write that lands after the delete cannot
+// recreate its keys). The coordinator marks a tile done only after its HSET succeeded, and fans
+// records out only after their RPUSH succeeded, so whatever clients and workers were told is in
+// Redis. Writes are not fsync'ed by us: durability across a Redis crash is Redis's own persistence
+// setting (appendonly); a coordinator crash loses nothing that was acknowledged.
 //
 // When Redis is down or hung (SIGSTOP, a stalled network): every call gives up after its
 // deadline (RedisOptions::timeout, 500 ms by default, for waiting for the connection plus as much

@@ -67,12 +67,16 @@ absl::Status StoreWriter::Write(const Op& op) {
   if (op.job) {
     const absl::Status st = store_->PutJob(*op.job);
     if (!IsSceneMissing(st)) return st;
-    if (!scene_of_)  // nothing to write the scene with: dropped, not retried for ever
+    if (!scene_of_) {  // nothing to write the scene with: dropped, not retried for ever
+      spdlog::warn("job {}: the store holds no scene for it and none is at hand: state dropped",
+                   op.job_id);
       return absl::NotFoundError("job " + op.job_id + " has no scene to write: " + st.ToString());
+    }
     // The store lost the job's scene (Redis flushed, or the key evicted): the state goes with the
     // scene the coordinator holds, or the job would come back without one after a restart.
     std::optional<v1::SceneSource> scene = scene_of_(op.job_id);
-    if (!scene) return absl::NotFoundError("job " + op.job_id + " is gone: " + st.ToString());
+    if (!scene)  // gone, or finished (its own final write follows)
+      return absl::NotFoundError("job " + op.job_id + " is gone or finished: " + st.ToString());
     spdlog::warn("job {}: the store had lost its scene (flushed or evicted); written again",
                  op.job_id);
     v1::StoredJob full = *op.job;
@@ -98,8 +102,8 @@ void StoreWriter::Run() {
       cv_.notify_all();  // Flush
       continue;
     }
-    if (absl::IsNotFound(st)) {  // the job was deleted: nothing of it is to be written again
-      spdlog::info("job store: a write for deleted job {} dropped: {}", op.job_id, st.ToString());
+    if (absl::IsNotFound(st)) {  // the job was deleted, or there is nothing to write it with
+      spdlog::info("job store: a write for job {} dropped: {}", op.job_id, st.ToString());
       cv_.notify_all();
       continue;
     }

@@ -85,6 +85,12 @@ TEST_P(JobStoreTest, AStateChangeKeepsTheStoredScene) {
   const absl::Status early = store_->PutJob(StateOnly(job));
   EXPECT_TRUE(IsSceneMissing(early)) << early;
   EXPECT_TRUE(store_->LoadJobs()->empty());
+  // A finished job's state needs none.
+  v1::StoredJob finished;
+  finished.mutable_job()->set_id("job-2");
+  finished.mutable_job()->set_state(v1::JOB_STATE_CANCELLED);
+  ASSERT_TRUE(store_->PutJob(finished).ok());
+  ASSERT_TRUE(store_->DeleteJob("job-2").ok());
   ASSERT_TRUE(store_->PutJob(job).ok());
   v1::StoredJob state = StateOnly(job);
   EXPECT_FALSE(state.has_scene());
@@ -429,6 +435,11 @@ TEST_F(RedisSceneTest, AStateChangeAfterRedisLostItsDataWritesTheSceneAgain) {
     ASSERT_TRUE(LeaseOne(*manager));
     ASSERT_TRUE(manager->FlushStore(std::chrono::seconds(5)));
     EXPECT_EQ(RawRedis(redis_, {"EXISTS", "irfarm:job:" + id + ":scene"}), "1");
+    // Only the scene's key evicted (the job still in the set): the next state change writes it.
+    RawRedis(redis_, {"DEL", "irfarm:job:" + id + ":scene"});
+    ASSERT_TRUE(manager->SetPriority(id, 3).ok());
+    ASSERT_TRUE(manager->FlushStore(std::chrono::seconds(5)));
+    EXPECT_EQ(RawRedis(redis_, {"EXISTS", "irfarm:job:" + id + ":scene"}), "1");
   }
   absl::StatusOr<std::unique_ptr<JobManager>> again =
       JobManager::Create(JobManagerOptions(), store_.get());
@@ -450,7 +461,9 @@ TEST_F(RedisSceneTest, AFinishedJobsStateIsWrittenWithoutAScene) {
   StoreRawJob(redis_, done);  // no tiles, no scene key
   {
     std::unique_ptr<JobManager> manager = Manager();
-    EXPECT_EQ(manager->GetJob("job-3")->state(), v1::JOB_STATE_FAILED);
+    absl::StatusOr<v1::Job> job = manager->GetJob("job-3");
+    ASSERT_TRUE(job.ok()) << job.status();
+    EXPECT_EQ(job->state(), v1::JOB_STATE_FAILED);
     ASSERT_TRUE(manager->FlushStore(std::chrono::seconds(5)));
   }
   v1::StoredJob in_key;
