@@ -313,9 +313,8 @@ absl::StatusOr<std::unique_ptr<JobManager>> JobManager::Create(const JobManagerO
                                                                MetricsRegistry* registry) {
   std::unique_ptr<JobManager> m(new JobManager(options, store, registry));
   JobManager* raw = m.get();
-  m->writer_ =
-      std::make_unique<StoreWriter>(store, std::chrono::milliseconds(500),
-                                    [raw](const std::string& id) { return raw->SceneOf(id); });
+  m->writer_ = std::make_unique<StoreWriter>(
+      store, StoreWriter::kDefaultRetry, [raw](const std::string& id) { return raw->SceneOf(id); });
   absl::Status st = m->Resume();
   if (!st.ok()) return st;
   return m;

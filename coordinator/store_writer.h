@@ -32,8 +32,8 @@ class StoreWriter {
   // change the store refuses because it lost the job's scene (IsSceneMissing): the writer then
   // writes the state with this scene. Called on the writer's thread, without the writer's lock.
   using SceneOf = std::function<std::optional<v1::SceneSource>(const std::string& job_id)>;
-  explicit StoreWriter(JobStore* store,
-                       std::chrono::milliseconds retry = std::chrono::milliseconds(500),
+  static constexpr std::chrono::milliseconds kDefaultRetry{500};
+  explicit StoreWriter(JobStore* store, std::chrono::milliseconds retry = kDefaultRetry,
                        SceneOf scene_of = nullptr);
   // Writes what is queued until the first failure, then stops.
   ~StoreWriter();

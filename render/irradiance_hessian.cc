@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/fast_trig.h"
 
@@ -29,7 +30,7 @@ void AddSymOuter(double s, const double* a, const double* b, double* h) {
 constexpr double kMaxRelativeValue = 8.0;
 // Widest grid handled (P strata around the normal): one band of triangle values on the stack.
 constexpr int kMaxPhiStrata = 1024;
-constexpr double kMaxFinite = 1.7976931348623157e308;  // the largest double
+constexpr double kMaxFinite = std::numeric_limits<double>::max();
 
 }  // namespace
 
