@@ -1,6 +1,7 @@
 // Micro-benchmarks (Google Benchmark) of the hot paths: irradiance-cache lookups, Embree ray casts
 // (closest hit and occlusion) in the Cornell box, a record's derivatives, Beckmann sampling and a
-// mesh lamp's light-tree walk, and core/fast_trig.h's atan2 beside libm's.
+// mesh lamp's light-tree walk, core/fast_trig.h's atan2 beside libm's, and the walk a worker takes
+// its new records with (all records, or since a mark).
 // Run: build/bench/bench_micro.
 #include <benchmark/benchmark.h>
 
@@ -65,6 +66,42 @@ void BM_CacheLookup(benchmark::State& state) {
 }
 // Second argument: 1 = linear fit (the renderer's lookups), 0 = Ward's weighted mean.
 BENCHMARK(BM_CacheLookup)->ArgsProduct({{1000, 10000, 100000}, {1, 0}});
+
+// A worker's publisher takes the records its threads made since its last pass (every 50 ms),
+// from a cache that also holds everything else: the whole cache walked for them (arg 1 = 0, as
+// the worker did before ForEachNewer) or the walk stopped at the previous pass's mark (arg 1 = 1).
+// 64 new records on top of `n`; both copy the same 64.
+void BM_NewRecordsWalk(benchmark::State& state) {
+  const int n = int(state.range(0));
+  const auto cache = MakeCache(n, true);
+  const uint64_t mark = cache->ForEachNewer(0, [](const IrradianceRecord&) {});
+  Rng rng(5, 6);
+  for (int i = 0; i < 64; ++i) {
+    IrradianceRecord r;
+    r.position = Vec3(rng.Next() * 2 - 1, rng.Next() * 2 - 1, -1);
+    r.normal = Vec3(0, 0, 1);
+    r.irradiance = Vec3(1);
+    r.radius = std::sqrt(24.0f / float(n)) / 0.1f;
+    r.level = 1;  // not among the n (level 0): what the walk keeps
+    cache->Insert(r);
+  }
+  std::vector<IrradianceRecord> fresh;
+  for (auto _ : state) {
+    fresh.clear();
+    const auto keep = [&](const IrradianceRecord& r) {
+      if (r.level == 1) fresh.push_back(r);
+    };
+    if (state.range(1) != 0)
+      cache->ForEachNewer(mark, keep);
+    else
+      cache->ForEach(keep);
+    benchmark::DoNotOptimize(fresh.data());
+  }
+  state.counters["taken"] = double(fresh.size());
+}
+BENCHMARK(BM_NewRecordsWalk)
+    ->ArgsProduct({{10000, 40000, 400000}, {0, 1}})
+    ->Unit(benchmark::kMicrosecond);
 
 // The same cache and lookups in runs of 16, one run per pixel, as a pixel's camera samples land:
 // uniformly over a pixel footprint of half the mean record spacing (caches of real renders hold

@@ -177,12 +177,23 @@ class IrradianceCache {
   // started, and maybe some newer ones, always as a prefix of the newest-first order.
   template <typename F>
   void ForEach(F f) const {
-    for (uint64_t ref = all_.load(std::memory_order_acquire); ref != 0;) {
+    ForEachNewer(0, f);
+  }
+  // ForEach over the records newer than `mark` only, where `mark` is what an earlier call
+  // returned (0: every record); returns the mark of the newest record it saw. New records are
+  // only ever put in front of the newest-first order, so calls chained through their marks see
+  // each record once, at a cost in the new records alone (a worker publishing its new records
+  // every 50 ms walked all of its cache each time: 9% of its CPU on living-room).
+  template <typename F>
+  uint64_t ForEachNewer(uint64_t mark, F f) const {
+    const uint64_t head = all_.load(std::memory_order_acquire);
+    for (uint64_t ref = head; ref != 0 && ref != mark;) {
       const Block* b = BlockOf(ref);
       const int i = SlotOf(ref);
       f(b->Record(i));
       ref = b->cold()[i].next_all;
     }
+    return head;
   }
 
  private:

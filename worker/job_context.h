@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -76,7 +77,10 @@ class JobContext {
   RenderSettings settings_;
   std::unique_ptr<IrradianceCache> cache_;
   std::mutex publish_mu_;
-  size_t own_published_ = 0;  // own records already taken by TakeNewOwnRecords
+  // TakeNewOwnRecords: the cache's mark of the newest record it has looked at
+  // (IrradianceCache::ForEachNewer), and the own records seen but not yet taken, oldest first.
+  uint64_t seen_mark_ = 0;
+  std::deque<IrradianceRecord> unpublished_;
   std::atomic<uint64_t> received_since_{0};
   std::atomic<uint64_t> rejected_{0};
   RecordBounds record_bounds_;

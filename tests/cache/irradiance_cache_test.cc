@@ -804,6 +804,42 @@ TEST(IrradianceCacheTest, ForEachVisitsEveryRecordOnce) {
   EXPECT_NEAR(sum, expected, 1e-9 * expected);
 }
 
+// Chained ForEachNewer calls (a worker publishing its new records while its threads insert)
+// see every record exactly once, and nothing older than their mark again.
+TEST(IrradianceCacheTest, ForEachNewerSeesEachRecordOnceUnderConcurrentInserts) {
+  const RandomScene scene(4000, 0, 9);
+  IrradianceCache cache(UnitSettings(0.2f));
+  // Each record tagged by its index (irradiance.x = index + 1, exact in float).
+  std::vector<IrradianceRecord> records = scene.records;
+  for (size_t i = 0; i < records.size(); ++i) records[i].irradiance.x = float(i + 1);
+  std::vector<int> seen(records.size(), 0);
+  uint64_t mark = 0;
+  int calls = 0;
+  const auto take = [&] {
+    mark = cache.ForEachNewer(
+        mark, [&](const IrradianceRecord& r) { ++seen[size_t(r.irradiance.x) - 1]; });
+    ++calls;
+  };
+  std::atomic<int> done{0};
+  const auto insert = [&](size_t from) {
+    for (size_t i = from; i < records.size(); i += 2) cache.Insert(records[i]);
+    done.fetch_add(1);
+  };
+  std::thread a(insert, 0), b(insert, 1);
+  while (done.load() < 2) take();
+  a.join();
+  b.join();
+  take();
+  EXPECT_GT(calls, 1);
+  for (size_t i = 0; i < seen.size(); ++i) ASSERT_EQ(seen[i], 1) << "record " << i;
+  // Nothing new: an empty walk, the same mark.
+  const uint64_t before = mark;
+  int again = 0;
+  mark = cache.ForEachNewer(mark, [&](const IrradianceRecord&) { ++again; });
+  EXPECT_EQ(again, 0);
+  EXPECT_EQ(mark, before);
+}
+
 // ---- Memory -----------------------------------------------------------------------------
 
 // Records as a renderer makes them: on the six walls of a room, facing in, validity radii a * R of
