@@ -183,7 +183,8 @@ class IrradianceCache {
   // returned (0: every record); returns the mark of the newest record it saw. New records are
   // only ever put in front of the newest-first order, so calls chained through their marks see
   // each record once, at a cost in the new records alone (a worker publishing its new records
-  // every 50 ms walked all of its cache each time: 9% of its CPU on living-room).
+  // every 50 ms walked all of its cache each time: 0.7 ms at 40k records, 63 ms at 400k,
+  // bench_micro BM_NewRecordsWalk).
   template <typename F>
   uint64_t ForEachNewer(uint64_t mark, F f) const {
     const uint64_t head = all_.load(std::memory_order_acquire);

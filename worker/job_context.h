@@ -46,7 +46,8 @@ class JobContext {
   // Inserts other workers' records (validated; at most kMaxRemoteRecords in all); returns how
   // many were inserted.
   size_t InsertRemote(const std::vector<IrradianceRecord>& records);
-  // Own records (origin 0) computed since the last call, oldest first, at most `max` of them.
+  // Own camera records (origin 0, level 0) computed since the last call, oldest first, at most
+  // `max` of them (the rest wait for the next call).
   std::vector<IrradianceRecord> TakeNewOwnRecords(size_t max);
   // Records received since the last call (for the next tile's stats).
   uint64_t TakeReceivedCount() { return received_since_.exchange(0); }

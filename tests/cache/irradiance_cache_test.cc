@@ -820,17 +820,28 @@ TEST(IrradianceCacheTest, ForEachNewerSeesEachRecordOnceUnderConcurrentInserts) 
         mark, [&](const IrradianceRecord& r) { ++seen[size_t(r.irradiance.x) - 1]; });
     ++calls;
   };
+  // First the records of a sequence of calls without concurrency: each sees what came since.
+  const size_t first = 100;
+  for (size_t i = 0; i < first; ++i) cache.Insert(records[i]);
+  take();
+  for (size_t i = 0; i < first; ++i) ASSERT_EQ(seen[i], 1) << "record " << i;
+  // Then two threads inserting the rest while this one takes (the inserters start after a take,
+  // so at least one take overlaps their inserts however the threads are scheduled).
   std::atomic<int> done{0};
+  std::atomic<bool> go{false};
   const auto insert = [&](size_t from) {
+    while (!go.load()) std::this_thread::yield();
     for (size_t i = from; i < records.size(); i += 2) cache.Insert(records[i]);
     done.fetch_add(1);
   };
-  std::thread a(insert, 0), b(insert, 1);
+  std::thread a(insert, first), b(insert, first + 1);
+  take();
+  go.store(true);
   while (done.load() < 2) take();
   a.join();
   b.join();
   take();
-  EXPECT_GT(calls, 1);
+  EXPECT_GE(calls, 3);
   for (size_t i = 0; i < seen.size(); ++i) ASSERT_EQ(seen[i], 1) << "record " << i;
   // Nothing new: an empty walk, the same mark.
   const uint64_t before = mark;

@@ -132,6 +132,42 @@ TEST(JobContextTest, RemoteRecordsOutsideTheScenesBoundsAreDropped) {
   EXPECT_EQ((*job)->cache()->size(), 1u);
 }
 
+// The publisher takes the worker's own camera records, oldest first, each once, in batches of at
+// most `max`: not the records other workers sent, not the secondary ones (they stay local), and
+// records made while earlier ones wait in a batch come after them.
+TEST(JobContextTest, NewOwnRecordsAreTakenOnceOldestFirst) {
+  absl::StatusOr<std::unique_ptr<JobContext>> job =
+      JobContext::Create(Spec("cornell-box", true), 1);
+  ASSERT_TRUE(job.ok()) << job.status();
+  IrradianceCache* cache = (*job)->cache();
+  const auto record = [](int tag, uint32_t origin, int level) {
+    IrradianceRecord r;
+    r.position = Vec3(0.01f * float(tag % 50), 0, 0);
+    r.normal = Vec3(0, 1, 0);
+    r.irradiance = Vec3(float(tag));  // the tag
+    r.radius = 0.2f;
+    r.origin = origin;
+    r.level = uint8_t(level);
+    return r;
+  };
+  const auto tags = [](const std::vector<IrradianceRecord>& rs) {
+    std::vector<int> out;
+    for (const IrradianceRecord& r : rs) out.push_back(int(r.irradiance.x));
+    return out;
+  };
+  EXPECT_TRUE((*job)->TakeNewOwnRecords(10).empty());
+  for (int i = 1; i <= 5; ++i) cache->Insert(record(i, 0, 0));
+  cache->Insert(record(100, 0, 1));                          // secondary: stays local
+  EXPECT_EQ((*job)->InsertRemote({record(200, 7, 0)}), 1u);  // another worker's
+  cache->Insert(record(6, 0, 0));
+  EXPECT_EQ(tags((*job)->TakeNewOwnRecords(4)), (std::vector<int>{1, 2, 3, 4}));
+  cache->Insert(record(7, 0, 0));
+  EXPECT_EQ(tags((*job)->TakeNewOwnRecords(4)), (std::vector<int>{5, 6, 7}));
+  EXPECT_TRUE((*job)->TakeNewOwnRecords(4).empty());
+  cache->Insert(record(8, 0, 0));
+  EXPECT_EQ(tags((*job)->TakeNewOwnRecords(4)), (std::vector<int>{8}));
+}
+
 // The job id comes from the coordinator and names the bundle's temp dir: one with a path in it is
 // refused before anything is written ("x/../../../home/u/p" put the bundle elsewhere whenever
 // /tmp/irfarm-worker-x existed).
