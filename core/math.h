@@ -129,6 +129,14 @@ struct Mat4 {
   }
   // Right-handed rotation by angle_deg degrees about axis (x, y, z) (need not be unit).
   static Mat4 Rotate(double x, double y, double z, double angle_deg) {
+    // Scaled by the largest component first: the squares of an axis like (1e-200, 0, 0) or
+    // (1e200, 0, 0) would underflow to 0 or overflow to inf (a NaN or a shrinking matrix).
+    const double big = std::max({std::abs(x), std::abs(y), std::abs(z)});
+    if (big > 0 && std::isfinite(big)) {
+      x /= big;
+      y /= big;
+      z /= big;
+    }
     const double len = std::sqrt(x * x + y * y + z * z);
     x /= len;
     y /= len;
@@ -216,6 +224,22 @@ inline Mat4 Mat4::Inverse() const {
   for (int i = 0; i < 4; ++i)
     for (int j = 0; j < 4; ++j) r.m[i][j] = a[i][j + 4];
   return r;
+}
+
+// The normal matrix of the upper 3 x 3 part A as cofactors: cof(A) = det(A) A^-T, times the sign
+// of det(A), so that it maps normals as A^-T does (the same direction) where A is invertible, and
+// still maps the normal of a surface that A keeps flat where A is singular (a scale of 0 along
+// the normal of a rectangle: A^-T does not exist, and Inverse() answers the identity).
+// out[i][j] multiplies n[j].
+inline void NormalMatrix(const Mat4& m, double out[3][3]) {
+  const auto a = [&](int i, int j) { return m.m[i % 3][j % 3]; };
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      out[i][j] = a(i + 1, j + 1) * a(i + 2, j + 2) - a(i + 1, j + 2) * a(i + 2, j + 1);
+  const double det = m.Determinant3();
+  if (det < 0)
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) out[i][j] = -out[i][j];
 }
 
 inline Vec3 Mat4::ApplyNormal(const Vec3& n) const {

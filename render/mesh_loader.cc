@@ -99,6 +99,12 @@ absl::StatusOr<TriangleMesh> ParseObjMesh(const std::string& text, const std::st
         if (std::string why = ParseFinite(tokens[i + 1], &x[i]); !why.empty()) {
           return LineError(path, line_number, why);
         }
+        // As PLY and .serialized: a value a float cannot hold is refused, not made infinite.
+        if (!(std::abs(x[i]) <= double(std::numeric_limits<float>::max()))) {
+          return LineError(
+              path, line_number,
+              absl::StrCat("value '", tokens[i + 1], "' is beyond the range of a float"));
+        }
       }
       if (key == "v") v.emplace_back(float(x[0]), float(x[1]), float(x[2]));
       if (key == "vn") vn.emplace_back(float(x[0]), float(x[1]), float(x[2]));
@@ -326,9 +332,10 @@ absl::StatusOr<TriangleMesh> LoadPlyMesh(const std::string& path) {
     } else if (tok[0] == "element" && tok.size() == 3) {
       PlyElement e;
       e.name = std::string(tok[1]);
-      if (std::from_chars(tok[2].data(), tok[2].data() + tok[2].size(), e.count).ptr !=
-          tok[2].data() + tok[2].size()) {
-        return LineError(path, line_number, absl::StrCat("malformed element count '", tok[2], "'"));
+      const auto [end, ec] = std::from_chars(tok[2].data(), tok[2].data() + tok[2].size(), e.count);
+      if (end != tok[2].data() + tok[2].size() || ec != std::errc()) {
+        return LineError(path, line_number,
+                         absl::StrCat("malformed or out-of-range element count '", tok[2], "'"));
       }
       elements.push_back(e);
     } else if (tok[0] == "property" && !elements.empty() &&
@@ -417,6 +424,10 @@ absl::StatusOr<TriangleMesh> LoadPlyMesh(const std::string& path) {
           double index = 0;
           if (!reader.Read(p.type, &index)) return truncated(absl::StrCat(e.name, " ", item));
           if (int(i) != face_list) continue;
+          if (index != std::floor(index)) {  // an ASCII "1.7" is no vertex index
+            return absl::InvalidArgumentError(absl::StrCat(path, ": face ", item, ": vertex index ",
+                                                           index, " is not a whole number"));
+          }
           if (index < 0 || index >= double(mesh.positions.size()) || !have_vertices) {
             return absl::InvalidArgumentError(absl::StrCat(path, ": face ", item, ": vertex index ",
                                                            index, " out of range (the file has ",
@@ -701,11 +712,12 @@ TriangleMesh MakeCylinderMesh(int segments, int rings) {
 void TransformMesh(const Mat4& to_world, TriangleMesh* mesh) {
   for (Vec3& p : mesh->positions) p = to_world.ApplyPoint(p);
   if (mesh->normals.empty()) return;
-  const Mat4 inv = to_world.Inverse();  // once, not per normal as Mat4::ApplyNormal would
+  double c[3][3];  // once, not per normal
+  NormalMatrix(to_world, c);
   for (Vec3& n : mesh->normals) {
-    n = Normalize(Vec3(float(inv.m[0][0] * n.x + inv.m[1][0] * n.y + inv.m[2][0] * n.z),
-                       float(inv.m[0][1] * n.x + inv.m[1][1] * n.y + inv.m[2][1] * n.z),
-                       float(inv.m[0][2] * n.x + inv.m[1][2] * n.y + inv.m[2][2] * n.z)));
+    n = Normalize(Vec3(float(c[0][0] * n.x + c[0][1] * n.y + c[0][2] * n.z),
+                       float(c[1][0] * n.x + c[1][1] * n.y + c[1][2] * n.z),
+                       float(c[2][0] * n.x + c[2][1] * n.y + c[2][2] * n.z)));
   }
 }
 

@@ -18,7 +18,12 @@ namespace irfarm {
 // 'inf'"), else "".
 inline std::string ParseFinite(absl::string_view token, double* out) {
   absl::string_view s = token;
-  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
+  // One '+' only: "+-2" is no number (from_chars would read the "-2" after it).
+  if (!s.empty() && s[0] == '+') {
+    s.remove_prefix(1);
+    if (!s.empty() && (s[0] == '-' || s[0] == '+'))
+      return absl::StrCat("malformed number '", token, "'");
+  }
   const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), *out);
   if (s.empty() || end != s.data() + s.size() ||
       (ec != std::errc() && ec != std::errc::result_out_of_range)) {

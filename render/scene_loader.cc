@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <set>
@@ -250,6 +251,15 @@ class Parser {
     scene_.warnings.push_back(absl::StrCat(Where(n), what));
   }
   static std::string Describe(pugi::xml_node n);
+  // An error for values a float cannot hold (finite doubles beyond 3.4e38 would become inf: a
+  // sphere of radius 1e39 vanished, a lamp of radiance 1e39 rendered black).
+  absl::Status InFloatRange(pugi::xml_node n, const std::vector<double>& values) const {
+    for (double v : values)
+      if (!(std::abs(v) <= double(std::numeric_limits<float>::max())))
+        return Error(n, absl::StrCat("value ", v, " in ", Describe(n),
+                                     " is beyond the range of a float (3.4e38)"));
+    return absl::OkStatus();
+  }
 
   // Attributes, with $name substitution.
   absl::StatusOr<std::string> Attr(pugi::xml_node n, const char* name) const;
@@ -724,6 +734,7 @@ absl::StatusOr<float> Parser::GetFloat(Params& p, absl::string_view name, float 
   LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"float", "integer"}));
   if (e == nullptr) return def;
   LOADER_ASSIGN_OR_RETURN(const double v, Number(e->node, "value"));
+  LOADER_RETURN_IF_ERROR(InFloatRange(e->node, {v}));
   return float(v);
 }
 
@@ -732,7 +743,8 @@ absl::StatusOr<int> Parser::GetInt(Params& p, absl::string_view name, int def) c
   if (e == nullptr) return def;
   LOADER_ASSIGN_OR_RETURN(std::string text, RequiredAttr(e->node, "value"));
   absl::string_view s = absl::StripAsciiWhitespace(text);
-  if (!s.empty() && s[0] == '+') s.remove_prefix(1);
+  if (!s.empty() && s[0] == '+' && !(s.size() > 1 && (s[1] == '-' || s[1] == '+')))
+    s.remove_prefix(1);
   int v = 0;
   const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
   if (s.empty() || ec != std::errc() || end != s.data() + s.size()) {
@@ -765,6 +777,7 @@ absl::StatusOr<Vec3> Parser::GetRgb(Params& p, absl::string_view name, Vec3 def)
   if (e == nullptr) return def;
   if (e->tag == "spectrum") return e->rgb;
   LOADER_ASSIGN_OR_RETURN(const std::vector<double> v, Numbers(e->node, "value"));
+  LOADER_RETURN_IF_ERROR(InFloatRange(e->node, v));
   if (v.size() == 1) return Vec3(float(v[0]));
   if (v.size() != 3) {
     return Error(e->node, absl::StrCat("expected 1 or 3 numbers in ", Describe(e->node), ", got ",
@@ -777,6 +790,7 @@ absl::StatusOr<std::optional<Vec3>> Parser::GetVec3(Params& p, absl::string_view
   LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"point", "vector"}));
   if (e == nullptr) return std::optional<Vec3>();
   LOADER_ASSIGN_OR_RETURN(const auto v, Xyz(e->node, 0, false));
+  LOADER_RETURN_IF_ERROR(InFloatRange(e->node, {v[0], v[1], v[2]}));
   return std::optional<Vec3>(Vec3(float(v[0]), float(v[1]), float(v[2])));
 }
 
@@ -785,6 +799,7 @@ absl::StatusOr<std::optional<std::array<double, 3>>> Parser::GetPoint(
   LOADER_ASSIGN_OR_RETURN(const Entry* e, Find(p, name, {"point", "vector"}));
   if (e == nullptr) return std::optional<std::array<double, 3>>();
   LOADER_ASSIGN_OR_RETURN(const auto v, Xyz(e->node, 0, false));
+  LOADER_RETURN_IF_ERROR(InFloatRange(e->node, {v[0], v[1], v[2]}));
   return std::optional<std::array<double, 3>>(v);
 }
 
@@ -1190,7 +1205,7 @@ absl::Status Parser::ParseSensor(pugi::xml_node n) {
     for (int j = i; j < 3; ++j) {
       double dot = 0;
       for (int k = 0; k < 3; ++k) dot += cam.to_world.m[i][k] * cam.to_world.m[j][k];
-      if (std::abs(dot - (i == j ? 1.0 : 0.0)) > 1e-3)
+      if (!(std::abs(dot - (i == j ? 1.0 : 0.0)) <= 1e-3))  // NaN too
         return Error(NodeOf(p, "to_world"),
                      "scale factors in the camera's to_world are not allowed (Mitsuba refuses "
                      "them too)");
@@ -1255,6 +1270,15 @@ absl::Status Parser::ParseFilm(pugi::xml_node n) {
   if (film_w <= 0 || film_h <= 0) {
     return Error(NodeOf(p, film_w <= 0 ? "width" : "height"),
                  absl::StrCat("film size must be positive, got ", film_w, " x ", film_h));
+  }
+  // A render keeps several float buffers per pixel (about 50 bytes): 60000 x 60000 ended in an
+  // uncaught bad_alloc. 2^28 pixels (16384 x 16384, about 13 GB) is the most a render takes; the
+  // coordinator's own limit (--max-film-pixels) is lower by default.
+  constexpr int64_t kMaxFilmPixels = int64_t(1) << 28;
+  if (int64_t(film_w) * int64_t(film_h) > kMaxFilmPixels) {
+    return Error(NodeOf(p, "width"),
+                 absl::StrCat("film of ", film_w, " x ", film_h, " pixels is larger than ",
+                              kMaxFilmPixels, " pixels (16384 x 16384), the most irfarm renders"));
   }
   if (!IsOneOf(file_format, {"openexr", "exr", "rgbe", "pfm"}))
     return Error(NodeOf(p, "file_format"),
@@ -1678,7 +1702,8 @@ absl::Status Parser::ParseShape(pugi::xml_node n) {
   if (g.sphere) {
     s.type = ShapeType::kSphere;
     const double det = to_world.Determinant3();
-    if (det == 0) return Error(NodeOf(p, "to_world"), "the sphere's to_world is singular");
+    if (det == 0 || !std::isfinite(det))
+      return Error(NodeOf(p, "to_world"), "the sphere's to_world is singular or not finite");
     s.center =
         (to_world * Mat4::Translate(g.center[0], g.center[1], g.center[2])).ApplyPoint(Vec3(0.0f));
     bool uniform = true;

@@ -48,7 +48,8 @@ absl::StatusOr<Light> Build(const EmitterDesc& d, std::vector<std::unique_ptr<Te
   td.filename = d.filename;
   td.raw = false;  // 8-bit images are sRGB-encoded, as Mitsuba decodes them (EXR and HDR: linear)
   td.loc = d.loc;
-  absl::StatusOr<std::unique_ptr<BitmapTexture>> tex = BitmapTexture::Load(td);
+  absl::StatusOr<std::unique_ptr<BitmapTexture>> tex =
+      BitmapTexture::Load(td, /*finite_only=*/true);
   if (!tex.ok()) return tex.status();
   l.envmap = tex->get();
   textures->push_back(*std::move(tex));

@@ -19,7 +19,8 @@ Vec3 AverageOf(const double sum[3], size_t texels) {
 
 }  // namespace
 
-absl::StatusOr<std::unique_ptr<BitmapTexture>> BitmapTexture::Load(const TextureDesc& desc) {
+absl::StatusOr<std::unique_ptr<BitmapTexture>> BitmapTexture::Load(const TextureDesc& desc,
+                                                                   bool finite_only) {
   Image floats;
   ByteImage bytes;
   const absl::Status read = ReadTextureImage(desc.filename, desc.raw, &floats, &bytes);
@@ -33,8 +34,18 @@ absl::StatusOr<std::unique_ptr<BitmapTexture>> BitmapTexture::Load(const Texture
     t->height_ = floats.height;
     t->image_ = std::move(floats);
     double sum[3] = {0, 0, 0};
-    for (const Vec3& p : t->image_.pixels)
+    for (size_t i = 0; i < t->image_.pixels.size(); ++i) {
+      const Vec3& p = t->image_.pixels[i];
+      // A NaN or infinite texel (a half-float sky's clipped sun) in an environment map would make
+      // its whole sampling table NaN: a black image, silently.
+      if (finite_only && !IsFinite(p)) {
+        const size_t w = size_t(std::max(1, t->width_));
+        return absl::InvalidArgumentError(
+            absl::StrCat(desc.loc.ToString(), ": ", desc.filename, ": texel (", i % w, ", ", i / w,
+                         ") is not finite (NaN or infinity); clamp it in the image"));
+      }
       for (int c = 0; c < 3; ++c) sum[c] += double(p[c]);
+    }
     t->average_ = AverageOf(sum, size_t(t->width_) * size_t(t->height_));
     return t;
   }

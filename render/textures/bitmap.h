@@ -19,7 +19,12 @@ namespace irfarm {
 
 class BitmapTexture final : public Texture {
  public:
-  static absl::StatusOr<std::unique_ptr<BitmapTexture>> Load(const TextureDesc& desc);
+  // `finite_only`: a float image with a NaN or infinite texel is refused, naming the texel (an
+  // environment map: one such texel made its sampling table, and so the whole image, black). A
+  // surface texture keeps them: the samples they poison are counted and left out of the image
+  // (RenderCounters::nonfinite_samples; DirectLightTest.NanTexelIsCountedAndKeptOutOfTheImage).
+  static absl::StatusOr<std::unique_ptr<BitmapTexture>> Load(const TextureDesc& desc,
+                                                             bool finite_only = false);
   Vec3 Eval(float u, float v) const override;
   // Mitsuba's bitmap eval_1: the luminance of a colour image (a grey one's value).
   float EvalScalar(float u, float v) const override { return Luminance(Eval(u, v)); }

@@ -161,6 +161,75 @@ TEST(SceneLoaderErrorTest, NonFiniteNumber) {
               "scene.xml:3:", "non-finite number '1e999'");
 }
 
+// Finite numbers a float cannot hold, and a sign after a '+', are refused (a review: a sphere of
+// radius 1e39 vanished and a lamp of radiance 1e39 was black, silently; "+-2" read as -2).
+TEST(SceneLoaderErrorTest, NumbersBeyondAFloatOrWithTwoSigns) {
+  ExpectError(
+      Load("  <shape type=\"sphere\">\n    <float name=\"radius\" value=\"1e39\"/>\n"
+           "  </shape>\n"),
+      "scene.xml:3:", "value 1e+39 in <float name=\"radius\"> is beyond the range of a float");
+  ExpectError(
+      Load("  <bsdf type=\"diffuse\">\n    <rgb name=\"reflectance\" value=\"0.5, -1e39, 0\"/>\n"
+           "  </bsdf>\n"),
+      "scene.xml:3:", "beyond the range of a float");
+  ExpectError(Load("  <shape type=\"sphere\">\n    <point name=\"center\" value=\"0, 4e38, 0\"/>\n"
+                   "  </shape>\n"),
+              "scene.xml:3:", "beyond the range of a float");
+  EXPECT_TRUE(Load("  <shape type=\"sphere\">\n    <float name=\"radius\" value=\"3e38\"/>\n"
+                   "  </shape>\n")
+                  .ok());
+  ExpectError(Load("  <shape type=\"sphere\">\n    <float name=\"radius\" value=\"+-2\"/>\n"
+                   "  </shape>\n"),
+              "scene.xml:3:", "malformed number '+-2'");
+  ExpectError(Load("  <integrator type=\"path\">\n    <integer name=\"max_depth\" value=\"+-2\"/>\n"
+                   "  </integrator>\n"),
+              "scene.xml:3:", "malformed integer '+-2'");
+  EXPECT_TRUE(Load("  <shape type=\"sphere\">\n    <float name=\"radius\" value=\"+2\"/>\n"
+                   "  </shape>\n")
+                  .ok());
+}
+
+// A rotation axis of any finite length is a direction: (1e-200, 0, 0) made a NaN matrix (a camera
+// of it crashed in Embree) and (1e200, 0, 0) a matrix that halved the shape.
+TEST(SceneLoaderTest, RotationAxesOfAnyLengthAreDirections) {
+  for (const char* x : {"1", "1e-200", "1e200", "3e-30"}) {
+    const Vec3 c = SphereCenterAfter(std::string("<translate y=\"2\"/><rotate x=\"") + x +
+                                     "\" angle=\"90\"/>");
+    ExpectNear(c, Vec3(0, 0, 2));
+  }
+}
+
+// A to_world that flattens a flat shape along its normal (scale z = 0 on a rectangle, then a
+// rotation) leaves it a rectangle; its normals now turn with it (the inverse transpose does not
+// exist there, and the identity was used: normals lying in the surface).
+TEST(SceneLoaderTest, NormalsOfAShapeFlattenedAlongItsNormalTurnWithIt) {
+  const auto normal_after = [](const std::string& transform) {
+    const auto scene = Load("<shape type=\"rectangle\"><transform name=\"to_world\">" + transform +
+                            "</transform></shape>\n");
+    EXPECT_TRUE(scene.ok()) << scene.status();
+    if (!scene.ok() || scene->shapes.at(0).mesh.normals.empty()) return Vec3(NAN);
+    return scene->shapes.at(0).mesh.normals[0];
+  };
+  const Vec3 expected = normal_after("<rotate x=\"1\" angle=\"-60\"/>");
+  ExpectNear(expected, Vec3(0, std::sin(kPi / 3), std::cos(kPi / 3)));
+  ExpectNear(normal_after("<scale x=\"1\" y=\"1\" z=\"0\"/><rotate x=\"1\" angle=\"-60\"/>"),
+             expected);
+  // A mirror keeps the inverse transpose's direction (the winding is reversed separately).
+  ExpectNear(normal_after("<scale x=\"-1\" y=\"1\" z=\"1\"/><rotate x=\"1\" angle=\"-60\"/>"),
+             expected);
+}
+
+// A film of more pixels than a render can hold is refused at its line (60000 x 60000 ended in an
+// uncaught bad_alloc).
+TEST(SceneLoaderErrorTest, AFilmTooLargeIsRefused) {
+  const std::string scene =
+      "<scene version=\"3.0.0\">\n<sensor type=\"perspective\">\n<film type=\"hdrfilm\">\n"
+      "<integer name=\"width\" value=\"60000\"/>\n<integer name=\"height\" value=\"60000\"/>\n"
+      "</film>\n</sensor>\n</scene>\n";
+  ExpectError(LoadSceneString(scene, "big.xml", {}),
+              "big.xml:4:", "film of 60000 x 60000 pixels is larger than");
+}
+
 TEST(SceneLoaderErrorTest, NegativeOrZeroRadius) {
   ExpectError(Load("  <shape type=\"sphere\">\n    <float name=\"radius\" value=\"-0.5\"/>\n"
                    "  </shape>\n"),
@@ -191,6 +260,32 @@ TEST(SceneLoaderErrorTest, ObjIndexOutOfRange) {
                    "value=\"meshes/bad.obj\"/>\n  </shape>\n",
                    dir + "/scene.xml"),
               dir + "/scene.xml:2:", "bad.obj:5: normal index 2 out of range");
+}
+
+// OBJ values beyond a float are refused as PLY's are; a PLY count beyond 64 bits and a
+// fractional ASCII index are refused, named (a review: inf vertices dropped as degenerate; a
+// count read as 0; 1.7 read as 1).
+TEST(SceneLoaderErrorTest, MeshValuesAFloatCannotHoldOrAnIndexCannotBe) {
+  const std::string dir = MakeDir("mesh_ranges");
+  const auto load = [&](const std::string& type, const std::string& file) {
+    return Load("  <shape type=\"" + type + "\">\n    <string name=\"filename\" value=\"meshes/" +
+                    file + "\"/>\n  </shape>\n",
+                dir + "/scene.xml");
+  };
+  WriteFile(dir + "/meshes/big.obj", "v 0 0 0\nv 1 0 0\nv 0 1 1e39\nf 1 2 3\n");
+  ExpectError(load("obj", "big.obj"),
+              dir + "/scene.xml:2:", "big.obj:3: value '1e39' is beyond the range of a float");
+  WriteFile(dir + "/meshes/count.ply",
+            "ply\nformat ascii 1.0\nelement vertex 99999999999999999999999\nproperty float x\n"
+            "end_header\n");
+  ExpectError(load("ply", "count.ply"),
+              dir + "/scene.xml:2:", "count.ply:3: malformed or out-of-range element count");
+  WriteFile(dir + "/meshes/frac.ply",
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+            "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1.7 2\n");
+  ExpectError(load("ply", "frac.ply"),
+              dir + "/scene.xml:2:", "frac.ply: face 0: vertex index 1.7 is not a whole number");
 }
 
 TEST(SceneLoaderErrorTest, PlyIndexOutOfRange) {

@@ -166,6 +166,31 @@ TEST(TextureTest, EnvmapLookupMatchesMitsuba) {
   }
 }
 
+// An environment map's float image with a NaN or infinite texel (a half-float sky's clipped sun) is
+// refused with the texel named: it made the sampling table, and so every image, black (a review).
+// A surface texture keeps them (its poisoned samples are counted and dropped, direct_light_test).
+TEST(TextureTest, NonFiniteTexelsAreRefusedInEnvironmentMaps) {
+  const std::string dir = ::testing::TempDir() + "/texture_nonfinite_test";
+  std::filesystem::create_directories(dir);
+  for (const float bad : {INFINITY, NAN}) {
+    Image image(4, 2);
+    image.at(3, 1) = Vec3(1, bad, 1);
+    ASSERT_TRUE(WriteExr(image, dir + "/env.exr").ok());
+    TextureDesc desc;
+    desc.filename = dir + "/env.exr";
+    desc.raw = true;
+    const absl::StatusOr<std::unique_ptr<BitmapTexture>> t = BitmapTexture::Load(desc, true);
+    ASSERT_FALSE(t.ok());
+    EXPECT_NE(std::string(t.status().message()).find("texel (3, 1) is not finite"),
+              std::string::npos)
+        << t.status();
+    EXPECT_TRUE(BitmapTexture::Load(desc).ok());  // a surface texture
+    image.at(3, 1) = Vec3(1, 3e38f, 1);           // large but finite: read
+    ASSERT_TRUE(WriteExr(image, dir + "/env.exr").ok());
+    EXPECT_TRUE(BitmapTexture::Load(desc, true).ok());
+  }
+}
+
 // 8-bit files are kept as their bytes: each texel is exactly the table's value for its byte
 // (sRGB decoded, or byte / 255 with `raw`), and the mean is the mean of those values.
 TEST(TextureTest, EightBitImagesAreReadAsTheirBytes) {
