@@ -26,6 +26,13 @@ constexpr auto kGoodbyeWait = std::chrono::seconds(5);
 // failed (kMaxWorkerJobs, service/job_settings.h: each a scene, a cache and a temp dir until its
 // JobClosed), and leases not yet started (an honest coordinator sends one at a time).
 constexpr size_t kMaxQueuedLeases = 256;
+// A job id is at most 64 characters (JobContext::Create) and a lease token 16 bytes
+// (coordinator/lease_token.h); 64 bytes of either is generous. A longer one from the coordinator is
+// dropped on arrival: it was stored whole (256 queued leases of a 200 MB token each), logged and
+// echoed back (a review).
+constexpr size_t kMaxIdBytes = 64;
+// A lease's time is clamped to a week: steady_clock's nanoseconds overflow past about 9.2e12 ms.
+constexpr int64_t kMaxLeaseMs = int64_t(7) * 24 * 3600 * 1000;
 
 // State shared by a session's reader, publisher and render threads.
 struct SessionState {
@@ -151,6 +158,11 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
     v1::CoordinatorMessage m;
     while (stream->Read(&m)) {
       if (m.has_job_spec()) {
+        if (m.job_spec().job_id().size() > kMaxIdBytes) {
+          spdlog::warn("job spec ignored: its id of {} bytes is longer than {}",
+                       m.job_spec().job_id().size(), kMaxIdBytes);
+          continue;
+        }
         {
           // A job is loaded once: a second spec for it would replace the scene of a tile in
           // progress (whose records then never went out) and load on this thread again.
@@ -188,6 +200,14 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
         }
         if (job && recs.ok()) job->InsertRemote(*recs);
       } else if (m.has_lease()) {
+        if (m.lease().job_id().size() > kMaxIdBytes ||
+            m.lease().lease_token().size() > kMaxIdBytes) {
+          spdlog::warn(
+              "lease of tile {} ignored: a job id of {} bytes or a token of {} (at most {})",
+              m.lease().tile_index(), m.lease().job_id().size(), m.lease().lease_token().size(),
+              kMaxIdBytes);
+          continue;
+        }
         std::lock_guard<std::mutex> lock(s.mu);
         if (s.leases.size() >= kMaxQueuedLeases) {
           spdlog::warn("lease of tile {} ignored: {} leases are waiting already",
@@ -368,9 +388,13 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
       s.tile_cancel = &cancel;
       s.tile_deadline.reset();
       if (lease.lease_ms() > 0)
-        s.tile_deadline = received + std::chrono::milliseconds(lease.lease_ms());
+        s.tile_deadline =
+            received + std::chrono::milliseconds(std::min(lease.lease_ms(), kMaxLeaseMs));
       s.tile_overdue = false;
-      if (s.broken || s.jobs.count(lease.job_id()) == 0) cancel = true;  // closed meanwhile
+      // Closed meanwhile, or closed and sent again as a new job of the same id (this tile's
+      // records would go out with neither job: publish_all walks s.jobs).
+      const auto open = s.jobs.find(lease.job_id());
+      if (s.broken || open == s.jobs.end() || open->second != job) cancel = true;
     }
     tile_settings.cancel = &cancel;
     RenderOutput out = RenderRect(job->scene(), tile_settings, job->cache(), rect);
