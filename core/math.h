@@ -189,7 +189,8 @@ struct Mat4 {
                 float(m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z),
                 float(m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z));
   }
-  // Normals transform with the inverse transpose of the upper 3x3; the result is normalized.
+  // Normals transform with the inverse transpose of the upper 3x3 (NormalMatrix, which also
+  // handles a 3x3 that flattens along the normal); the result is normalized.
   Vec3 ApplyNormal(const Vec3& n) const;
   Mat4 Inverse() const;  // General 4x4 inverse (Gauss-Jordan); identity-scaled if singular.
   double Determinant3() const {
@@ -242,13 +243,17 @@ inline void NormalMatrix(const Mat4& m, double out[3][3]) {
       for (int j = 0; j < 3; ++j) out[i][j] = -out[i][j];
 }
 
+// A normal through NormalMatrix's `c`, normalised.
+inline Vec3 ApplyNormalMatrix(const double c[3][3], const Vec3& n) {
+  return Normalize(Vec3(float(c[0][0] * n.x + c[0][1] * n.y + c[0][2] * n.z),
+                        float(c[1][0] * n.x + c[1][1] * n.y + c[1][2] * n.z),
+                        float(c[2][0] * n.x + c[2][1] * n.y + c[2][2] * n.z)));
+}
+
 inline Vec3 Mat4::ApplyNormal(const Vec3& n) const {
-  const Mat4 inv = Inverse();
-  // (M^-1)^T n
-  const Vec3 r(float(inv.m[0][0] * n.x + inv.m[1][0] * n.y + inv.m[2][0] * n.z),
-               float(inv.m[0][1] * n.x + inv.m[1][1] * n.y + inv.m[2][1] * n.z),
-               float(inv.m[0][2] * n.x + inv.m[1][2] * n.y + inv.m[2][2] * n.z));
-  return Normalize(r);
+  double c[3][3];
+  NormalMatrix(*this, c);
+  return ApplyNormalMatrix(c, n);
 }
 
 }  // namespace irfarm

@@ -100,7 +100,7 @@ absl::StatusOr<TriangleMesh> ParseObjMesh(const std::string& text, const std::st
           return LineError(path, line_number, why);
         }
         // As PLY and .serialized: a value a float cannot hold is refused, not made infinite.
-        if (!(std::abs(x[i]) <= double(std::numeric_limits<float>::max()))) {
+        if (!FitsFloat(x[i])) {
           return LineError(
               path, line_number,
               absl::StrCat("value '", tokens[i + 1], "' is beyond the range of a float"));
@@ -447,7 +447,7 @@ absl::StatusOr<TriangleMesh> LoadPlyMesh(const std::string& path) {
       }
       if (is_vertex) {
         for (const int s : slot) {
-          if (s >= 0 && !(std::abs(values[s]) <= double(std::numeric_limits<float>::max()))) {
+          if (s >= 0 && !FitsFloat(values[s])) {
             return absl::InvalidArgumentError(absl::StrCat(path, ": vertex ", item, ": ",
                                                            e.properties[s].name, " = ", values[s],
                                                            " is not a finite 32-bit float"));
@@ -714,11 +714,7 @@ void TransformMesh(const Mat4& to_world, TriangleMesh* mesh) {
   if (mesh->normals.empty()) return;
   double c[3][3];  // once, not per normal
   NormalMatrix(to_world, c);
-  for (Vec3& n : mesh->normals) {
-    n = Normalize(Vec3(float(c[0][0] * n.x + c[0][1] * n.y + c[0][2] * n.z),
-                       float(c[1][0] * n.x + c[1][1] * n.y + c[1][2] * n.z),
-                       float(c[2][0] * n.x + c[2][1] * n.y + c[2][2] * n.z)));
-  }
+  for (Vec3& n : mesh->normals) n = ApplyNormalMatrix(c, n);
 }
 
 void ReverseWinding(TriangleMesh* mesh) {

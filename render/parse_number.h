@@ -6,6 +6,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <string>
 #include <system_error>
 
@@ -14,16 +15,23 @@
 
 namespace irfarm {
 
+// Removes one leading '+' from *s; false when another sign follows it ("+-2", "++2": no number,
+// though from_chars would read the "-2" after the '+').
+inline bool StripOnePlus(absl::string_view* s) {
+  if (s->empty() || (*s)[0] != '+') return true;
+  s->remove_prefix(1);
+  return s->empty() || ((*s)[0] != '-' && (*s)[0] != '+');
+}
+
+// Whether a finite double is within a float's range (beyond 3.4e38 it would become infinite: a
+// sphere of radius 1e39 vanished, a lamp of radiance 1e39 rendered black). False for NaN too.
+inline bool FitsFloat(double v) { return std::abs(v) <= double(std::numeric_limits<float>::max()); }
+
 // Parses `token` into *out; on failure returns why ("malformed number 'x'", "non-finite number
 // 'inf'"), else "".
 inline std::string ParseFinite(absl::string_view token, double* out) {
   absl::string_view s = token;
-  // One '+' only: "+-2" is no number (from_chars would read the "-2" after it).
-  if (!s.empty() && s[0] == '+') {
-    s.remove_prefix(1);
-    if (!s.empty() && (s[0] == '-' || s[0] == '+'))
-      return absl::StrCat("malformed number '", token, "'");
-  }
+  if (!StripOnePlus(&s)) return absl::StrCat("malformed number '", token, "'");
   const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), *out);
   if (s.empty() || end != s.data() + s.size() ||
       (ec != std::errc() && ec != std::errc::result_out_of_range)) {

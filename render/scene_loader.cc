@@ -251,11 +251,10 @@ class Parser {
     scene_.warnings.push_back(absl::StrCat(Where(n), what));
   }
   static std::string Describe(pugi::xml_node n);
-  // An error for values a float cannot hold (finite doubles beyond 3.4e38 would become inf: a
-  // sphere of radius 1e39 vanished, a lamp of radiance 1e39 rendered black).
+  // An error for values a float cannot hold (FitsFloat, render/parse_number.h).
   absl::Status InFloatRange(pugi::xml_node n, const std::vector<double>& values) const {
     for (double v : values)
-      if (!(std::abs(v) <= double(std::numeric_limits<float>::max())))
+      if (!FitsFloat(v))
         return Error(n, absl::StrCat("value ", v, " in ", Describe(n),
                                      " is beyond the range of a float (3.4e38)"));
     return absl::OkStatus();
@@ -743,11 +742,10 @@ absl::StatusOr<int> Parser::GetInt(Params& p, absl::string_view name, int def) c
   if (e == nullptr) return def;
   LOADER_ASSIGN_OR_RETURN(std::string text, RequiredAttr(e->node, "value"));
   absl::string_view s = absl::StripAsciiWhitespace(text);
-  if (!s.empty() && s[0] == '+' && !(s.size() > 1 && (s[1] == '-' || s[1] == '+')))
-    s.remove_prefix(1);
+  const bool one_sign = StripOnePlus(&s);
   int v = 0;
   const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-  if (s.empty() || ec != std::errc() || end != s.data() + s.size()) {
+  if (!one_sign || s.empty() || ec != std::errc() || end != s.data() + s.size()) {
     return Error(e->node, absl::StrCat("malformed integer '", text, "' in ", Describe(e->node)));
   }
   return v;

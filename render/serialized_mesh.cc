@@ -10,6 +10,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "render/mesh_loader.h"
+#include "render/parse_number.h"
 
 namespace irfarm {
 namespace {
@@ -199,7 +200,7 @@ absl::StatusOr<TriangleMesh> ParseSerializedMesh(const std::string& bytes, const
           std::memcpy(&f, &u, sizeof f);
           v = f;
         }
-        if (!(std::abs(v) <= double(std::numeric_limits<float>::max()))) {
+        if (!FitsFloat(v)) {
           return bad(
               absl::StrCat(what, " value ", done + i, " is ", v, ": not a finite 32-bit float"));
         }

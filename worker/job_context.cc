@@ -16,12 +16,12 @@ absl::StatusOr<std::unique_ptr<JobContext>> JobContext::Create(const v1::JobSpec
   // The id comes from the coordinator and names a directory: a "../" in it would put the bundle
   // elsewhere.
   const std::string& id = spec.job_id();
-  if (id.empty() || id.size() > 64 ||
+  if (id.empty() || id.size() > kMaxIdLength ||
       !std::all_of(
           id.begin(), id.end(),
           [](char ch) { return absl::ascii_isalnum(ch) || ch == '_' || ch == '-' || ch == '.'; }) ||
       id.find("..") != std::string::npos)
-    return absl::InvalidArgumentError("job id '" + id.substr(0, 64) +
+    return absl::InvalidArgumentError("job id '" + id.substr(0, kMaxIdLength) +
                                       "' is not 1-64 of [A-Za-z0-9_.-] (without '..')");
   std::unique_ptr<JobContext> c(new JobContext());
   c->job_id_ = id;

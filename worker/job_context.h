@@ -29,6 +29,8 @@ constexpr size_t kMaxRemoteRecords = size_t(1) << 24;
 
 class JobContext {
  public:
+  // The longest job id a worker takes ([A-Za-z0-9_.-]; it names the job's temp dir).
+  static constexpr size_t kMaxIdLength = 64;
   // Writes the bundle (if any) to a temp dir, loads and builds the scene. The job id must be
   // [A-Za-z0-9_.-]{1,64} (it names the temp dir).
   static absl::StatusOr<std::unique_ptr<JobContext>> Create(const v1::JobSpec& spec, int threads);

@@ -26,11 +26,10 @@ constexpr auto kGoodbyeWait = std::chrono::seconds(5);
 // failed (kMaxWorkerJobs, service/job_settings.h: each a scene, a cache and a temp dir until its
 // JobClosed), and leases not yet started (an honest coordinator sends one at a time).
 constexpr size_t kMaxQueuedLeases = 256;
-// A job id is at most 64 characters (JobContext::Create) and a lease token 16 bytes
-// (coordinator/lease_token.h); 64 bytes of either is generous. A longer one from the coordinator is
-// dropped on arrival: it was stored whole (256 queued leases of a 200 MB token each), logged and
-// echoed back (a review).
-constexpr size_t kMaxIdBytes = 64;
+// A lease token is 16 bytes (coordinator/lease_token.h); 64 is generous. A longer token, or a job
+// id longer than JobContext::kMaxIdLength, from the coordinator is dropped on arrival: it was
+// stored whole (256 queued leases of a 200 MB token each), logged and echoed back (a review).
+constexpr size_t kMaxLeaseTokenBytes = 64;
 // A lease's time is clamped to a week: steady_clock's nanoseconds overflow past about 9.2e12 ms.
 constexpr int64_t kMaxLeaseMs = int64_t(7) * 24 * 3600 * 1000;
 
@@ -158,9 +157,9 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
     v1::CoordinatorMessage m;
     while (stream->Read(&m)) {
       if (m.has_job_spec()) {
-        if (m.job_spec().job_id().size() > kMaxIdBytes) {
+        if (m.job_spec().job_id().size() > JobContext::kMaxIdLength) {
           spdlog::warn("job spec ignored: its id of {} bytes is longer than {}",
-                       m.job_spec().job_id().size(), kMaxIdBytes);
+                       m.job_spec().job_id().size(), JobContext::kMaxIdLength);
           continue;
         }
         {
@@ -200,12 +199,13 @@ void Worker::RunSession(v1::WorkerService::Stub* stub, const std::string& addres
         }
         if (job && recs.ok()) job->InsertRemote(*recs);
       } else if (m.has_lease()) {
-        if (m.lease().job_id().size() > kMaxIdBytes ||
-            m.lease().lease_token().size() > kMaxIdBytes) {
+        if (m.lease().job_id().size() > JobContext::kMaxIdLength ||
+            m.lease().lease_token().size() > kMaxLeaseTokenBytes) {
           spdlog::warn(
-              "lease of tile {} ignored: a job id of {} bytes or a token of {} (at most {})",
-              m.lease().tile_index(), m.lease().job_id().size(), m.lease().lease_token().size(),
-              kMaxIdBytes);
+              "lease of tile {} ignored: a job id of {} bytes (at most {}) or a token of {} (at "
+              "most {})",
+              m.lease().tile_index(), m.lease().job_id().size(), JobContext::kMaxIdLength,
+              m.lease().lease_token().size(), kMaxLeaseTokenBytes);
           continue;
         }
         std::lock_guard<std::mutex> lock(s.mu);
